@@ -1,0 +1,809 @@
+//! The DP-V0 slave (IEC 61158-6-3 / EN 50170 vol. 2; reference §3).
+//!
+//! [`DpSlave`] implements [`FdlApplication`] for the FDL [`Station`](crate::fdl::station::Station):
+//! it runs the state machine Wait_Prm → Wait_Cfg → Data_Exch, evaluates Set_Prm and
+//! Chk_Cfg, keeps the diagnosis, the cyclic images, the master lock and the DP watchdog.
+//!
+//! One room per service: [`prm`] (Set_Prm), [`cfg`] (Chk_Cfg / Get_Cfg), [`diag`]
+//! (Slave_Diag), [`global_control`] (Global_Control), [`slave_add`] (Set_Slave_Add). The
+//! state machine and the staging of responses live here.
+//!
+//! **Pre-staged responses.** The Data_Exchange answer (inputs) and the diagnosis answer are
+//! complete frames kept in double buffers and rebuilt only when their content changes
+//! ([`DpSlave::set_inputs`], a state change). Answering a request only patches the header
+//! bytes (destination, FC DL/DH, DSAP) and the checksum incrementally; the frame sent last
+//! is never rewritten, so an FCB retry gets it byte for byte.
+//!
+//! **Services, states and who may use them** (reference §3.1, §3.2, §3.8; `RS` = SD1
+//! "no service activated"):
+//!
+//! | service (DSAP) | allowed | otherwise |
+//! |---|---|---|
+//! | Data_Exchange (none) | Data_Exch, locking master, output length = configured or 0 | RS (wrong length: RS, outputs kept, counted) |
+//! | Set_Slave_Add (55) | Wait_Prm, address not frozen, right ident | RS |
+//! | Rd_Inp (56) / Rd_Outp (57) | Data_Exch, any master | RS |
+//! | Global_Control (58, SDN) | Data_Exch, locking master, group selected | ignored, counted |
+//! | Get_Cfg (59) / Slave_Diag (60) | always, any master | — |
+//! | Set_Prm (61) | unlocked slave or locking master | SC, content ignored, counted |
+//! | Chk_Cfg (62) | Wait_Cfg / Data_Exch, locking master | RS |
+//! | any other SAP | — | RS |
+
+pub mod cfg;
+pub mod diag;
+pub mod global_control;
+pub mod prm;
+pub mod slave_add;
+
+use crate::card::{self, Module};
+use crate::fdl::station::{FdlApplication, Reply};
+use crate::fdl::telegram::{self, DataTelegram, FunctionCode, Header, RequestFunction, ResponseStatus, MAX_FRAME_LEN};
+use crate::time::{BitTimes, Duration, Instant};
+use diag::{DiagError, StandardDiag, Status1, Status2};
+use global_control::{ControlCommand, GlobalControl};
+use prm::{SetPrm, StationStatus};
+use slave_add::SetSlaveAdd;
+
+/// DP service access points of a slave (reference §3.1).
+pub mod sap {
+    /// Set_Slave_Add.
+    pub const SET_SLAVE_ADD: u8 = 55;
+    /// Rd_Inp.
+    pub const RD_INP: u8 = 56;
+    /// Rd_Outp.
+    pub const RD_OUTP: u8 = 57;
+    /// Global_Control.
+    pub const GLOBAL_CONTROL: u8 = 58;
+    /// Get_Cfg.
+    pub const GET_CFG: u8 = 59;
+    /// Slave_Diag.
+    pub const SLAVE_DIAG: u8 = 60;
+    /// Set_Prm.
+    pub const SET_PRM: u8 = 61;
+    /// Chk_Cfg.
+    pub const CHK_CFG: u8 = 62;
+}
+
+/// The DP slave states (reference §3.2; SPC3 status codes 00/01/10).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum DpState {
+    /// Waiting for a valid Set_Prm (after power on, faults, watchdog expiry, unlock).
+    WaitPrm,
+    /// Parameterized; waiting for Chk_Cfg.
+    WaitCfg,
+    /// Cyclic data exchange.
+    DataExch,
+}
+
+bitflags::bitflags! {
+    /// What happened since the last [`DpSlave::take_events`].
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+    pub struct Events: u16 {
+        /// The DP state changed.
+        const STATE_CHANGED = 1 << 0;
+        /// New outputs were applied ([`DpSlave::outputs`]).
+        const OUTPUTS_UPDATED = 1 << 1;
+        /// Clear mode was entered or left ([`DpSlave::is_clear`]).
+        const CLEAR_CHANGED = 1 << 2;
+        /// The DP watchdog expired: data exchange was left and the outputs cleared.
+        const WATCHDOG_EXPIRED = 1 << 3;
+        /// A Set_Prm was accepted (the user parameters may have changed).
+        const PRM_ACCEPTED = 1 << 4;
+        /// A Set_Prm was refused (Prm_Fault).
+        const PRM_FAULT = 1 << 5;
+        /// A Chk_Cfg was accepted.
+        const CFG_ACCEPTED = 1 << 6;
+        /// A Chk_Cfg was refused (Cfg_Fault).
+        const CFG_FAULT = 1 << 7;
+        /// Set_Slave_Add changed the address: persist it ([`slave_add::AddressStore`]).
+        const ADDRESS_CHANGED = 1 << 8;
+        /// A Sync command applied the outputs.
+        const SYNC = 1 << 9;
+        /// A Freeze command sampled the inputs.
+        const FREEZE = 1 << 10;
+        /// Data exchange was left (any reason).
+        const LEFT_DATA_EXCHANGE = 1 << 11;
+        /// The locking master read the diagnosis.
+        const DIAG_READ = 1 << 12;
+    }
+}
+
+/// Counters of the DP layer (every refused or ignored request is counted).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct SlaveStats {
+    /// Data_Exchange requests answered with data.
+    pub data_exchanges: u32,
+    /// Slave_Diag requests answered.
+    pub diag_reads: u32,
+    /// Set_Prm refused (Prm_Fault).
+    pub prm_faults: u32,
+    /// Chk_Cfg refused (Cfg_Fault).
+    pub cfg_faults: u32,
+    /// DP watchdog expiries.
+    pub watchdog_expiries: u32,
+    /// Data_Exchange with a wrong output length.
+    pub wrong_output_len: u32,
+    /// Requests from a master that does not hold the lock.
+    pub not_locking_master: u32,
+    /// Requests refused with RS (state, SAP closed, malformed).
+    pub rs_answers: u32,
+    /// Global_Control ignored (state, master, length, reserved bits, not requested).
+    pub gc_ignored: u32,
+}
+
+/// Frame buffer ids (see [`FdlApplication::frame`]).
+const DX0: u8 = 0;
+const DIAG0: u8 = 2;
+const MISC: u8 = 4;
+const N_BUF: usize = 5;
+const MAX_IMAGE: usize =
+    if card::MAX_INPUT_LEN > card::MAX_OUTPUT_LEN { card::MAX_INPUT_LEN } else { card::MAX_OUTPUT_LEN };
+
+/// The DP slave.
+#[derive(Debug, Clone)]
+pub struct DpSlave {
+    address: u8,
+    no_add_chg: bool,
+    state: DpState,
+    master: Option<u8>,
+    prm: Option<SetPrm>,
+    min_tsdr: BitTimes,
+    module: Option<&'static Module>,
+    // Faults and diagnosis flags.
+    prm_fault: bool,
+    cfg_fault: bool,
+    not_supported: bool,
+    ext_diag_flag: bool,
+    stat_diag: bool,
+    ext_diag: heapless::Vec<u8, { card::MAX_EXT_DIAG_LEN }>,
+    /// New diagnosis for the locking master (→ DH in Data_Exchange).
+    diag_new: bool,
+    diag_dirty: bool,
+    // Cyclic images.
+    app_inputs: [u8; card::MAX_INPUT_LEN],
+    outputs: [u8; card::MAX_OUTPUT_LEN],
+    pending_outputs: [u8; card::MAX_OUTPUT_LEN],
+    has_pending_outputs: bool,
+    sync_mode: bool,
+    freeze_mode: bool,
+    gc_clear: bool,
+    fs_clear: bool,
+    // DP watchdog.
+    wd_time: Option<Duration>,
+    wd_deadline: Option<Instant>,
+    // Staged frames.
+    bufs: [[u8; MAX_FRAME_LEN]; N_BUF],
+    lens: [u16; N_BUF],
+    /// The buffer that holds the current staged Data_Exchange / diagnosis frame.
+    dx_cur: u8,
+    diag_cur: u8,
+    /// The buffer of the last frame handed to the station (kept intact for retries).
+    last_sent: Option<u8>,
+    events: Events,
+    stats: SlaveStats,
+}
+
+impl DpSlave {
+    /// A slave at `address` (0..=126), in Wait_Prm, with an unfrozen address.
+    pub fn new(address: u8) -> Self {
+        Self::with_address_lock(address, false)
+    }
+
+    /// A slave whose address and No_Add_Chg flag come from an address store.
+    pub fn with_address_lock(address: u8, no_add_chg: bool) -> Self {
+        let mut s = DpSlave {
+            address: address.min(card::MAX_STATION_ADDRESS),
+            no_add_chg,
+            state: DpState::WaitPrm,
+            master: None,
+            prm: None,
+            min_tsdr: BitTimes::MIN_TSDR_DEFAULT,
+            module: None,
+            prm_fault: false,
+            cfg_fault: false,
+            not_supported: false,
+            ext_diag_flag: false,
+            stat_diag: false,
+            ext_diag: heapless::Vec::new(),
+            diag_new: false,
+            diag_dirty: true,
+            app_inputs: [0; card::MAX_INPUT_LEN],
+            outputs: [0; card::MAX_OUTPUT_LEN],
+            pending_outputs: [0; card::MAX_OUTPUT_LEN],
+            has_pending_outputs: false,
+            sync_mode: false,
+            freeze_mode: false,
+            gc_clear: false,
+            fs_clear: false,
+            wd_time: None,
+            wd_deadline: None,
+            bufs: [[0; MAX_FRAME_LEN]; N_BUF],
+            lens: [0; N_BUF],
+            dx_cur: DX0,
+            diag_cur: DIAG0,
+            last_sent: None,
+            events: Events::empty(),
+            stats: SlaveStats::default(),
+        };
+        s.restage_diag();
+        s.restage_dx();
+        s
+    }
+
+    /// Own station address.
+    pub fn address(&self) -> u8 {
+        self.address
+    }
+    /// Whether Set_Slave_Add may no longer change the address.
+    pub fn no_add_chg(&self) -> bool {
+        self.no_add_chg
+    }
+    /// DP state.
+    pub fn state(&self) -> DpState {
+        self.state
+    }
+    /// The locking master, if any.
+    pub fn master_address(&self) -> Option<u8> {
+        self.master
+    }
+    /// min_TSDR from the last Set_Prm (11 bit times by default).
+    pub fn min_tsdr(&self) -> BitTimes {
+        self.min_tsdr
+    }
+    /// The module accepted by the last Chk_Cfg.
+    pub fn module(&self) -> Option<&'static Module> {
+        self.module
+    }
+    /// The accepted Set_Prm (user parameters, DPV1 status bytes, watchdog).
+    pub fn parameters(&self) -> Option<&SetPrm> {
+        self.prm.as_ref()
+    }
+    /// The DP watchdog time in force, `None` when off.
+    pub fn watchdog_time(&self) -> Option<Duration> {
+        self.wd_time
+    }
+    /// Clear mode: Global_Control Clear_Data, or fail-safe zero-length outputs (reference §3.7).
+    pub fn is_clear(&self) -> bool {
+        self.gc_clear || self.fs_clear
+    }
+    /// Sync mode active.
+    pub fn is_sync(&self) -> bool {
+        self.sync_mode
+    }
+    /// Freeze mode active.
+    pub fn is_freeze(&self) -> bool {
+        self.freeze_mode
+    }
+    /// Counters.
+    pub fn stats(&self) -> SlaveStats {
+        self.stats
+    }
+    /// Input bytes of the configured module (0 before Chk_Cfg).
+    pub fn input_len(&self) -> usize {
+        self.module.map_or(0, |m| m.inputs as usize)
+    }
+    /// Output bytes of the configured module (0 before Chk_Cfg).
+    pub fn output_len(&self) -> usize {
+        self.module.map_or(0, |m| m.outputs as usize)
+    }
+    /// The applied output image (master → slave); all zero outside data exchange and after
+    /// Clear_Data.
+    pub fn outputs(&self) -> &[u8] {
+        &self.outputs[..self.output_len()]
+    }
+    /// The input image the master receives now (frozen inputs in Freeze mode).
+    pub fn inputs(&self) -> &[u8] {
+        let n = self.input_len();
+        if n == 0 {
+            return &[];
+        }
+        let len = self.lens[self.dx_cur as usize] as usize;
+        &self.bufs[self.dx_cur as usize][telegram::pdu_range(len, n)]
+    }
+
+    /// Events since the last call.
+    pub fn take_events(&mut self) -> Events {
+        core::mem::take(&mut self.events)
+    }
+
+    /// The application's input image (slave → master). Shorter data is padded with zeros,
+    /// longer data cut to the configured length. In Freeze mode the master keeps receiving
+    /// the frozen inputs until the next Freeze / Unfreeze.
+    pub fn set_inputs(&mut self, data: &[u8]) {
+        let n = data.len().min(card::MAX_INPUT_LEN);
+        self.app_inputs[..n].copy_from_slice(&data[..n]);
+        self.app_inputs[n..].fill(0);
+        if !self.freeze_mode {
+            self.restage_dx();
+        }
+    }
+
+    /// Set the extended diagnosis blocks (after the 6 standard octets) and the Ext_Diag
+    /// flag ("a diagnosis entry exists"). A change is announced to the master by answering
+    /// Data_Exchange with DH. Malformed blocks are refused and change nothing.
+    pub fn set_ext_diag(&mut self, blocks: &[u8], ext_diag: bool) -> Result<(), DiagError> {
+        diag::validate_ext_diag(blocks)?;
+        if self.ext_diag.as_slice() != blocks || self.ext_diag_flag != ext_diag {
+            self.ext_diag.clear();
+            // Cannot fail: validate_ext_diag bounded the length.
+            let _ = self.ext_diag.extend_from_slice(blocks);
+            self.ext_diag_flag = ext_diag;
+            self.diag_changed();
+        }
+        Ok(())
+    }
+
+    /// Stat_Diag: ask the master to keep reading diagnosis (e.g. while the drive is not
+    /// ready after configuration).
+    pub fn set_stat_diag(&mut self, on: bool) {
+        if self.stat_diag != on {
+            self.stat_diag = on;
+            self.diag_changed();
+        }
+    }
+
+    /// The standard diagnosis octets as they are now.
+    pub fn standard_diag(&self) -> StandardDiag {
+        let mut s1 = Status1::empty();
+        s1.set(Status1::STATION_NOT_READY, self.state != DpState::DataExch);
+        s1.set(Status1::CFG_FAULT, self.cfg_fault);
+        s1.set(Status1::EXT_DIAG, self.ext_diag_flag);
+        s1.set(Status1::NOT_SUPPORTED, self.not_supported);
+        s1.set(Status1::PRM_FAULT, self.prm_fault);
+        let mut s2 = Status2::ALWAYS_ONE;
+        s2.set(Status2::PRM_REQ, self.state == DpState::WaitPrm);
+        s2.set(Status2::STAT_DIAG, self.stat_diag);
+        s2.set(Status2::WD_ON, self.wd_time.is_some() && self.state != DpState::WaitPrm);
+        s2.set(Status2::FREEZE_MODE, self.freeze_mode);
+        s2.set(Status2::SYNC_MODE, self.sync_mode);
+        StandardDiag { status1: s1, status2: s2, status3: 0, master_add: self.master.unwrap_or(0xFF) }
+    }
+
+    /// Run the timers: the DP watchdog (reference §1.6, §3.10).
+    pub fn poll(&mut self, now: Instant) {
+        if let Some(deadline) = self.wd_deadline {
+            if now >= deadline && self.state != DpState::WaitPrm {
+                self.stats.watchdog_expiries = self.stats.watchdog_expiries.wrapping_add(1);
+                self.events |= Events::WATCHDOG_EXPIRED;
+                self.leave(DpState::WaitPrm);
+            }
+        }
+        if self.diag_dirty {
+            self.restage_diag();
+        }
+    }
+
+    // ----- state changes -----
+
+    fn set_state(&mut self, s: DpState) {
+        if self.state != s {
+            if self.state == DpState::DataExch {
+                self.events |= Events::LEFT_DATA_EXCHANGE;
+            }
+            self.state = s;
+            self.events |= Events::STATE_CHANGED;
+            self.diag_dirty = true;
+        }
+    }
+
+    /// Leave data exchange / parameterization: outputs cleared (fail-safe), modes reset;
+    /// to Wait_Prm also releases the lock and stops the watchdog.
+    fn leave(&mut self, to: DpState) {
+        let had_outputs = self.outputs.iter().any(|&b| b != 0);
+        self.outputs.fill(0);
+        self.has_pending_outputs = false;
+        if had_outputs {
+            self.events |= Events::OUTPUTS_UPDATED;
+        }
+        if self.sync_mode || self.freeze_mode {
+            self.sync_mode = false;
+            self.freeze_mode = false;
+            self.restage_dx();
+        }
+        if self.is_clear() {
+            self.gc_clear = false;
+            self.fs_clear = false;
+            self.events |= Events::CLEAR_CHANGED;
+        }
+        if to == DpState::WaitPrm {
+            self.master = None;
+            self.wd_deadline = None;
+        }
+        self.set_state(to);
+        self.diag_dirty = true;
+    }
+
+    fn diag_changed(&mut self) {
+        self.diag_dirty = true;
+        if self.state == DpState::DataExch {
+            self.diag_new = true;
+        }
+    }
+
+    fn retrigger(&mut self, now: Instant, sa: u8) {
+        if self.master == Some(sa) {
+            if let Some(t) = self.wd_time {
+                self.wd_deadline = Some(now + t);
+            }
+        }
+    }
+
+    // ----- staging -----
+
+    /// A buffer of the pair starting at `base` that is not the one sent last.
+    fn free_of(&self, cur: u8, base: u8) -> u8 {
+        if self.last_sent == Some(cur) {
+            base + (1 - (cur - base))
+        } else {
+            cur
+        }
+    }
+
+    fn restage_dx(&mut self) {
+        let n_in = self.input_len();
+        let id = self.free_of(self.dx_cur, DX0);
+        let hdr = Header {
+            da: self.master.unwrap_or(0),
+            sa: self.address,
+            fc: FunctionCode::response(ResponseStatus::Dl),
+            dsap: None,
+            ssap: None,
+        };
+        let buf = &mut self.bufs[id as usize];
+        let len = telegram::emit(buf, &hdr, &self.app_inputs[..n_in]).unwrap_or(0);
+        self.lens[id as usize] = len as u16;
+        self.dx_cur = id;
+    }
+
+    fn restage_diag(&mut self) {
+        let id = self.free_of(self.diag_cur, DIAG0);
+        let std = self.standard_diag().encode();
+        let mut pdu = [0u8; card::MAX_DIAG_DATA_LEN];
+        pdu[..6].copy_from_slice(&std);
+        let n = 6 + self.ext_diag.len();
+        pdu[6..n].copy_from_slice(&self.ext_diag);
+        let hdr = Header {
+            da: 0,
+            sa: self.address,
+            fc: FunctionCode::response(ResponseStatus::Dl),
+            dsap: Some(62),
+            ssap: Some(sap::SLAVE_DIAG),
+        };
+        let len = telegram::emit(&mut self.bufs[id as usize], &hdr, &pdu[..n]).unwrap_or(0);
+        self.lens[id as usize] = len as u16;
+        self.diag_cur = id;
+        self.diag_dirty = false;
+    }
+
+    /// Patch destination, FC and (if present) DSAP of a staged frame, keeping the FCS right.
+    fn patch(&mut self, id: u8, da: u8, fc: u8, dsap: Option<u8>) -> Reply {
+        let len = self.lens[id as usize] as usize;
+        let buf = &mut self.bufs[id as usize];
+        let at = if buf[0] == telegram::SD2 { 4 } else { 1 };
+        let mut fcs = buf[len - 2];
+        let da_byte = (buf[at] & 0x80) | da;
+        let mut edits = [(at, da_byte), (at + 2, fc), (usize::MAX, 0)];
+        if let Some(d) = dsap {
+            edits[2] = (at + 3, d & 0x3F);
+        }
+        for (i, v) in edits {
+            if i < len {
+                fcs = fcs.wrapping_sub(buf[i]).wrapping_add(v);
+                buf[i] = v;
+            }
+        }
+        buf[len - 2] = fcs;
+        self.last_sent = Some(id);
+        Reply::Frame { id, len: len as u16 }
+    }
+
+    fn misc_frame(&mut self, req: &DataTelegram<'_>, pdu: &[u8]) -> Reply {
+        let hdr = Header::response_to(req, ResponseStatus::Dl);
+        match telegram::emit(&mut self.bufs[MISC as usize], &hdr, pdu) {
+            Ok(len) => {
+                self.lens[MISC as usize] = len as u16;
+                self.last_sent = Some(MISC);
+                Reply::Frame { id: MISC, len: len as u16 }
+            }
+            Err(_) => self.rs(),
+        }
+    }
+
+    fn rs(&mut self) -> Reply {
+        self.stats.rs_answers = self.stats.rs_answers.wrapping_add(1);
+        Reply::Status(ResponseStatus::Rs)
+    }
+
+    // ----- services -----
+
+    fn data_exchange(&mut self, req: &DataTelegram<'_>) -> Reply {
+        if self.state != DpState::DataExch || self.master != Some(req.sa) {
+            if self.master.is_some() && self.master != Some(req.sa) {
+                self.stats.not_locking_master = self.stats.not_locking_master.wrapping_add(1);
+            }
+            return self.rs();
+        }
+        let n_out = self.output_len();
+        if req.pdu.is_empty() {
+            // Fail-safe Clear: zero-length outputs (reference §3.7).
+            if !self.fs_clear {
+                self.fs_clear = true;
+                self.events |= Events::CLEAR_CHANGED;
+            }
+            if self.outputs.iter().any(|&b| b != 0) {
+                self.outputs.fill(0);
+                self.events |= Events::OUTPUTS_UPDATED;
+            }
+        } else if req.pdu.len() != n_out {
+            self.stats.wrong_output_len = self.stats.wrong_output_len.wrapping_add(1);
+            return self.rs();
+        } else {
+            if self.fs_clear {
+                self.fs_clear = false;
+                self.events |= Events::CLEAR_CHANGED;
+            }
+            if self.sync_mode {
+                self.pending_outputs[..n_out].copy_from_slice(req.pdu);
+                self.has_pending_outputs = true;
+            } else {
+                self.outputs[..n_out].copy_from_slice(req.pdu);
+                self.events |= Events::OUTPUTS_UPDATED;
+            }
+        }
+        self.stats.data_exchanges = self.stats.data_exchanges.wrapping_add(1);
+        let status = if self.diag_new { ResponseStatus::Dh } else { ResponseStatus::Dl };
+        if self.input_len() == 0 {
+            return if self.diag_new { Reply::Status(status) } else { Reply::ShortAck };
+        }
+        self.patch(self.dx_cur, req.sa, status as u8, None)
+    }
+
+    fn slave_diag(&mut self, req: &DataTelegram<'_>) -> Reply {
+        if self.diag_dirty {
+            self.restage_diag();
+        }
+        self.stats.diag_reads = self.stats.diag_reads.wrapping_add(1);
+        if self.master == Some(req.sa) && self.diag_new {
+            self.diag_new = false;
+            self.events |= Events::DIAG_READ;
+        }
+        let dsap = req.ssap.unwrap_or(62);
+        self.patch(self.diag_cur, req.sa, ResponseStatus::Dl as u8, Some(dsap))
+    }
+
+    fn set_prm(&mut self, now: Instant, req: &DataTelegram<'_>) -> Reply {
+        if let Some(m) = self.master {
+            if m != req.sa {
+                // Locked by another master: the content is not taken (reference §3.8); the
+                // diagnosis' Master_Add tells the other master who owns the slave.
+                self.stats.not_locking_master = self.stats.not_locking_master.wrapping_add(1);
+                return Reply::ShortAck;
+            }
+        }
+        match SetPrm::parse(req.pdu) {
+            Err(e) => {
+                self.stats.prm_faults = self.stats.prm_faults.wrapping_add(1);
+                self.prm_fault = true;
+                self.not_supported = e == prm::PrmError::NotSupported;
+                self.events |= Events::PRM_FAULT;
+                self.prm = None;
+                self.wd_time = None;
+                self.leave(DpState::WaitPrm);
+            }
+            Ok(p) => {
+                if let Some(t) = p.min_tsdr {
+                    self.min_tsdr = t;
+                }
+                let lock = p.status.contains(StationStatus::LOCK_REQ);
+                let unlock = p.status.contains(StationStatus::UNLOCK_REQ);
+                if unlock {
+                    // Released for other masters (Lock 0/1 Unlock 1, reference §3.3).
+                    self.leave(DpState::WaitPrm);
+                } else if lock {
+                    self.prm_fault = false;
+                    self.cfg_fault = false;
+                    self.not_supported = false;
+                    self.master = Some(req.sa);
+                    self.wd_time = p.watchdog();
+                    self.wd_deadline = self.wd_time.map(|t| now + t);
+                    self.prm = Some(p);
+                    self.events |= Events::PRM_ACCEPTED;
+                    if self.state == DpState::DataExch {
+                        self.leave(DpState::WaitCfg);
+                    } else {
+                        self.set_state(DpState::WaitCfg);
+                    }
+                    self.restage_dx();
+                }
+                // Lock 0 / Unlock 0: only min_TSDR is taken over.
+            }
+        }
+        self.diag_dirty = true;
+        Reply::ShortAck
+    }
+
+    fn chk_cfg(&mut self, req: &DataTelegram<'_>) -> Reply {
+        if self.state == DpState::WaitPrm || self.master != Some(req.sa) {
+            if self.master.is_some() && self.master != Some(req.sa) {
+                self.stats.not_locking_master = self.stats.not_locking_master.wrapping_add(1);
+            }
+            return self.rs();
+        }
+        match cfg::check(req.pdu) {
+            Ok(m) => {
+                let changed = self.module != Some(m);
+                self.cfg_fault = false;
+                if changed {
+                    self.module = Some(m);
+                    self.leave(self.state);
+                    self.restage_dx();
+                }
+                self.events |= Events::CFG_ACCEPTED;
+                self.set_state(DpState::DataExch);
+            }
+            Err(_) => {
+                self.stats.cfg_faults = self.stats.cfg_faults.wrapping_add(1);
+                self.cfg_fault = true;
+                self.events |= Events::CFG_FAULT;
+                self.leave(DpState::WaitPrm);
+            }
+        }
+        self.diag_dirty = true;
+        Reply::ShortAck
+    }
+
+    fn global_control(&mut self, req: &DataTelegram<'_>) {
+        let gc = match GlobalControl::parse(req.pdu) {
+            Some(gc) if self.state == DpState::DataExch && self.master == Some(req.sa) => gc,
+            _ => {
+                self.stats.gc_ignored = self.stats.gc_ignored.wrapping_add(1);
+                return;
+            }
+        };
+        let group_ident = self.prm.map_or(0, |p| p.group_ident);
+        if !gc.selects(group_ident) {
+            return;
+        }
+        if gc.reserved != 0 {
+            self.stats.gc_ignored = self.stats.gc_ignored.wrapping_add(1);
+        }
+        let status = self.prm.map_or(StationStatus::empty(), |p| p.status);
+        let cmd = gc.command;
+        // Clear_Data: the master is in Clear (reference §3.6, §3.7).
+        let clear = cmd.contains(ControlCommand::CLEAR_DATA);
+        if clear != self.gc_clear {
+            self.gc_clear = clear;
+            self.events |= Events::CLEAR_CHANGED;
+        }
+        if clear && self.outputs.iter().any(|&b| b != 0) {
+            self.outputs.fill(0);
+            self.events |= Events::OUTPUTS_UPDATED;
+        }
+        // Sync / Unsync (Unsync wins when both are set).
+        if cmd.intersects(ControlCommand::SYNC | ControlCommand::UNSYNC) {
+            if !status.contains(StationStatus::SYNC_REQ) {
+                self.not_supported = true;
+                self.diag_changed();
+            } else {
+                if self.has_pending_outputs {
+                    let n = self.output_len();
+                    let pending = self.pending_outputs;
+                    self.outputs[..n].copy_from_slice(&pending[..n]);
+                    self.has_pending_outputs = false;
+                    self.events |= Events::OUTPUTS_UPDATED;
+                }
+                let sync = !cmd.contains(ControlCommand::UNSYNC);
+                if sync {
+                    self.events |= Events::SYNC;
+                }
+                if sync != self.sync_mode {
+                    self.sync_mode = sync;
+                    self.diag_dirty = true;
+                }
+            }
+        }
+        // Freeze / Unfreeze (Unfreeze wins).
+        if cmd.intersects(ControlCommand::FREEZE | ControlCommand::UNFREEZE) {
+            if !status.contains(StationStatus::FREEZE_REQ) {
+                self.not_supported = true;
+                self.diag_changed();
+            } else {
+                let freeze = !cmd.contains(ControlCommand::UNFREEZE);
+                // Sample the application's inputs now (Freeze) or return to live inputs.
+                self.freeze_mode = false;
+                self.restage_dx();
+                if freeze {
+                    self.events |= Events::FREEZE;
+                }
+                if freeze != self.freeze_mode {
+                    self.freeze_mode = freeze;
+                    self.diag_dirty = true;
+                }
+            }
+        }
+    }
+
+    fn set_slave_add(&mut self, req: &DataTelegram<'_>) -> Reply {
+        let checked = SetSlaveAdd::parse(req.pdu).and_then(|s| {
+            if self.no_add_chg {
+                Err(slave_add::SlaveAddError::Frozen)
+            } else if self.state != DpState::WaitPrm {
+                Err(slave_add::SlaveAddError::State)
+            } else {
+                Ok(s)
+            }
+        });
+        match checked {
+            Ok(s) => {
+                self.address = s.address;
+                self.no_add_chg = s.no_add_chg;
+                self.events |= Events::ADDRESS_CHANGED;
+                self.diag_dirty = true;
+                self.restage_dx();
+                Reply::ShortAck
+            }
+            Err(_) => self.rs(),
+        }
+    }
+}
+
+impl FdlApplication for DpSlave {
+    fn address(&self) -> u8 {
+        self.address
+    }
+
+    fn on_request(&mut self, now: Instant, req: &DataTelegram<'_>) -> Reply {
+        self.retrigger(now, req.sa);
+        let srd = matches!(req.fc.function(), RequestFunction::SrdLow | RequestFunction::SrdHigh);
+        let reply = match (req.dsap, req.ssap) {
+            (None, None) if srd => self.data_exchange(req),
+            (Some(sap::GLOBAL_CONTROL), Some(_)) if !srd => {
+                self.global_control(req);
+                Reply::Silent
+            }
+            (_, _) if !srd => {
+                // SDN to anything but Global_Control: no DP service; never answered.
+                self.stats.gc_ignored = self.stats.gc_ignored.wrapping_add(1);
+                Reply::Silent
+            }
+            (Some(dsap), Some(_)) => match dsap {
+                sap::SLAVE_DIAG => self.slave_diag(req),
+                sap::SET_PRM => self.set_prm(now, req),
+                sap::CHK_CFG => self.chk_cfg(req),
+                sap::GET_CFG => {
+                    let cfg = self.module.unwrap_or(&card::MODULES[0]).cfg;
+                    self.misc_frame(req, cfg)
+                }
+                sap::RD_INP | sap::RD_OUTP if self.state == DpState::DataExch => {
+                    let mut img = [0u8; MAX_IMAGE];
+                    let src = if dsap == sap::RD_INP { self.inputs() } else { self.outputs() };
+                    let n = src.len();
+                    img[..n].copy_from_slice(src);
+                    self.misc_frame(req, &img[..n])
+                }
+                sap::SET_SLAVE_ADD => self.set_slave_add(req),
+                _ => self.rs(),
+            },
+            _ => self.rs(),
+        };
+        if self.diag_dirty {
+            self.restage_diag();
+        }
+        reply
+    }
+
+    fn on_retry(&mut self, now: Instant, req: &DataTelegram<'_>) {
+        self.retrigger(now, req.sa);
+    }
+
+    fn frame(&self, id: u8, len: u16) -> &[u8] {
+        match self.bufs.get(id as usize) {
+            Some(b) => &b[..(len as usize).min(b.len())],
+            None => &[],
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,233 @@
+//! Set_Prm (SAP 61): the parameterization telegram (reference §3.3).
+//!
+//! ```text
+//! byte 0  Station_Status: b7 Lock_Req, b6 Unlock_Req, b5 Sync_Req, b4 Freeze_Req, b3 WD_On, b2..0 reserved
+//! byte 1  WD_Fact_1      byte 2  WD_Fact_2      byte 3  min_TSDR (bit times, 0 = keep)
+//! byte 4-5 Ident_Number (big-endian)            byte 6  Group_Ident
+//! byte 7-9 DPV1_Status_1..3                     byte 10.. User_Prm_Data (card-specific, src/card.rs)
+//! ```
+//!
+//! [`SetPrm::parse`] checks everything the card can check and returns the reason for a
+//! Prm_Fault ([`PrmError`]); the slave answers SC in every case (reference gotcha 6).
+
+use crate::card;
+use crate::time::{BitTimes, Duration};
+
+bitflags::bitflags! {
+    /// Set_Prm byte 0, Station_Status.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub struct StationStatus: u8 {
+        /// b7 Lock_Req.
+        const LOCK_REQ = 0x80;
+        /// b6 Unlock_Req.
+        const UNLOCK_REQ = 0x40;
+        /// b5 Sync_Req: the master will use Sync.
+        const SYNC_REQ = 0x20;
+        /// b4 Freeze_Req: the master will use Freeze.
+        const FREEZE_REQ = 0x10;
+        /// b3 WD_On: response monitoring (DP watchdog) on.
+        const WD_ON = 0x08;
+    }
+}
+
+bitflags::bitflags! {
+    /// DPV1_Status_1 (Set_Prm byte 7).
+    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+    pub struct Dpv1Status1: u8 {
+        /// b7 DPV1_Enable: acyclic services wanted.
+        const DPV1_ENABLE = 0x80;
+        /// b6 Fail_Safe: zero-length outputs in Clear.
+        const FAIL_SAFE = 0x40;
+        /// b5 Publisher_Enable (DXB, DP-V2).
+        const PUBLISHER_ENABLE = 0x20;
+        /// b2 WD_Base_1ms: the watchdog factors count 1 ms instead of 10 ms.
+        const WD_BASE_1MS = 0x04;
+    }
+}
+
+/// Why a Set_Prm was refused (→ Prm_Fault in the next diagnosis).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum PrmError {
+    /// Fewer than 7 bytes, or more user parameter bytes than the GSD declares.
+    Length(usize),
+    /// Reserved bits b2..b0 of Station_Status set.
+    ReservedStationStatus(u8),
+    /// WD_On with a factor of 0.
+    WatchdogFactor,
+    /// The ident number is not ours.
+    Ident(u16),
+    /// Sync or Freeze requested but not supported (also sets Not_Supported).
+    NotSupported,
+    /// A DPV1_Status bit the card does not support (DP-V1, DXB, alarms, Check_Cfg_Mode …).
+    Dpv1Status {
+        /// which status byte (1..=3)
+        byte: u8,
+        /// its value
+        value: u8,
+    },
+    /// A user parameter outside the range the GSD defines.
+    UserPrm {
+        /// offset counted from DPV1_Status_1
+        offset: u8,
+        /// the value received
+        value: u8,
+    },
+}
+
+/// A checked Set_Prm.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SetPrm {
+    /// Station_Status.
+    pub status: StationStatus,
+    /// WD_Fact_1.
+    pub wd_fact_1: u8,
+    /// WD_Fact_2.
+    pub wd_fact_2: u8,
+    /// min_TSDR, `None` when the master sent 0 ("keep").
+    pub min_tsdr: Option<BitTimes>,
+    /// Group_Ident.
+    pub group_ident: u8,
+    /// DPV1_Status_1.
+    pub dpv1_status_1: Dpv1Status1,
+    /// DPV1_Status_2 (kept for DP-V1).
+    pub dpv1_status_2: u8,
+    /// DPV1_Status_3 (kept for DP-V1).
+    pub dpv1_status_3: u8,
+    /// User_Prm_Data counted from DPV1_Status_1, missing trailing bytes filled with the GSD
+    /// defaults (a DP-V0 master may send fewer bytes than `Max_User_Prm_Data_Len`).
+    pub user: [u8; card::USER_PRM_LEN],
+}
+
+impl SetPrm {
+    /// Parse and check a Set_Prm PDU (the DU after the SAP bytes).
+    pub fn parse(pdu: &[u8]) -> Result<SetPrm, PrmError> {
+        if pdu.len() < 7 || pdu.len() > 7 + card::USER_PRM_LEN {
+            return Err(PrmError::Length(pdu.len()));
+        }
+        let status_raw = pdu[0];
+        if status_raw & 0x07 != 0 {
+            return Err(PrmError::ReservedStationStatus(status_raw));
+        }
+        let status = StationStatus::from_bits_truncate(status_raw);
+        let (wd_fact_1, wd_fact_2) = (pdu[1], pdu[2]);
+        if status.contains(StationStatus::WD_ON) && (wd_fact_1 == 0 || wd_fact_2 == 0) {
+            return Err(PrmError::WatchdogFactor);
+        }
+        let ident = u16::from_be_bytes([pdu[4], pdu[5]]);
+        if ident != card::IDENT_NUMBER {
+            return Err(PrmError::Ident(ident));
+        }
+        if (status.contains(StationStatus::SYNC_REQ) && !card::SYNC_MODE_SUPP)
+            || (status.contains(StationStatus::FREEZE_REQ) && !card::FREEZE_MODE_SUPP)
+        {
+            return Err(PrmError::NotSupported);
+        }
+        let mut user = card::USER_PRM_DEFAULTS;
+        user[..pdu.len() - 7].copy_from_slice(&pdu[7..]);
+        // DPV1_Status_1: what the card supports (reference §3.3).
+        let mut allowed1 = Dpv1Status1::FAIL_SAFE.bits();
+        if card::DPV1_SLAVE {
+            allowed1 |= Dpv1Status1::DPV1_ENABLE.bits();
+        }
+        if card::WD_BASE_1MS_SUPP {
+            allowed1 |= Dpv1Status1::WD_BASE_1MS.bits();
+        }
+        if user[0] & !allowed1 != 0 {
+            return Err(PrmError::Dpv1Status { byte: 1, value: user[0] });
+        }
+        // DPV1_Status_2: alarm enables and Check_Cfg_Mode; the card offers no alarms yet.
+        if user[1] != 0 {
+            return Err(PrmError::Dpv1Status { byte: 2, value: user[1] });
+        }
+        // DPV1_Status_3: Alarm_Mode, Prm_Structure, IsoM_Req, PrmCmd: none supported.
+        if user[2] != 0 {
+            return Err(PrmError::Dpv1Status { byte: 3, value: user[2] });
+        }
+        for p in card::USER_PRMS {
+            let v = user[p.offset];
+            if v < p.min || v > p.max {
+                return Err(PrmError::UserPrm { offset: p.offset as u8, value: v });
+            }
+        }
+        Ok(SetPrm {
+            status,
+            wd_fact_1,
+            wd_fact_2,
+            min_tsdr: match pdu[3] {
+                0 => None,
+                // The FDL floor is 11 bit times (reference §1.3); smaller values cannot be honoured.
+                t => Some(BitTimes(u32::from(t.max(11)))),
+            },
+            group_ident: pdu[6],
+            dpv1_status_1: Dpv1Status1::from_bits_retain(user[0]),
+            dpv1_status_2: user[1],
+            dpv1_status_3: user[2],
+            user,
+        })
+    }
+
+    /// The DP watchdog time T_WD = base × WD_Fact_1 × WD_Fact_2, base 10 ms or 1 ms
+    /// (WD_Base_1ms), `None` when WD_On is off (reference §1.6).
+    pub fn watchdog(&self) -> Option<Duration> {
+        if !self.status.contains(StationStatus::WD_ON) {
+            return None;
+        }
+        let base_ms = if self.dpv1_status_1.contains(Dpv1Status1::WD_BASE_1MS) { 1 } else { 10 };
+        Some(Duration::from_millis(base_ms * u64::from(self.wd_fact_1) * u64::from(self.wd_fact_2)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn prm(status: u8, user: &[u8]) -> Vec<u8> {
+        let mut v = vec![status, 1, 99, 11, (card::IDENT_NUMBER >> 8) as u8, card::IDENT_NUMBER as u8, 0x22];
+        v.extend_from_slice(user);
+        v
+    }
+
+    #[test]
+    fn felser_example_shape() {
+        // B8 01 63 0B <ident> 22: Lock + Sync + Freeze + WD_On, WD 1 × 99 × 10 ms (reference §3.3).
+        let p = SetPrm::parse(&prm(0xB8, &[])).unwrap();
+        assert!(p.status.contains(StationStatus::LOCK_REQ | StationStatus::SYNC_REQ | StationStatus::FREEZE_REQ));
+        assert_eq!(p.watchdog(), Some(Duration::from_millis(990)));
+        assert_eq!(p.min_tsdr, Some(BitTimes(11)));
+        assert_eq!(p.group_ident, 0x22);
+        assert_eq!(p.user, card::USER_PRM_DEFAULTS);
+    }
+
+    #[test]
+    fn wd_base_1ms() {
+        let p = SetPrm::parse(&prm(0x88, &[0x04, 0, 0, 1, 2])).unwrap();
+        assert_eq!(p.watchdog(), Some(Duration::from_millis(99)));
+        assert_eq!(p.user[3..], [1, 2]);
+    }
+
+    #[test]
+    fn faults() {
+        assert_eq!(SetPrm::parse(&[0x88, 1, 1]), Err(PrmError::Length(3)));
+        assert_eq!(SetPrm::parse(&prm(0x88, &[0, 0, 0, 0, 0, 0])), Err(PrmError::Length(13)));
+        assert_eq!(SetPrm::parse(&prm(0x89, &[])), Err(PrmError::ReservedStationStatus(0x89)));
+        let mut bad_ident = prm(0x88, &[]);
+        bad_ident[5] ^= 1;
+        assert!(matches!(SetPrm::parse(&bad_ident), Err(PrmError::Ident(_))));
+        let mut wd0 = prm(0x88, &[]);
+        wd0[1] = 0;
+        assert_eq!(SetPrm::parse(&wd0), Err(PrmError::WatchdogFactor));
+        assert!(matches!(SetPrm::parse(&prm(0x88, &[0x20])), Err(PrmError::Dpv1Status { byte: 1, .. })));
+        assert!(matches!(SetPrm::parse(&prm(0x88, &[0, 1])), Err(PrmError::Dpv1Status { byte: 2, .. })));
+        assert_eq!(SetPrm::parse(&prm(0x88, &[0, 0, 0, 4])), Err(PrmError::UserPrm { offset: 3, value: 4 }));
+        assert_eq!(SetPrm::parse(&prm(0x88, &[0, 0, 0, 0, 5])), Err(PrmError::UserPrm { offset: 4, value: 5 }));
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn never_panics(bytes in proptest::collection::vec(proptest::num::u8::ANY, 0..260)) {
+            let _ = SetPrm::parse(&bytes);
+        }
+    }
+}

@@ -1,0 +1,29 @@
+//! # pbcard — the protocol core of a PROFIBUS DP-V1 slave option card for AC drives
+//!
+//! This library is the card's *sans-IO* protocol stack. It never touches a register or reads a
+//! clock: bytes, gaps and time are handed in by the board support code (`src/bsp`, the QEMU
+//! build, the soft slave or the host tests), and responses come back as byte slices that the
+//! caller puts on the wire.
+//!
+//! Data flows one way, and every lower layer defines the trait its upper layer implements:
+//!
+//! ```text
+//! bytes ─▶ fdl::framer ─▶ fdl::telegram ─▶ fdl::station ─▶ dp::slave ─▶ (DP-V1 / profile / DPM)
+//! ```
+//!
+//! * [`fdl`] — PROFIBUS layer 2 (FDL): frame formats SD1/SD2/SD3/SD4/SC, the checksum, the
+//!   byte-stream framer, and the station that answers FDL_Status, handles FCB/FCV retries and
+//!   dispatches SAPs (IEC 61158-4-3 / EN 50170 vol. 2, reference §2).
+//! * [`dp`] — the DP-V0 slave: state machine, Set_Prm, Chk_Cfg/Get_Cfg, diagnosis,
+//!   Data_Exchange, Global_Control, Set_Slave_Add, watchdog and master lock (reference §3).
+//! * [`card`] — what this particular card is: ident number, modules, user parameters, limits.
+//!   The GSD file in `gsd/` is tested against these constants.
+//! * [`time`] — instants, durations and bit times.
+#![cfg_attr(not(test), no_std)]
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod card;
+pub mod dp;
+pub mod fdl;
+pub mod time;
