@@ -25,7 +25,7 @@
 //! | Global_Control (58, SDN) | Data_Exch, locking master, group selected | ignored, counted |
 //! | Get_Cfg (59) / Slave_Diag (60) | always, any master | — |
 //! | Set_Prm (61) | unlocked slave or locking master | SC, content ignored, counted |
-//! | Chk_Cfg (62) | Wait_Cfg / Data_Exch, locking master | RS |
+//! | Chk_Cfg (62) | Wait_Cfg / Data_Exch, locking master | SC, content ignored, counted |
 //! | any other SAP | — | RS |
 
 pub mod cfg;
@@ -130,6 +130,8 @@ pub struct SlaveStats {
     pub rs_answers: u32,
     /// Global_Control ignored (state, master, length, reserved bits, not requested).
     pub gc_ignored: u32,
+    /// Chk_Cfg received in Wait_Prm (acknowledged, not evaluated).
+    pub cfg_ignored: u32,
 }
 
 /// Frame buffer ids (see [`FdlApplication::frame`]).
@@ -624,11 +626,17 @@ impl DpSlave {
     }
 
     fn chk_cfg(&mut self, req: &DataTelegram<'_>) -> Reply {
+        // Like Set_Prm, Chk_Cfg is always acknowledged with SC (reference gotcha 6): a master
+        // treats anything else as a lost slave. Outside Wait_Cfg / Data_Exch, or from a master
+        // that does not hold the lock, the content is not evaluated (counted), and the
+        // diagnosis (Prm_Req, Master_Add) tells the master what to do.
         if self.state == DpState::WaitPrm || self.master != Some(req.sa) {
             if self.master.is_some() && self.master != Some(req.sa) {
                 self.stats.not_locking_master = self.stats.not_locking_master.wrapping_add(1);
+            } else {
+                self.stats.cfg_ignored = self.stats.cfg_ignored.wrapping_add(1);
             }
-            return self.rs();
+            return Reply::ShortAck;
         }
         match cfg::check(req.pdu) {
             Ok(m) => {

@@ -156,8 +156,10 @@ fn cfg_fault_goes_back_to_wait_prm() {
     assert_eq!(b.slave.state(), DpState::WaitPrm);
     assert_eq!(b.diag(M1)[..4], [0x06, 0x05, 0x00, 0xFF]);
     assert!(b.slave.take_events().contains(Events::CFG_FAULT));
-    // Chk_Cfg in Wait_Prm → RS.
-    assert_eq!(b.req(M1, Some(62), ST1), Ans::Sd1(0x03));
+    // Chk_Cfg in Wait_Prm → SC, not evaluated (profirust accepts only SC here).
+    assert_eq!(b.req(M1, Some(62), ST1), Ans::Sc);
+    assert_eq!(b.slave.state(), DpState::WaitPrm);
+    assert_eq!(b.slave.stats().cfg_ignored, 1);
 }
 
 #[test]
@@ -266,7 +268,8 @@ fn master_lock() {
     // A second master cannot parameterize, configure or write outputs; it reads diagnosis.
     assert_eq!(b.set_prm(M2, 0x88, &[]), Ans::Sc);
     assert_eq!(b.slave.master_address(), Some(M1));
-    assert_eq!(b.req(M2, Some(62), ST1), Ans::Sd1(0x03));
+    assert_eq!(b.req(M2, Some(62), &[0xF5]), Ans::Sc);
+    assert_eq!(b.slave.module(), Some(&card::MODULES[0]));
     assert_eq!(b.req(M2, None, &[1, 2, 3, 4]), Ans::Sd1(0x03));
     assert_eq!(b.slave.outputs(), &[0; 4]);
     assert_eq!(b.diag(M2)[3], M1);

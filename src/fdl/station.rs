@@ -91,6 +91,11 @@ pub struct StationStats {
 struct LastReply {
     sa: u8,
     fcb: bool,
+    /// Fingerprint of the request (DSAP, SSAP, PDU length, PDU sum): a real retry repeats
+    /// the request byte for byte, so a request that differs is new even with the same FCB.
+    /// This keeps a master that re-polls with an unchanged FCB (profirust after a slave went
+    /// offline) from being served a stale answer forever.
+    request: (Option<u8>, Option<u8>, usize, u8),
     reply: Reply,
     /// Header bytes of an SD1 status answer (da, sa).
     da: u8,
@@ -113,6 +118,10 @@ impl Default for Station {
 }
 
 const SC_FRAME: [u8; 1] = [telegram::SC];
+
+fn fingerprint(t: &DataTelegram<'_>) -> (Option<u8>, Option<u8>, usize, u8) {
+    (t.dsap, t.ssap, t.pdu.len(), telegram::fcs(t.pdu))
+}
 
 impl Station {
     /// A station that has answered nothing yet.
@@ -197,7 +206,7 @@ impl Station {
             }
             RequestFunction::SrdLow | RequestFunction::SrdHigh => {
                 if let Some(last) = self.last {
-                    if t.fc.fcv() && last.sa == t.sa && last.fcb == t.fc.fcb() {
+                    if t.fc.fcv() && last.sa == t.sa && last.fcb == t.fc.fcb() && last.request == fingerprint(&t) {
                         self.stats.retries = self.stats.retries.wrapping_add(1);
                         app.on_retry(now, &t);
                         return self.resend(last, app);
@@ -220,12 +229,8 @@ impl Station {
             }
         };
         // Remember (SA, FCB) for the retry rule: FCV = 1 or the "first cycle" FCV = 0, FCB = 1.
-        self.last = if t.fc.fcv() || t.fc.fcb() {
-            Some(LastReply { sa: t.sa, fcb: t.fc.fcb(), reply, da: t.sa, own })
-        } else {
-            None
-        };
-        let last = LastReply { sa: t.sa, fcb: t.fc.fcb(), reply, da: t.sa, own };
+        let last = LastReply { sa: t.sa, fcb: t.fc.fcb(), request: fingerprint(&t), reply, da: t.sa, own };
+        self.last = if t.fc.fcv() || t.fc.fcb() { Some(last) } else { None };
         self.resend(last, app)
     }
 

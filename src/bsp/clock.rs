@@ -1,0 +1,80 @@
+//! Time base: the RTIC SysTick monotonic (1 kHz, for `delay`/`delay_until` of software
+//! tasks) and a microsecond [`Clock`] derived from the same SysTick (the millisecond count
+//! plus the SysTick down-counter inside the current millisecond).
+//!
+//! The monotonic's 32-bit millisecond count wraps after 49.7 days; [`SysTickClock`] extends
+//! it to 64 bits, which only needs `now()` to be called at least once per wrap period (the
+//! 1 ms housekeeping task does).
+//!
+//! The SysTick exception keeps its reset priority 0, i.e. the same hardware priority as the
+//! highest RTIC task (the USART1 handler): neither preempts the other.
+//!
+//! The board-support issue replaces the byte timestamps by a 32-bit bit timer (TIM2/TIM5);
+//! under QEMU the SysTick runs at 168 MHz whatever RCC says: pass that as `sysclk_hz`.
+
+use core::cell::Cell;
+
+use cortex_m::interrupt::{self, Mutex};
+use cortex_m::peripheral::SYST;
+use pbcard::time::Instant;
+use rtic_monotonics::rtic_time::monotonic::TimerQueueBasedInstant;
+use rtic_monotonics::systick::prelude::*;
+
+use super::Clock;
+
+/// Tick rate of the SysTick monotonic.
+pub const MONO_HZ: u32 = 1_000; // keep equal to the literal in `systick_monotonic!` below
+
+systick_monotonic!(Mono, 1_000);
+
+/// Upper 32 bits of the millisecond count and the last lower half seen.
+static EXTEND: Mutex<Cell<(u32, u32)>> = Mutex::new(Cell::new((0, 0)));
+
+/// The microsecond clock (cheap to copy; all copies share the same time base).
+#[derive(Debug, Clone, Copy)]
+pub struct SysTickClock {
+    /// SysTick reload value (core cycles per millisecond − 1).
+    reload: u32,
+    /// Core cycles per microsecond.
+    cycles_per_us: u32,
+}
+
+/// Start the SysTick monotonic with the core clock `sysclk_hz` (a multiple of 1 MHz).
+pub fn start(syst: SYST, sysclk_hz: u32) -> SysTickClock {
+    assert!(sysclk_hz.is_multiple_of(1_000_000) && sysclk_hz >= 1_000_000);
+    Mono::start(syst, sysclk_hz);
+    SysTickClock { reload: sysclk_hz / MONO_HZ - 1, cycles_per_us: sysclk_hz / 1_000_000 }
+}
+
+impl SysTickClock {
+    /// Milliseconds since start (64-bit) and core cycles into the current millisecond.
+    fn sample(&self) -> (u64, u32) {
+        interrupt::free(|cs| {
+            // `Mono::now()` notices a pending SysTick wrap itself (COUNTFLAG), so inside
+            // this critical section the count and the down-counter are consistent once two
+            // reads of the count agree around the read of the counter.
+            let mut lo = Mono::now().ticks();
+            let mut cvr = SYST::get_current();
+            let lo2 = Mono::now().ticks();
+            if lo2 != lo {
+                lo = lo2;
+                cvr = SYST::get_current();
+            }
+            let cell = EXTEND.borrow(cs);
+            let (mut hi, last) = cell.get();
+            if lo < last {
+                hi = hi.wrapping_add(1);
+            }
+            cell.set((hi, lo));
+            let elapsed = self.reload.saturating_sub(cvr);
+            ((u64::from(hi) << 32) | u64::from(lo), elapsed)
+        })
+    }
+}
+
+impl Clock for SysTickClock {
+    fn now(&self) -> Instant {
+        let (ms, cycles) = self.sample();
+        Instant::from_micros(ms * 1000 + u64::from(cycles / self.cycles_per_us))
+    }
+}
