@@ -18,7 +18,10 @@
 //!   Data_Exchange, Global_Control, Set_Slave_Add, watchdog and master lock (reference §3).
 //! * [`card`] — what this particular card is: ident number, modules, user parameters, limits.
 //!   The GSD file in `gsd/` is tested against these constants.
+//! * [`node`] — framer + station + slave as one object that every platform drives.
 //! * [`time`] — instants, durations and bit times.
+//! * [`phy`] — USART divisors per rate and the autobaud search / Baud_Control supervision (reference §1.2, §1.6).
+//! * [`store`] — the station address and No_Add_Chg as a power-loss-safe journal in two flash sectors.
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -26,4 +29,7 @@
 pub mod card;
 pub mod dp;
 pub mod fdl;
+pub mod node;
+pub mod phy;
+pub mod store;
 pub mod time;

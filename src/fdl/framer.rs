@@ -105,6 +105,18 @@ impl Framer {
         }
     }
 
+    /// The receiver reported a character error (parity, framing, noise, overrun): the
+    /// telegram in progress is corrupt. It is dropped (counted) and the framer hunts for the
+    /// next start delimiter after idle line.
+    pub fn line_error(&mut self) {
+        if !self.complete && self.len > 0 {
+            self.stats.corrupt = self.stats.corrupt.wrapping_add(1);
+        }
+        self.len = 0;
+        self.complete = false;
+        self.hunting = true;
+    }
+
     /// Feed one received byte.
     pub fn push(&mut self, byte: u8) -> Push {
         if self.complete {
