@@ -18,6 +18,11 @@
 //!   Data_Exchange, Global_Control, Set_Slave_Add, watchdog and master lock (reference §3).
 //! * [`card`] — what this particular card is: ident number, modules, user parameters, limits.
 //!   The GSD file in `gsd/` is tested against these constants.
+//! * [`dpv1`] — DP-V1 acyclic services: the PDU codec for MSAC_C1/C2 (Read, Write,
+//!   Data_Transport, Alarm_Ack, Initiate, Abort, Idle, RM), error codes, the 240-byte limit
+//!   (reference §4).
+//! * [`profile`] — drive profiles on top of DP-V1 records: PROFIdrive base-mode parameter access
+//!   (record 47) and WEG's simple parameter access (record 48) (reference §5.1).
 //! * [`node`] — framer + station + slave as one object that every platform drives.
 //! * [`time`] — instants, durations and bit times.
 //! * [`phy`] — USART divisors per rate and the autobaud search / Baud_Control supervision (reference §1.2, §1.6).
@@ -28,8 +33,10 @@
 
 pub mod card;
 pub mod dp;
+pub mod dpv1;
 pub mod fdl;
 pub mod node;
 pub mod phy;
+pub mod profile;
 pub mod store;
 pub mod time;

@@ -1,0 +1,11 @@
+//! DP-V1: the acyclic services (MSAC_C1 on SAP 51, MSAC_C2 on the resource manager SAP 49 and the
+//! connection SAPs 0..48; reference §4).
+//!
+//! * [`pdu`] — the PDU codec: function numbers, request views ([`pdu::parse`]), response
+//!   emitters, the Error_Code_1 table and the 240-byte data limit.
+//!
+//! The connection state machines (C1 started with Data_Exch, C2 Initiate/Idle/Abort with
+//! Send_Timeout monitoring) and the slot/index routing to data records such as PROFIdrive's
+//! record 47 ([`crate::profile`]) build on this codec.
+
+pub mod pdu;
