@@ -45,9 +45,16 @@ pub const FAIL_SAFE: bool = true;
 pub const SET_SLAVE_ADD_SUPP: bool = true;
 /// GSD `Auto_Baud_supp`.
 pub const AUTO_BAUD_SUPP: bool = true;
-/// GSD `DPV1_Slave`: acyclic services are not implemented yet, so DPV1_Enable in Set_Prm is
-/// answered with Prm_Fault.
-pub const DPV1_SLAVE: bool = false;
+/// GSD `DPV1_Slave`: Set_Prm may set DPV1_Enable; MSAC_C1 then opens in data exchange.
+pub const DPV1_SLAVE: bool = true;
+/// GSD `C1_Read_Write_supp`: MSAC_C1 DS_Read / DS_Write.
+pub const C1_READ_WRITE_SUPP: bool = true;
+/// GSD `C1_Max_Data_Len`: data bytes per MSAC_C1 PDU after the 4-byte header.
+pub const C1_MAX_DATA_LEN: usize = 240;
+/// GSD `C1_Response_Timeout` in 10 ms units: how long a class-1 master polls for a response.
+/// The card answers record requests at its next processing turn (≤ a few ms); 1 s leaves room
+/// for drive parameters fetched through the DPM mailbox.
+pub const C1_RESPONSE_TIMEOUT_10MS: u16 = 100;
 /// GSD `WD_Base_1ms_supp`: the 1 ms watchdog base of DPV1_Status_1 bit 2 is supported.
 pub const WD_BASE_1MS_SUPP: bool = true;
 

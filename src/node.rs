@@ -1,16 +1,26 @@
-//! One PROFIBUS slave node as every platform runs it: [`Framer`] → [`Station`] → [`DpSlave`].
+//! One PROFIBUS slave node as every platform runs it: [`Framer`] → [`Station`] → [`DpSlave`]
+//! and the DP-V1 services ([`C1`]) with the drive's data records ([`DriveRecords`]).
 //!
 //! The board firmware, the QEMU build, the soft slave and the host tests all drive the
 //! protocol core through this one type, so the same code decides on every platform. The
 //! platform only moves bytes and time: [`Node::on_byte`] for each received character (the
 //! response it returns goes on the wire after [`Node::min_tsdr`]), [`Node::on_line_error`]
 //! for a character with a parity/framing/noise/overrun error, [`Node::on_idle`] when the line
-//! was idle, and [`Node::poll`] for the timers.
+//! was idle, and [`Node::poll`] for the timers. DP-V1 requests are acknowledged on the
+//! decision path and worked on by [`Node::process_acyclic`] (the middle-priority task of the
+//! firmware), which reaches the drive's parameters through a
+//! [`ParameterAccess`](crate::profile::param::ParameterAccess) table.
 
 use crate::dp::{DpSlave, Events};
+use crate::dpv1::c1::{self, C1};
+use crate::dpv1::channel::Answer;
 use crate::fdl::framer::{Framer, Push};
-use crate::fdl::station::Station;
-use crate::time::{BitTimes, Instant};
+use crate::fdl::station::{FdlApplication, Reply, Station, Tx};
+use crate::fdl::telegram::{DataTelegram, ResponseStatus};
+use crate::profile::param::ParameterAccess;
+use crate::profile::pnu::{CardInfo, CardTable, FAULT_BUFFER_LEN};
+use crate::profile::records::DriveRecords;
+use crate::time::{Baudrate, BitTimes, Instant};
 
 /// A slave node: framer, FDL station and DP slave.
 #[derive(Debug, Clone)]
@@ -18,26 +28,118 @@ pub struct Node {
     framer: Framer,
     station: Station,
     slave: DpSlave,
+    c1: C1,
+    records: DriveRecords,
+    baudrate: Option<Baudrate>,
+}
+
+/// Frame id of the MSAC_C1 response (the DP slave uses ids below it).
+const C1_FRAME: u8 = 8;
+
+/// Routes each request to the DP slave or to the DP-V1 services by its DSAP.
+struct Router<'a> {
+    dp: &'a mut DpSlave,
+    c1: &'a mut C1,
+}
+
+impl FdlApplication for Router<'_> {
+    fn address(&self) -> u8 {
+        self.dp.address()
+    }
+
+    fn on_request(&mut self, now: Instant, req: &DataTelegram<'_>) -> Reply {
+        match req.dsap {
+            Some(c1::SAP) => {
+                // Any request of the locking master keeps the DP watchdog running.
+                self.dp.on_retry(now, req);
+                match self.c1.on_request(req, self.dp) {
+                    None => Reply::Status(ResponseStatus::Rs),
+                    Some(Answer::NotReady) => Reply::ShortAck,
+                    Some(Answer::Frame(len)) => Reply::Frame { id: C1_FRAME, len },
+                }
+            }
+            _ => self.dp.on_request(now, req),
+        }
+    }
+
+    fn on_retry(&mut self, now: Instant, req: &DataTelegram<'_>) {
+        self.dp.on_retry(now, req);
+    }
+
+    fn frame(&self, id: u8, len: u16) -> &[u8] {
+        if id == C1_FRAME {
+            self.c1.frame(len)
+        } else {
+            self.dp.frame(id, len)
+        }
+    }
 }
 
 impl Node {
     /// A node at station `address` (see [`DpSlave::with_address_lock`] for a stored one).
     pub fn new(slave: DpSlave) -> Self {
-        Node { framer: Framer::new(), station: Station::new(), slave }
+        Node {
+            framer: Framer::new(),
+            station: Station::new(),
+            slave,
+            c1: C1::new(),
+            records: DriveRecords::new(),
+            baudrate: None,
+        }
     }
 
     /// One received character; returns the response to send (after min_TSDR) when it
     /// completed a request that must be answered.
     pub fn on_byte(&mut self, now: Instant, byte: u8) -> Option<&[u8]> {
         match self.framer.push(byte) {
-            Push::Frame(_) => self.station.on_frame(now, self.framer.frame(), &mut self.slave),
+            Push::Frame(_) => {
+                let mut router = Router { dp: &mut self.slave, c1: &mut self.c1 };
+                let tx = self.station.decide(now, self.framer.frame(), &mut router)?;
+                Some(self.bytes(tx))
+            }
             Push::Pending | Push::Dropped(_) => None,
         }
     }
 
     /// A whole received telegram at once (a DMA receiver that delimited it itself).
     pub fn on_frame(&mut self, now: Instant, frame: &[u8]) -> Option<&[u8]> {
-        self.station.on_frame(now, frame, &mut self.slave)
+        let mut router = Router { dp: &mut self.slave, c1: &mut self.c1 };
+        let tx = self.station.decide(now, frame, &mut router)?;
+        Some(self.bytes(tx))
+    }
+
+    fn bytes(&self, tx: Tx) -> &[u8] {
+        let (dp, c1) = (&self.slave, &self.c1);
+        self.station.bytes(tx, |id, len| if id == C1_FRAME { c1.frame(len) } else { dp.frame(id, len) })
+    }
+
+    /// The rate the platform listens at (`None` while searching): PNU 963.
+    pub fn set_baudrate(&mut self, rate: Option<Baudrate>) {
+        self.baudrate = rate;
+    }
+
+    /// Whether a DP-V1 request waits for [`process_acyclic`](Self::process_acyclic).
+    pub fn has_acyclic_work(&self) -> bool {
+        self.c1.has_pending()
+    }
+
+    /// Work on waiting DP-V1 requests: data records at slot 0 (PROFIdrive record 47, WEG
+    /// record 48) over the card's own PNUs in front of the drive's `parameters`. The
+    /// response is handed out at the master's next poll.
+    pub fn process_acyclic(&mut self, now: Instant, parameters: &mut impl ParameterAccess) {
+        if !self.c1.has_pending() {
+            return;
+        }
+        let info = CardInfo {
+            address: self.slave.address(),
+            telegram: self.slave.module().map_or(0, |m| if m.reference < 100 { m.reference } else { 0 }),
+            baud_p963: self.baudrate.map_or(5, |b| u16::from(b.p0963_code())),
+            fault_counter: 0,
+            faults: [0; FAULT_BUFFER_LEN],
+        };
+        let mut table = CardTable { info, drive: parameters };
+        let mut records = self.records.with(&mut table);
+        self.c1.process(now, &self.slave, &mut records);
     }
 
     /// A character arrived with a parity, framing, noise or overrun error.

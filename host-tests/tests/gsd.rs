@@ -141,6 +141,13 @@ fn services_match_card() {
     let scan = Scan::new(&gsd_text());
     assert_eq!(scan.number("DPV1_Slave"), Some(i64::from(card::DPV1_SLAVE)), "DPV1_Slave");
     assert_eq!(scan.number("WD_Base_1ms_supp"), Some(i64::from(card::WD_BASE_1MS_SUPP)), "WD_Base_1ms_supp");
+    assert_eq!(scan.number("C1_Read_Write_supp"), Some(i64::from(card::C1_READ_WRITE_SUPP)), "C1_Read_Write_supp");
+    assert_eq!(scan.number("C1_Max_Data_Len"), Some(card::C1_MAX_DATA_LEN as i64), "C1_Max_Data_Len");
+    assert_eq!(
+        scan.number("C1_Response_Timeout"),
+        Some(i64::from(card::C1_RESPONSE_TIMEOUT_10MS)),
+        "C1_Response_Timeout"
+    );
     assert_eq!(
         scan.number("Min_Slave_Intervall"),
         Some(i64::from(card::MIN_SLAVE_INTERVAL_100US)),

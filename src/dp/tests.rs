@@ -139,8 +139,8 @@ fn prm_faults_and_recovery() {
     // Out-of-range user parameter (operate mode 9).
     assert_eq!(b.set_prm(M1, 0x88, &[0, 0, 0, 9, 0]), Ans::Sc);
     assert_eq!(b.diag(M1)[0], 0x42);
-    // DPV1_Enable while the card is DP-V0 only.
-    assert_eq!(b.set_prm(M1, 0x88, &[0x80, 0, 0]), Ans::Sc);
+    // Publisher_Enable (DXB), which the card does not offer.
+    assert_eq!(b.set_prm(M1, 0x88, &[0x20, 0, 0]), Ans::Sc);
     assert_eq!(b.diag(M1)[0], 0x42);
     // A good Set_Prm clears the fault.
     b.bring_up(0x88);

@@ -8,4 +8,7 @@
 //! Send_Timeout monitoring) and the slot/index routing to data records such as PROFIdrive's
 //! record 47 ([`crate::profile`]) build on this codec.
 
+pub mod c1;
+pub mod channel;
 pub mod pdu;
+pub mod records;

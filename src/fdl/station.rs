@@ -46,6 +46,22 @@ pub enum Reply {
     },
 }
 
+/// A decided answer ([`Station::decide`]); [`Station::bytes`] gives its bytes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Tx {
+    /// The short acknowledge SC.
+    ShortAck,
+    /// The station's own SD1 status frame.
+    Sd1,
+    /// An application frame.
+    App {
+        /// buffer id
+        id: u8,
+        /// length
+        len: u16,
+    },
+}
+
 /// The layer above FDL (the DP slave) implements this.
 pub trait FdlApplication {
     /// The station's own address (0..=126).
@@ -158,6 +174,23 @@ impl Station {
         frame: &[u8],
         app: &'a mut A,
     ) -> Option<&'a [u8]> {
+        let tx = self.decide(now, frame, app)?;
+        Some(self.bytes(tx, |id, len| app.frame(id, len)))
+    }
+
+    /// The bytes of a decided answer; `app_frame` resolves [`Tx::App`] (the application's
+    /// [`FdlApplication::frame`]). Split from [`decide`](Self::decide) so that a caller that
+    /// routes to several applications can lend them for the decision only.
+    pub fn bytes<'a>(&'a self, tx: Tx, app_frame: impl FnOnce(u8, u16) -> &'a [u8]) -> &'a [u8] {
+        match tx {
+            Tx::ShortAck => &SC_FRAME,
+            Tx::Sd1 => &self.sd1,
+            Tx::App { id, len } => app_frame(id, len),
+        }
+    }
+
+    /// Decide the answer to one complete frame (see the module table); `None` = no answer.
+    pub fn decide<A: FdlApplication>(&mut self, now: Instant, frame: &[u8], app: &mut A) -> Option<Tx> {
         let t = match telegram::decode(frame) {
             Decoded::Frame(Telegram::Data(t), _) => t,
             Decoded::Frame(..) => {
@@ -209,7 +242,7 @@ impl Station {
                     if t.fc.fcv() && last.sa == t.sa && last.fcb == t.fc.fcb() && last.request == fingerprint(&t) {
                         self.stats.retries = self.stats.retries.wrapping_add(1);
                         app.on_retry(now, &t);
-                        return self.resend(last, app);
+                        return self.resend(last);
                     }
                 }
                 self.stats.requests = self.stats.requests.wrapping_add(1);
@@ -231,25 +264,25 @@ impl Station {
         // Remember (SA, FCB) for the retry rule: FCV = 1 or the "first cycle" FCV = 0, FCB = 1.
         let last = LastReply { sa: t.sa, fcb: t.fc.fcb(), request: fingerprint(&t), reply, da: t.sa, own };
         self.last = if t.fc.fcv() || t.fc.fcb() { Some(last) } else { None };
-        self.resend(last, app)
+        self.resend(last)
     }
 
-    fn resend<'a, A: FdlApplication>(&'a mut self, last: LastReply, app: &'a A) -> Option<&'a [u8]> {
+    fn resend(&mut self, last: LastReply) -> Option<Tx> {
         match last.reply {
             Reply::Silent => None,
-            Reply::ShortAck => Some(&SC_FRAME),
+            Reply::ShortAck => Some(Tx::ShortAck),
             Reply::Status(s) => {
                 let hdr = Header { da: last.da, sa: last.own, fc: FunctionCode::response(s), dsap: None, ssap: None };
-                let n = telegram::emit(&mut self.sd1, &hdr, &[]).ok()?;
-                Some(&self.sd1[..n])
+                telegram::emit(&mut self.sd1, &hdr, &[]).ok()?;
+                Some(Tx::Sd1)
             }
-            Reply::Frame { id, len } => Some(app.frame(id, len)),
+            Reply::Frame { id, len } => Some(Tx::App { id, len }),
         }
     }
 
-    fn sd1_status(&mut self, req: &DataTelegram<'_>, s: ResponseStatus) -> Option<&[u8]> {
+    fn sd1_status(&mut self, req: &DataTelegram<'_>, s: ResponseStatus) -> Option<Tx> {
         let hdr = Header { da: req.sa, sa: req.da, fc: FunctionCode::response(s), dsap: None, ssap: None };
-        let n = telegram::emit(&mut self.sd1, &hdr, &[]).ok()?;
-        Some(&self.sd1[..n])
+        telegram::emit(&mut self.sd1, &hdr, &[]).ok()?;
+        Some(Tx::Sd1)
     }
 }

@@ -6,9 +6,16 @@
 //!   WEG CFW500 §5.2.4, reference §5.1).
 //! * [`weg48`] — WEG's simple parameter access, data record 48 (CFW500 §5.2.5, CFW-11 §4.2.6).
 //!
-//! Both are codecs: which slot answers, the "write request, then poll with reads until the
+//! * [`records`] — slot 0 / records 47 and 48 as a [`crate::dpv1::records::RecordHandler`]:
+//!   the one-shot response of record 47, the error codes of the routing.
+//! * [`pnu`] — the PROFIdrive parameters the card owns (918, 922, 930, 944, 947, 963, 964, 965,
+//!   975, 980) in front of the drive's table.
+//!
+//! `param` and `weg48` are codecs: which slot answers, the "write request, then poll with reads until the
 //! response exists (0xB5)" sequence and the one-shot response buffer belong to the DP-V1
 //! record routing above them.
 
 pub mod param;
+pub mod pnu;
+pub mod records;
 pub mod weg48;

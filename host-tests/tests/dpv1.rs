@@ -1,0 +1,224 @@
+//! Our own class-1 DP-V1 test master (neither profirust nor pyprofibus speaks DP-V1): it
+//! talks to a whole [`Node`] frame by frame — Set_Prm with DPV1_Enable, Chk_Cfg, then
+//! MSAC_C1 DS_Write / poll / DS_Read on SAP 51 — and checks the PDUs byte for byte, including
+//! the VACON OPTE3/E5 §6.4.4.1 example (read PNU 918 of station 3) through the whole stack.
+
+use pbcard::card;
+use pbcard::dp::{DpSlave, DpState};
+use pbcard::fdl::telegram::{self, decode, Decoded, FunctionCode, Header, Telegram};
+use pbcard::node::Node;
+use pbcard::profile::param::{ErrorValue, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
+use pbcard::time::Instant;
+
+const ME: u8 = 3;
+const M1: u8 = 2;
+const M2: u8 = 4;
+
+/// A drive parameter table: PNU 100 (read/write, 0..=5000), PNU 101 (read-only).
+struct Drive {
+    p100: u16,
+}
+
+impl ParameterAccess for Drive {
+    fn has_axis(&self, axis: u8) -> bool {
+        axis <= 1
+    }
+    fn read_value(&mut self, _: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        match a.pnu {
+            100 => out.push_u16(self.p100),
+            101 => out.push_u16(1234),
+            _ => Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into()),
+        }
+    }
+    fn write_value(&mut self, _: u8, a: &ParamAddress, v: &ValueBlock<'_>) -> Result<(), ParamError> {
+        match a.pnu {
+            100 => {
+                let x = v.u16(0).ok_or(ErrorValue::INCORRECT_DATA_TYPE)?;
+                if x > 5000 {
+                    return Err(ErrorValue::LIMIT_EXCEEDED.into());
+                }
+                self.p100 = x;
+                Ok(())
+            }
+            101 => Err(ErrorValue::VALUE_CANNOT_BE_CHANGED.into()),
+            _ => Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into()),
+        }
+    }
+}
+
+struct Master {
+    node: Node,
+    drive: Drive,
+    fcb: [bool; 128],
+    now: u64,
+}
+
+#[derive(Debug, PartialEq)]
+enum Ans {
+    None,
+    Sc,
+    Sd1(u8),
+    Pdu(Vec<u8>),
+}
+
+impl Master {
+    fn new() -> Self {
+        Master { node: Node::new(DpSlave::new(ME)), drive: Drive { p100: 50 }, fcb: [false; 128], now: 0 }
+    }
+
+    fn send(&mut self, sa: u8, dsap: Option<u8>, ssap: Option<u8>, pdu: &[u8], toggle: bool) -> Ans {
+        if toggle {
+            self.fcb[sa as usize] = !self.fcb[sa as usize];
+        }
+        let hdr = Header { da: ME, sa, fc: FunctionCode::request(0x0D, self.fcb[sa as usize], true), dsap, ssap };
+        let mut f = [0u8; 256];
+        let n = telegram::emit(&mut f, &hdr, pdu).unwrap();
+        self.now += 500;
+        let now = Instant::from_micros(self.now);
+        self.node.poll(now);
+        let mut answer = None;
+        for &b in &f[..n] {
+            if let Some(r) = self.node.on_byte(now, b) {
+                answer = Some(r.to_vec());
+            }
+        }
+        let Some(r) = answer else { return Ans::None };
+        match decode(&r) {
+            Decoded::Frame(Telegram::ShortAck, 1) => Ans::Sc,
+            Decoded::Frame(Telegram::Data(t), _) if t.pdu.is_empty() && t.dsap.is_none() => Ans::Sd1(t.fc.0),
+            Decoded::Frame(Telegram::Data(t), _) => {
+                assert_eq!((t.da, t.sa, t.fc.0), (sa, ME, 0x08));
+                assert_eq!((t.dsap, t.ssap), (ssap, dsap), "SAPs swapped");
+                Ans::Pdu(t.pdu.to_vec())
+            }
+            other => panic!("invalid answer {other:?}"),
+        }
+    }
+
+    fn c1(&mut self, sa: u8, pdu: &[u8]) -> Ans {
+        self.send(sa, Some(51), Some(51), pdu, true)
+    }
+
+    /// Let the card's DP-V1 task run.
+    fn process(&mut self) {
+        self.node.process_acyclic(Instant::from_micros(self.now), &mut self.drive);
+    }
+
+    /// Request, then poll until the response (at most 3 polls), as a class-1 master does.
+    fn transact(&mut self, pdu: &[u8]) -> Vec<u8> {
+        assert_eq!(self.c1(M1, pdu), Ans::Sc, "request acknowledged with SC");
+        assert_eq!(self.c1(M1, &[]), Ans::Sc, "poll before processing: not ready");
+        self.process();
+        match self.c1(M1, &[]) {
+            Ans::Pdu(p) => p,
+            other => panic!("poll after processing: {other:?}"),
+        }
+    }
+
+    fn bring_up(&mut self, dpv1_status_1: u8) {
+        let id = card::IDENT_NUMBER.to_be_bytes();
+        let mut prm = vec![0x88, 10, 10, 11, id[0], id[1], 0, dpv1_status_1, 0, 0, 0, 0];
+        prm.truncate(7 + card::USER_PRM_LEN);
+        assert_eq!(self.send(M1, Some(61), Some(62), &prm, true), Ans::Sc);
+        assert_eq!(self.send(M1, Some(62), Some(62), card::MODULES[0].cfg, true), Ans::Sc);
+        assert_eq!(self.node.slave().state(), DpState::DataExch);
+    }
+}
+
+/// VACON OPTE3/E5 §6.4.4.1 (Tables 62–65): read PNU 918 (station address) of station 3:
+/// DS_Write `5F 00 2F 0A | 01 01 01 01 10 01 03 96 00 00`, write response `5F 00 2F 0A`,
+/// DS_Read `5E 00 2F F0`, read response `5E 00 2F 08 | 01 01 01 01 42 01 00 03`.
+#[test]
+fn vacon_read_station_address_through_the_stack() {
+    let mut m = Master::new();
+    m.bring_up(0x80);
+    let w = m.transact(&[0x5F, 0x00, 0x2F, 0x0A, 0x01, 0x01, 0x01, 0x01, 0x10, 0x01, 0x03, 0x96, 0x00, 0x00]);
+    assert_eq!(w, [0x5F, 0x00, 0x2F, 0x0A]);
+    let r = m.transact(&[0x5E, 0x00, 0x2F, 0xF0]);
+    assert_eq!(r, [0x5E, 0x00, 0x2F, 0x08, 0x01, 0x01, 0x01, 0x01, 0x42, 0x01, 0x00, 0x03]);
+    // The response is readable once: a second DS_Read is a state conflict (0xB5).
+    assert_eq!(m.transact(&[0x5E, 0x00, 0x2F, 0xF0]), [0xDE, 0x80, 0xB5, 0x00]);
+}
+
+#[test]
+fn change_and_read_back_a_drive_parameter() {
+    let mut m = Master::new();
+    m.bring_up(0x80);
+    // Change PNU 100 to 1000 (0x03E8): ref 7, ID 2, axis 1, 1 parameter, 10 01 0064 0000, 42 01 03E8.
+    let req = [0x5F, 0, 47, 14, 7, 2, 1, 1, 0x10, 1, 0, 100, 0, 0, 0x42, 1, 0x03, 0xE8];
+    assert_eq!(m.transact(&req), [0x5F, 0, 47, 14]);
+    assert_eq!(m.transact(&[0x5E, 0, 47, 240]), [0x5E, 0, 47, 4, 7, 2, 1, 1]);
+    assert_eq!(m.drive.p100, 1000);
+    // Beyond the limit: 0x82 with error 0x02; read-only PNU 101: error 0x01.
+    let req = [0x5F, 0, 47, 14, 8, 2, 1, 1, 0x10, 1, 0, 100, 0, 0, 0x42, 1, 0x17, 0x70];
+    m.transact(&req);
+    assert_eq!(m.transact(&[0x5E, 0, 47, 240]), [0x5E, 0, 47, 8, 8, 0x82, 1, 1, 0x44, 1, 0, 2]);
+    assert_eq!(m.drive.p100, 1000);
+    // Profile identification PNU 965 (card-owned, BYTE[2]): both elements = 3, 41.
+    m.transact(&[0x5F, 0, 47, 10, 9, 1, 1, 1, 0x10, 2, 0x03, 0xC5, 0, 0]);
+    assert_eq!(m.transact(&[0x5E, 0, 47, 240]), [0x5E, 0, 47, 8, 9, 1, 1, 1, 0x0A, 2, 3, 41]);
+}
+
+#[test]
+fn weg_simple_access_record_48() {
+    let mut m = Master::new();
+    m.bring_up(0x80);
+    // Write PNU 100 = 300, select it, read it.
+    assert_eq!(m.transact(&[0x5F, 0, 48, 4, 0, 100, 0x01, 0x2C]), [0x5F, 0, 48, 4]);
+    assert_eq!(m.drive.p100, 300);
+    assert_eq!(m.transact(&[0x5F, 0, 48, 2, 0, 100]), [0x5F, 0, 48, 2]);
+    assert_eq!(m.transact(&[0x5E, 0, 48, 240]), [0x5E, 0, 48, 2, 0x01, 0x2C]);
+    // Read-only parameter: B6; unknown parameter: B8.
+    assert_eq!(m.transact(&[0x5F, 0, 48, 4, 0, 101, 0, 1]), [0xDF, 0x80, 0xB6, 0x00]);
+    assert_eq!(m.transact(&[0x5F, 0, 48, 2, 0x27, 0x0F]), [0xDF, 0x80, 0xB8, 0x00]);
+}
+
+#[test]
+fn record_routing_errors() {
+    let mut m = Master::new();
+    m.bring_up(0x80);
+    assert_eq!(m.transact(&[0x5E, 1, 47, 240]), [0xDE, 0x80, 0xB2, 0x00], "slot 1: invalid slot");
+    assert_eq!(m.transact(&[0x5E, 0, 99, 240]), [0xDE, 0x80, 0xB0, 0x00], "index 99: invalid index");
+    // A parameter request with reference 0 is refused at the DS_Write (0xB7).
+    assert_eq!(m.transact(&[0x5F, 0, 47, 6, 0, 1, 1, 1, 0x10, 1]), [0xDF, 0x80, 0xB7, 0x00]);
+    // Read length 0 is malformed.
+    assert!(matches!(m.transact(&[0x5E, 0, 47, 0]).as_slice(), [0xDE, 0x80, _, 0x00]));
+    // Alarm_Ack without an alarm: state conflict.
+    assert_eq!(m.transact(&[0x5C, 0, 1, 0]), [0xDC, 0x80, 0xB5, 0x00]);
+}
+
+#[test]
+fn c1_is_open_only_in_data_exchange_with_dpv1_enable_for_the_locking_master() {
+    let mut m = Master::new();
+    assert_eq!(m.c1(M1, &[0x5E, 0, 47, 240]), Ans::Sd1(0x03), "Wait_Prm: RS");
+    m.bring_up(0x00);
+    assert_eq!(m.c1(M1, &[0x5E, 0, 47, 240]), Ans::Sd1(0x03), "no DPV1_Enable: RS");
+    let mut m = Master::new();
+    m.bring_up(0x80);
+    assert_eq!(m.c1(M2, &[0x5E, 0, 47, 240]), Ans::Sd1(0x03), "another master: RS");
+    assert_eq!(m.send(M1, Some(51), Some(62), &[0x5E, 0, 47, 240], true), Ans::Sd1(0x03), "wrong SSAP: RS");
+    // Leaving data exchange drops a request in flight.
+    assert_eq!(m.c1(M1, &[0x5E, 0, 47, 240]), Ans::Sc);
+    let id = card::IDENT_NUMBER.to_be_bytes();
+    assert_eq!(m.send(M1, Some(61), Some(62), &[0x40, 1, 1, 11, id[0], id[1], 0], true), Ans::Sc);
+    m.process();
+    assert_eq!(m.c1(M1, &[]), Ans::Sd1(0x03));
+}
+
+#[test]
+fn fcb_retries_are_safe() {
+    let mut m = Master::new();
+    m.bring_up(0x80);
+    // A retried write request (same FCB, same bytes) is answered from the station's memory
+    // and not queued twice; a retried poll gets the same response frame.
+    let req = [0x5F, 0, 47, 14, 7, 2, 1, 1, 0x10, 1, 0, 100, 0, 0, 0x42, 1, 0x03, 0xE8];
+    assert_eq!(m.c1(M1, &req), Ans::Sc);
+    assert_eq!(m.send(M1, Some(51), Some(51), &req, false), Ans::Sc);
+    m.process();
+    let first = m.c1(M1, &[]);
+    assert_eq!(first, Ans::Pdu(vec![0x5F, 0, 47, 14]));
+    assert_eq!(m.send(M1, Some(51), Some(51), &[], false), first, "retried poll: same answer");
+    assert_eq!(m.c1(M1, &[]), Ans::Sc, "nothing more to fetch");
+    m.process();
+    assert_eq!(m.transact(&[0x5E, 0, 47, 240]), [0x5E, 0, 47, 4, 7, 2, 1, 1], "executed once");
+}

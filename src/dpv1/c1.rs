@@ -1,0 +1,90 @@
+//! MSAC_C1: the class-1 master's acyclic channel on SAP 51 (reference §4.1–4.3).
+//!
+//! Open while the DP slave is in Data_Exch after a Set_Prm with DPV1_Enable, and only for
+//! the locking master (request SSAP 51, the master's MS1 SAP). Anything else on SAP 51 gets
+//! RS (SAP not activated). Leaving data exchange closes the channel and drops a request or
+//! response in flight.
+
+use super::channel::{serve_records, Answer, Channel};
+use super::records::RecordHandler;
+use crate::dp::prm::Dpv1Status1;
+use crate::dp::{DpSlave, DpState};
+use crate::fdl::telegram::DataTelegram;
+use crate::time::Instant;
+
+/// The slave's MSAC_C1 SAP.
+pub const SAP: u8 = 51;
+
+/// Counters.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct C1Stats {
+    /// Requests refused with RS (channel closed, not the locking master, wrong SSAP).
+    pub refused: u32,
+    /// Times the channel was closed with a request or response in flight.
+    pub dropped: u32,
+}
+
+/// The MSAC_C1 service.
+#[derive(Debug, Clone, Default)]
+pub struct C1 {
+    channel: Channel,
+    open: bool,
+    stats: C1Stats,
+}
+
+impl C1 {
+    /// A closed channel.
+    pub const fn new() -> Self {
+        C1 { channel: Channel::new(), open: false, stats: C1Stats { refused: 0, dropped: 0 } }
+    }
+
+    /// Whether the channel is open for `dp`'s locking master.
+    pub fn is_open(dp: &DpSlave) -> bool {
+        dp.state() == DpState::DataExch
+            && dp.parameters().is_some_and(|p| p.dpv1_status_1.contains(Dpv1Status1::DPV1_ENABLE))
+    }
+
+    /// A request or poll on SAP 51. `None` = refuse with RS.
+    pub fn on_request(&mut self, req: &DataTelegram<'_>, dp: &DpSlave) -> Option<Answer> {
+        self.track(dp);
+        if !self.open || dp.master_address() != Some(req.sa) || req.ssap != Some(SAP) {
+            self.stats.refused = self.stats.refused.wrapping_add(1);
+            return None;
+        }
+        Some(self.channel.on_request(req.sa, SAP, dp.address(), SAP, req.pdu))
+    }
+
+    /// Work on a pending request (the middle-priority task; host: every poll).
+    pub fn process(&mut self, now: Instant, dp: &DpSlave, records: &mut impl RecordHandler) {
+        self.track(dp);
+        self.channel.respond(|req, out| serve_records(now, req, out, records, false));
+    }
+
+    /// Whether a request waits for [`process`](Self::process).
+    pub fn has_pending(&self) -> bool {
+        self.channel.pending().is_some()
+    }
+
+    /// The response frame handed out by [`on_request`](Self::on_request).
+    pub fn frame(&self, len: u16) -> &[u8] {
+        self.channel.frame(len)
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> C1Stats {
+        self.stats
+    }
+
+    /// Open / close with the DP state.
+    fn track(&mut self, dp: &DpSlave) {
+        let open = Self::is_open(dp);
+        if self.open && !open {
+            if self.channel.state() != super::channel::ChannelState::Idle {
+                self.stats.dropped = self.stats.dropped.wrapping_add(1);
+            }
+            self.channel.reset();
+        }
+        self.open = open;
+    }
+}

@@ -1,0 +1,167 @@
+//! The PROFIdrive parameters the card itself owns (reference §5.2; OPTE3/E5 §6.4.5 list of
+//! supported PNUs; CFW-11 §4.2: P0918, P0922, P0944, P0947, P0963, P0964, P0965). Every other
+//! PNU belongs to the drive: [`CardTable`] passes it to the drive's table.
+
+use super::param::Attribute;
+use super::param::{ErrorValue, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
+use crate::card;
+
+/// PNU 918: station address (read-only here; set by Set_Slave_Add or the drive).
+pub const PNU_STATION_ADDRESS: u16 = 918;
+/// PNU 922: telegram selection (1 = Standard Telegram 1, 0 = a PPO type / free).
+pub const PNU_TELEGRAM: u16 = 922;
+/// PNU 930: operating mode (1 = speed control).
+pub const PNU_OPERATING_MODE: u16 = 930;
+/// PNU 944: fault message counter.
+pub const PNU_FAULT_COUNTER: u16 = 944;
+/// PNU 947: fault numbers (four fault situations × eight messages, OPTE3/E5 §6.4.6).
+pub const PNU_FAULT_NUMBERS: u16 = 947;
+/// PNU 963: detected baud rate (P0963 coding).
+pub const PNU_BAUD_RATE: u16 = 963;
+/// PNU 964: device identification (six elements).
+pub const PNU_DEVICE_ID: u16 = 964;
+/// PNU 965: profile identification number, BYTE[2]: profile 3 (PROFIdrive), version 41 (4.1)
+/// (OPTE3/E5 §6.4.5; CFW-11 P0965).
+pub const PNU_PROFILE_ID: u16 = 965;
+/// PNU 975: drive object identification.
+pub const PNU_DO_ID: u16 = 975;
+/// PNU 980: list of defined parameters (zero-terminated; continued in 981… when longer).
+pub const PNU_PARAMETER_LIST: u16 = 980;
+
+/// Every PNU the card answers itself, ascending (the content of PNU 980).
+pub const CARD_PNUS: [u16; 10] = [
+    PNU_STATION_ADDRESS,
+    PNU_TELEGRAM,
+    PNU_OPERATING_MODE,
+    PNU_FAULT_COUNTER,
+    PNU_FAULT_NUMBERS,
+    PNU_BAUD_RATE,
+    PNU_DEVICE_ID,
+    PNU_PROFILE_ID,
+    PNU_DO_ID,
+    PNU_PARAMETER_LIST,
+];
+
+/// Elements of PNU 947 (4 fault situations × 8 messages).
+pub const FAULT_BUFFER_LEN: usize = 32;
+
+/// What the card knows about itself when a PNU is read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CardInfo {
+    /// Station address.
+    pub address: u8,
+    /// Active telegram (PNU 922).
+    pub telegram: u16,
+    /// Detected baud rate, P0963 coding (5 = not detected).
+    pub baud_p963: u16,
+    /// Fault message counter (PNU 944).
+    pub fault_counter: u16,
+    /// Fault numbers (PNU 947).
+    pub faults: [u16; FAULT_BUFFER_LEN],
+}
+
+impl CardInfo {
+    /// PNU 964 (OPTE3/E5 Table 110): manufacturer (PI vendor ID — 0, a placeholder until
+    /// registered), drive unit type, software version (major × 100 + minor), firmware year,
+    /// day/month as ddmm, number of drive objects.
+    pub const DEVICE_ID: [u16; 6] = [0, card::IDENT_NUMBER, 1, 2026, 2211, 1];
+    /// PNU 975 (OPTE3/E5 Table 111): manufacturer, DO type, version, year, ddmm, PROFIdrive
+    /// DO type class (1 = axis), DO subclass 1.
+    pub const DO_ID: [u16; 7] = [0, 1, 1, 2026, 2211, 1, 1];
+}
+
+/// The card's PNUs in front of the drive's parameter table.
+pub struct CardTable<'a, D> {
+    /// What the card reports.
+    pub info: CardInfo,
+    /// Every other PNU.
+    pub drive: &'a mut D,
+}
+
+enum Value<'v> {
+    Word(u16),
+    Words(&'v [u16]),
+    Octets(&'v [u8]),
+}
+
+impl<D: ParameterAccess> CardTable<'_, D> {
+    fn lookup(&self, pnu: u16) -> Option<Value<'static>> {
+        let info = self.info;
+        Some(match pnu {
+            PNU_STATION_ADDRESS => Value::Word(u16::from(info.address)),
+            PNU_TELEGRAM => Value::Word(info.telegram),
+            PNU_OPERATING_MODE => Value::Word(1),
+            PNU_FAULT_COUNTER => Value::Word(info.fault_counter),
+            PNU_BAUD_RATE => Value::Word(info.baud_p963),
+            PNU_DEVICE_ID => Value::Words(&CardInfo::DEVICE_ID),
+            PNU_PROFILE_ID => Value::Octets(&[3, 41]),
+            PNU_DO_ID => Value::Words(&CardInfo::DO_ID),
+            PNU_PARAMETER_LIST => Value::Words(&PARAMETER_LIST),
+            _ => return None,
+        })
+    }
+}
+
+/// PNU 980: the card's PNUs, zero-terminated.
+const PARAMETER_LIST: [u16; 11] = [918, 922, 930, 944, 947, 963, 964, 965, 975, 980, 0];
+
+fn elements<'v, T: Copy>(all: &'v [T], addr: &ParamAddress) -> Result<&'v [T], ParamError> {
+    let first = addr.subindex as usize;
+    let n = addr.count() as usize;
+    if first >= all.len() {
+        return Err(ErrorValue::INVALID_SUBINDEX.into());
+    }
+    all.get(first..first + n).ok_or_else(|| ErrorValue::INVALID_SUBINDEX.into())
+}
+
+impl<D: ParameterAccess> ParameterAccess for CardTable<'_, D> {
+    fn has_axis(&self, axis: u8) -> bool {
+        self.drive.has_axis(axis)
+    }
+
+    fn read_value(&mut self, axis: u8, addr: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        if addr.pnu == PNU_FAULT_NUMBERS {
+            let faults = self.info.faults;
+            for &v in elements(&faults, addr)? {
+                out.push_u16(v)?;
+            }
+            return Ok(());
+        }
+        match self.lookup(addr.pnu) {
+            None => self.drive.read_value(axis, addr, out),
+            Some(Value::Word(v)) => {
+                if addr.subindex != 0 || addr.count() != 1 {
+                    return Err(ErrorValue::NO_ARRAY.into());
+                }
+                out.push_u16(v)
+            }
+            Some(Value::Words(all)) => elements(all, addr)?.iter().try_for_each(|&v| out.push_u16(v)),
+            Some(Value::Octets(all)) => {
+                out.set_format(super::param::Format::OCTET_STRING);
+                elements(all, addr)?.iter().try_for_each(|&v| out.push_u8(v))
+            }
+        }
+    }
+
+    fn write_value(&mut self, axis: u8, addr: &ParamAddress, values: &ValueBlock<'_>) -> Result<(), ParamError> {
+        if addr.pnu == PNU_FAULT_NUMBERS || self.lookup(addr.pnu).is_some() {
+            return Err(ErrorValue::VALUE_CANNOT_BE_CHANGED.into());
+        }
+        self.drive.write_value(axis, addr, values)
+    }
+
+    fn read_description(&mut self, axis: u8, addr: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        debug_assert_eq!(addr.attribute, Attribute::Description);
+        if addr.pnu == PNU_FAULT_NUMBERS || self.lookup(addr.pnu).is_some() {
+            return Err(ErrorValue::NO_DESCRIPTION.into());
+        }
+        self.drive.read_description(axis, addr, out)
+    }
+
+    fn read_text(&mut self, axis: u8, addr: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        if addr.pnu == PNU_FAULT_NUMBERS || self.lookup(addr.pnu).is_some() {
+            return Err(ErrorValue::NO_TEXT_ARRAY.into());
+        }
+        self.drive.read_text(axis, addr, out)
+    }
+}
