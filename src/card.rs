@@ -55,6 +55,17 @@ pub const C1_MAX_DATA_LEN: usize = 240;
 /// The card answers record requests at its next processing turn (≤ a few ms); 1 s leaves room
 /// for drive parameters fetched through the DPM mailbox.
 pub const C1_RESPONSE_TIMEOUT_10MS: u16 = 100;
+/// GSD `C2_Read_Write_supp`: MSAC_C2 connections (commissioning tools).
+pub const C2_READ_WRITE_SUPP: bool = true;
+/// GSD `C2_Max_Data_Len`.
+pub const C2_MAX_DATA_LEN: usize = 240;
+/// GSD `C2_Response_Timeout` in 10 ms units.
+pub const C2_RESPONSE_TIMEOUT_10MS: u16 = 100;
+/// GSD `C2_Max_Count_Channels`: simultaneous MSAC_C2 connections.
+pub const C2_MAX_COUNT_CHANNELS: usize = 2;
+/// GSD `Max_Initiate_PDU_Length`: the longest Initiate request accepted — any that fits the
+/// 244-byte MSAC_C2 PDU.
+pub const MAX_INITIATE_PDU_LENGTH: usize = 244;
 /// GSD `WD_Base_1ms_supp`: the 1 ms watchdog base of DPV1_Status_1 bit 2 is supported.
 pub const WD_BASE_1MS_SUPP: bool = true;
 

@@ -11,8 +11,10 @@
 //! firmware), which reaches the drive's parameters through a
 //! [`ParameterAccess`](crate::profile::param::ParameterAccess) table.
 
+use crate::card;
 use crate::dp::{DpSlave, Events};
 use crate::dpv1::c1::{self, C1};
+use crate::dpv1::c2::{C2Answer, C2};
 use crate::dpv1::channel::Answer;
 use crate::fdl::framer::{Framer, Push};
 use crate::fdl::station::{FdlApplication, Reply, Station, Tx};
@@ -29,17 +31,21 @@ pub struct Node {
     station: Station,
     slave: DpSlave,
     c1: C1,
+    c2: C2<{ card::C2_MAX_COUNT_CHANNELS }>,
     records: DriveRecords,
     baudrate: Option<Baudrate>,
 }
 
 /// Frame id of the MSAC_C1 response (the DP slave uses ids below it).
 const C1_FRAME: u8 = 8;
+/// Frame ids of MSAC_C2 start here.
+const C2_FRAMES: u8 = 16;
 
 /// Routes each request to the DP slave or to the DP-V1 services by its DSAP.
 struct Router<'a> {
     dp: &'a mut DpSlave,
     c1: &'a mut C1,
+    c2: &'a mut C2<{ card::C2_MAX_COUNT_CHANNELS }>,
 }
 
 impl FdlApplication for Router<'_> {
@@ -58,6 +64,11 @@ impl FdlApplication for Router<'_> {
                     Some(Answer::Frame(len)) => Reply::Frame { id: C1_FRAME, len },
                 }
             }
+            // MSAC_C2: independent of the cyclic state and of the master lock.
+            Some(sap) if self.c2.owns_sap(sap) => match self.c2.on_request(now, self.dp.address(), req) {
+                C2Answer::Frame { id, len } => Reply::Frame { id: C2_FRAMES + id, len },
+                other => other.into(),
+            },
             _ => self.dp.on_request(now, req),
         }
     }
@@ -67,11 +78,21 @@ impl FdlApplication for Router<'_> {
     }
 
     fn frame(&self, id: u8, len: u16) -> &[u8] {
-        if id == C1_FRAME {
-            self.c1.frame(len)
-        } else {
-            self.dp.frame(id, len)
-        }
+        frame_of(self.dp, self.c1, self.c2, id, len)
+    }
+}
+
+fn frame_of<'a>(
+    dp: &'a DpSlave,
+    c1: &'a C1,
+    c2: &'a C2<{ card::C2_MAX_COUNT_CHANNELS }>,
+    id: u8,
+    len: u16,
+) -> &'a [u8] {
+    match id {
+        C1_FRAME => c1.frame(len),
+        id if id >= C2_FRAMES => c2.frame(id - C2_FRAMES, len),
+        id => dp.frame(id, len),
     }
 }
 
@@ -83,6 +104,7 @@ impl Node {
             station: Station::new(),
             slave,
             c1: C1::new(),
+            c2: C2::new(),
             records: DriveRecords::new(),
             baudrate: None,
         }
@@ -93,7 +115,7 @@ impl Node {
     pub fn on_byte(&mut self, now: Instant, byte: u8) -> Option<&[u8]> {
         match self.framer.push(byte) {
             Push::Frame(_) => {
-                let mut router = Router { dp: &mut self.slave, c1: &mut self.c1 };
+                let mut router = Router { dp: &mut self.slave, c1: &mut self.c1, c2: &mut self.c2 };
                 let tx = self.station.decide(now, self.framer.frame(), &mut router)?;
                 Some(self.bytes(tx))
             }
@@ -103,14 +125,14 @@ impl Node {
 
     /// A whole received telegram at once (a DMA receiver that delimited it itself).
     pub fn on_frame(&mut self, now: Instant, frame: &[u8]) -> Option<&[u8]> {
-        let mut router = Router { dp: &mut self.slave, c1: &mut self.c1 };
+        let mut router = Router { dp: &mut self.slave, c1: &mut self.c1, c2: &mut self.c2 };
         let tx = self.station.decide(now, frame, &mut router)?;
         Some(self.bytes(tx))
     }
 
     fn bytes(&self, tx: Tx) -> &[u8] {
-        let (dp, c1) = (&self.slave, &self.c1);
-        self.station.bytes(tx, |id, len| if id == C1_FRAME { c1.frame(len) } else { dp.frame(id, len) })
+        let (dp, c1, c2) = (&self.slave, &self.c1, &self.c2);
+        self.station.bytes(tx, |id, len| frame_of(dp, c1, c2, id, len))
     }
 
     /// The rate the platform listens at (`None` while searching): PNU 963.
@@ -120,14 +142,14 @@ impl Node {
 
     /// Whether a DP-V1 request waits for [`process_acyclic`](Self::process_acyclic).
     pub fn has_acyclic_work(&self) -> bool {
-        self.c1.has_pending()
+        self.c1.has_pending() || self.c2.has_pending()
     }
 
     /// Work on waiting DP-V1 requests: data records at slot 0 (PROFIdrive record 47, WEG
     /// record 48) over the card's own PNUs in front of the drive's `parameters`. The
     /// response is handed out at the master's next poll.
     pub fn process_acyclic(&mut self, now: Instant, parameters: &mut impl ParameterAccess) {
-        if !self.c1.has_pending() {
+        if !self.has_acyclic_work() {
             return;
         }
         let info = CardInfo {
@@ -140,6 +162,7 @@ impl Node {
         let mut table = CardTable { info, drive: parameters };
         let mut records = self.records.with(&mut table);
         self.c1.process(now, &self.slave, &mut records);
+        self.c2.process(now, &mut records);
     }
 
     /// A character arrived with a parity, framing, noise or overrun error.
@@ -157,6 +180,7 @@ impl Node {
     /// changed (Set_Slave_Add), the FCB memory is reset here.
     pub fn poll(&mut self, now: Instant) -> Events {
         self.slave.poll(now);
+        self.c2.poll(now);
         let ev = self.slave.take_events();
         if ev.contains(Events::ADDRESS_CHANGED) {
             self.station.reset();

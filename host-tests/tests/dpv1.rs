@@ -222,3 +222,82 @@ fn fcb_retries_are_safe() {
     m.process();
     assert_eq!(m.transact(&[0x5E, 0, 47, 240]), [0x5E, 0, 47, 4, 7, 2, 1, 1], "executed once");
 }
+
+// ----- MSAC_C2: our class-2 test master -----
+
+/// Initiate.req: Send_Timeout (10 ms units), Read/Write supported, S and D type 0 with
+/// 2-byte address blocks (API 0, SCL 0).
+fn initiate(send_timeout: u16) -> Vec<u8> {
+    let t = send_timeout.to_be_bytes();
+    vec![0x57, 0, 0, 0, t[0], t[1], 0x01, 0x00, 0, 0, 0, 0, 0, 2, 0, 2, 0, 0, 0, 0]
+}
+
+impl Master {
+    fn c2(&mut self, sa: u8, sap: u8, pdu: &[u8]) -> Ans {
+        self.send(sa, Some(sap), Some(50), pdu, true)
+    }
+
+    /// Open a connection: Initiate to the resource manager (SAP 49), then on the server SAP.
+    fn connect(&mut self, sa: u8) -> u8 {
+        let rm = match self.c2(sa, 49, &initiate(300)) {
+            Ans::Pdu(p) => p,
+            other => panic!("RM answer {other:?}"),
+        };
+        assert_eq!((rm.len(), rm[0]), (4, 0x56), "RM PDU 56 sap poll_timeout");
+        let sap = rm[1];
+        assert_eq!(self.c2(sa, sap, &initiate(300)), Ans::Sc);
+        match self.c2(sa, sap, &[]) {
+            Ans::Pdu(p) => assert_eq!(p[0], 0x57, "Initiate.res"),
+            other => panic!("Initiate.res {other:?}"),
+        }
+        sap
+    }
+
+    fn c2_transact(&mut self, sa: u8, sap: u8, pdu: &[u8]) -> Vec<u8> {
+        assert_eq!(self.c2(sa, sap, pdu), Ans::Sc);
+        self.process();
+        match self.c2(sa, sap, &[]) {
+            Ans::Pdu(p) => p,
+            other => panic!("C2 poll {other:?}"),
+        }
+    }
+}
+
+#[test]
+fn two_class2_connections_independent_of_the_cyclic_state() {
+    let mut m = Master::new();
+    // The slave is not parameterized (Wait_Prm) and nobody holds the lock: C2 still works.
+    let a = m.connect(10);
+    let b = m.connect(11);
+    assert_ne!(a, b);
+    // A third master is refused cleanly (RR: no resources).
+    assert_eq!(m.c2(12, 49, &initiate(300)), Ans::Sd1(0x02));
+    // Each connection reads PNU 918 (station address 3) through record 47.
+    for (sa, sap) in [(10, a), (11, b)] {
+        let req = [0x5F, 0, 47, 10, sa, 1, 1, 1, 0x10, 1, 0x03, 0x96, 0, 0];
+        assert_eq!(m.c2_transact(sa, sap, &req), [0x5F, 0, 47, 10]);
+        assert_eq!(m.c2_transact(sa, sap, &[0x5E, 0, 47, 240]), [0x5E, 0, 47, 8, sa, 1, 1, 1, 0x42, 1, 0, 3]);
+    }
+    // Another master on a connection's SAP: RS.
+    assert_eq!(m.c2(12, a, &[0x5E, 0, 47, 240]), Ans::Sd1(0x03));
+    // Abort by the master closes the SAP: later requests get RS.
+    assert_eq!(m.c2(10, a, &[0x58, 0x00, 0x20, 0x00]), Ans::Sc);
+    assert_eq!(m.c2(10, a, &[0x5E, 0, 47, 240]), Ans::Sd1(0x03));
+    // The freed connection can be opened again.
+    assert_eq!(m.connect(12), a);
+}
+
+#[test]
+fn class2_send_timeout_aborts_the_connection() {
+    let mut m = Master::new();
+    let sap = m.connect(10);
+    // 3 s of silence (Send_Timeout 300 × 10 ms): the connection is aborted by the slave.
+    m.now += 3_100_000;
+    m.node.poll(Instant::from_micros(m.now));
+    match m.c2(10, sap, &[0x5E, 0, 47, 240]) {
+        Ans::Pdu(p) => assert_eq!((p[0], p[2] & 0x0F), (0x58, 3), "Abort, reason 3 timeout"),
+        Ans::Sd1(0x03) => {}
+        other => panic!("after the timeout: {other:?}"),
+    }
+    assert_eq!(m.c2(10, sap, &[0x5E, 0, 47, 240]), Ans::Sd1(0x03));
+}

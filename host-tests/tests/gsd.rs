@@ -148,6 +148,19 @@ fn services_match_card() {
         Some(i64::from(card::C1_RESPONSE_TIMEOUT_10MS)),
         "C1_Response_Timeout"
     );
+    assert_eq!(scan.number("C2_Read_Write_supp"), Some(i64::from(card::C2_READ_WRITE_SUPP)), "C2_Read_Write_supp");
+    assert_eq!(scan.number("C2_Max_Data_Len"), Some(card::C2_MAX_DATA_LEN as i64), "C2_Max_Data_Len");
+    assert_eq!(
+        scan.number("C2_Response_Timeout"),
+        Some(i64::from(card::C2_RESPONSE_TIMEOUT_10MS)),
+        "C2_Response_Timeout"
+    );
+    assert_eq!(scan.number("C2_Max_Count_Channels"), Some(card::C2_MAX_COUNT_CHANNELS as i64), "C2_Max_Count_Channels");
+    assert_eq!(
+        scan.number("Max_Initiate_PDU_Length"),
+        Some(card::MAX_INITIATE_PDU_LENGTH as i64),
+        "Max_Initiate_PDU_Length"
+    );
     assert_eq!(
         scan.number("Min_Slave_Intervall"),
         Some(i64::from(card::MIN_SLAVE_INTERVAL_100US)),

@@ -9,6 +9,7 @@
 //! record 47 ([`crate::profile`]) build on this codec.
 
 pub mod c1;
+pub mod c2;
 pub mod channel;
 pub mod pdu;
 pub mod records;
