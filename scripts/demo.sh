@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
-# The live demo (README command 1): profirust's DP master brings our slave to data exchange.
+# The live demo (README command 1): the firmware boots in QEMU (netduinoplus2), profirust's DP
+# master on the host brings it to data exchange over USART1 and runs the drive for a few
+# seconds. The profirust-only demo on a simulated line is scripts/demo-host.sh.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
-exec cargo run -q -p host-tests --bin demo --target "$(bash scripts/host-triple)"
+exec bash scripts/qemu.sh demo

@@ -15,10 +15,23 @@ cargo clippy --lib -- -D warnings
 
 echo "== firmware: release build for the STM32F411 (thumbv7em-none-eabihf)"
 cargo build --release
-arm-none-eabi-size target/thumbv7em-none-eabihf/release/pbcard
+arm-none-eabi-size "${CARGO_TARGET_DIR:-target}/thumbv7em-none-eabihf/release/pbcard"
+
+echo "== firmware: QEMU netduinoplus2 builds (features qemu, bench) and clippy of both firmware builds, -D warnings"
+bash scripts/qemu.sh build
+arm-none-eabi-size "${CARGO_TARGET_DIR:-target}/qemu/pbcard-qemu.elf"
+cargo clippy --bins -- -D warnings
+cargo clippy --bins --no-default-features --features bench -- -D warnings
 
 echo "== unit tests beside the code (protocol library on the host)"
 cargo test --lib --target "$HOST"
 
-echo "== host-tests: profirust master on a simulated bus, GSD cross-check, scripted services"
-cargo test -p host-tests --target "$HOST"
+echo "== host-tests: profirust master on a simulated bus, GSD cross-check, scripted services,"
+echo "   and end to end: the firmware in QEMU brought to data exchange by profirust over a socket"
+PBCARD_QEMU_REQUIRED=1 cargo test -p host-tests --target "$HOST"
+
+echo "== benchmark: instructions from the last request byte to the first response byte (QEMU -icount)"
+cargo run -q -p host-tests --bin qemu_bench --target "$HOST"
+
+echo "== fuzz smoke: every parser and the whole slave under libFuzzer (stable, --sanitizer none)"
+FUZZ_SECONDS=${FUZZ_SECONDS:-15} bash scripts/fuzz-smoke.sh

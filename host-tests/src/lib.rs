@@ -48,6 +48,9 @@ use profirust::phy::{ProfibusPhy, SimulatorPhy};
 pub use pbcard;
 pub use profirust;
 
+pub mod qemu;
+pub mod serial;
+
 /// profirust's name for one of our rates.
 pub fn profirust_rate(rate: Baudrate) -> profirust::Baudrate {
     use profirust::Baudrate as P;

@@ -39,6 +39,7 @@ pub const fn usart_brr(pclk_hz: u32, baud: u32) -> Option<(bool, u16)> {
 }
 
 /// The rate actually produced by a divisor setting, in bit/s (rounded down).
+#[cfg_attr(not(feature = "board-f411"), allow(dead_code))] // logged by the F411 board
 pub const fn actual_baud(pclk_hz: u32, over8: bool, brr: u16) -> u32 {
     let div = if over8 {
         // mantissa * 8 + fraction (1/8 steps)

@@ -259,3 +259,77 @@ impl<DE: DriverEnable, C: Clock> BusPort for Usart1Port<DE, C> {
         }
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// Board bring-up (called from the RTIC `init`; the QEMU board has the same shape in `qemu.rs`)
+// ---------------------------------------------------------------------------------------------
+
+/// Board name for the boot log.
+pub const NAME: &str = "STM32F411 reference board, USART1 per byte";
+
+/// Crystal and clock tree of the reference board (ARCHITECTURE §2).
+pub mod clocks {
+    /// The crystal.
+    pub const HSE_HZ: u32 = 25_000_000;
+    /// Core clock.
+    pub const SYSCLK_HZ: u32 = 96_000_000;
+    /// APB2 (USART1) at the full 96 MHz: 12 Mbit/s divides exactly (OVER8, BRR 1.0).
+    pub const PCLK2_HZ: u32 = 96_000_000;
+}
+
+/// The line port of this board.
+pub type Port = Usart1Port<DePin, super::clock::SysTickClock>;
+
+/// What [`init`] hands to the application.
+pub struct Board {
+    /// USART1 with the DE pin, receiving.
+    pub port: Port,
+    /// The microsecond clock (SysTick monotonic).
+    pub clock: super::clock::SysTickClock,
+}
+
+/// Clock tree (25 MHz HSE → 96 MHz), SysTick monotonic, PA8 DE / PA9 TX / PA10 RX, USART1
+/// at `rate` (receiving).
+pub fn init(dp: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYST, rate: Baudrate) -> Board {
+    use stm32f4xx_hal::gpio::{GpioExt, PinState, Speed};
+    use stm32f4xx_hal::rcc::{self, RccExt};
+    use stm32f4xx_hal::time::Hertz;
+
+    // Keep the debug clock running in WFI, so probe-rs / RTT keep working in idle.
+    dp.DBGMCU.cr().modify(|_, w| w.dbg_sleep().set_bit());
+
+    let mut rcc = dp.RCC.freeze(
+        rcc::Config::hse(Hertz::from_raw(clocks::HSE_HZ))
+            .sysclk(Hertz::from_raw(clocks::SYSCLK_HZ))
+            .pclk2(Hertz::from_raw(clocks::PCLK2_HZ)),
+    );
+    let sysclk = rcc.clocks.sysclk().raw();
+    let pclk2 = rcc.clocks.pclk2().raw();
+    defmt::assert_eq!(sysclk, clocks::SYSCLK_HZ);
+    defmt::assert_eq!(pclk2, clocks::PCLK2_HZ);
+
+    let clock = super::clock::start(syst, sysclk);
+
+    let gpioa = dp.GPIOA.split(&mut rcc);
+    let de = gpioa.pa8.into_push_pull_output_in_state(PinState::Low).speed(Speed::VeryHigh);
+    let tx = gpioa.pa9.into_alternate::<7>().speed(Speed::VeryHigh);
+    // Pull-up: the transceiver's RO may float while its receiver is disabled.
+    let rx = gpioa.pa10.into_alternate::<7>().internal_pull_up(true);
+
+    let port = match Usart1Port::new(dp.USART1, (tx, rx), DePin(de), clock, pclk2, rate, &mut rcc) {
+        Ok(p) => p,
+        Err(e) => defmt::panic!("line rate {} not reachable at PCLK2 {=u32} Hz", e.0, pclk2),
+    };
+
+    let rate = port.baud();
+    let (over8, brr) = usart_brr(pclk2, rate.bits_per_second()).unwrap_or((false, 0));
+    defmt::info!(
+        "USART1 {} = {=u32} bit/s (OVER8 {=bool}, BRR {=u16:#x}), SYSCLK {=u32} Hz",
+        rate,
+        super::divisor::actual_baud(pclk2, over8, brr),
+        over8,
+        brr,
+        sysclk
+    );
+    Board { port, clock }
+}

@@ -6,13 +6,28 @@
 //!   min_TSDR by busy-waiting on the [`Clock`], DE on a GPIO;
 //! * board-support issue: USART1 + DMA2 (RX circular buffer, TX DMA), a 32-bit bit timer for
 //!   TSYN / min_TSDR / timestamps, autobaud through [`BusPort::set_baud`];
-//! * QEMU netduinoplus2: per-byte interrupts like here, no IDLE flag, no DMA, HSI clock.
+//! * [`qemu::QemuUsart1`] (feature `qemu`) — QEMU netduinoplus2: per-byte interrupts like
+//!   here, no IDLE flag, no DMA, no line timing, HSI clock.
+//!
+//! Each board module offers the same bring-up shape, re-exported as [`board`]: `NAME`,
+//! `Port` (its [`BusPort`]), `Board { port, clock }` and `init(device, SYST, rate) -> Board`.
+//! The RTIC application in `main.rs` is the same for every board.
 //!
 //! Only `main.rs` declares this module: it is never compiled for the host.
 
 pub mod clock;
 pub mod divisor;
+#[cfg(feature = "board-f411")]
 pub mod f411;
+#[cfg(feature = "qemu")]
+pub mod qemu;
+
+/// The board this firmware is built for (cargo feature `board-f411` or `qemu`).
+#[cfg(feature = "board-f411")]
+pub use f411 as board;
+/// The board this firmware is built for (cargo feature `board-f411` or `qemu`).
+#[cfg(feature = "qemu")]
+pub use qemu as board;
 
 use pbcard::time::{Baudrate, BitTimes, Instant};
 
@@ -23,6 +38,8 @@ pub trait Clock {
 }
 
 /// The RS485 transceiver's driver enable (RTS / DE). The F4 USART has no hardware DE: a GPIO.
+/// (QEMU has no GPIO: its port has no DE.)
+#[cfg_attr(not(feature = "board-f411"), allow(dead_code))]
 pub trait DriverEnable {
     /// Drive the bus (called just before the first start bit of a response).
     fn enable(&mut self);

@@ -545,7 +545,11 @@ impl DpSlave {
                 self.fs_clear = false;
                 self.events |= Events::CLEAR_CHANGED;
             }
-            if self.sync_mode {
+            if self.gc_clear {
+                // Clear mode (Global_Control Clear_Data): the outputs stay in the safe state
+                // (all zero) whatever the master sends, until a Global_Control without
+                // Clear_Data (reference §3.6, §3.7).
+            } else if self.sync_mode {
                 self.pending_outputs[..n_out].copy_from_slice(req.pdu);
                 self.has_pending_outputs = true;
             } else {

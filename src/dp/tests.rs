@@ -196,8 +196,13 @@ fn data_exchange_lengths_and_clear() {
     b.sdn(M1, 127, 58, &[0x02, 0x00]);
     assert!(b.slave.is_clear());
     assert_eq!(b.slave.outputs(), &[0; 4]);
+    // In Clear, outputs stay zero whatever Data_Exchange carries.
+    assert!(matches!(b.req(M1, None, &[9, 9, 9, 9]), Ans::Data { .. }));
+    assert_eq!(b.slave.outputs(), &[0; 4]);
     b.sdn(M1, 127, 58, &[0x00, 0x00]);
     assert!(!b.slave.is_clear());
+    assert!(matches!(b.req(M1, None, &[9, 9, 9, 9]), Ans::Data { .. }));
+    assert_eq!(b.slave.outputs(), &[9; 4]);
 }
 
 #[test]
@@ -411,6 +416,8 @@ fn unsupported_requests() {
     assert_eq!(b.raw(&[0xE5]), None);
     // A response frame addressed to us is ignored.
     assert_eq!(b.raw(&[0x10, ME, M1, 0x08, ME + M1 + 0x08, 0x16]), None);
+    // Trailing bytes after a telegram → no answer.
+    assert_eq!(b.raw(&[0x10, ME, M1, 0x49, ME + M1 + 0x49, 0x16, 0x00]), None);
     // Corrupt frame → no answer.
     assert_eq!(b.raw(&[0x10, ME, M1, 0x49, 0x00, 0x16]), None);
 }

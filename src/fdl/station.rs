@@ -192,6 +192,11 @@ impl Station {
     /// Decide the answer to one complete frame (see the module table); `None` = no answer.
     pub fn decide<A: FdlApplication>(&mut self, now: Instant, frame: &[u8], app: &mut A) -> Option<Tx> {
         let t = match telegram::decode(frame) {
+            // Exactly one telegram: trailing bytes mean the caller's framing is off.
+            Decoded::Frame(_, n) if n != frame.len() => {
+                self.stats.invalid = self.stats.invalid.wrapping_add(1);
+                return None;
+            }
             Decoded::Frame(Telegram::Data(t), _) => t,
             Decoded::Frame(..) => {
                 self.stats.others = self.stats.others.wrapping_add(1);

@@ -1,0 +1,43 @@
+//! The DP parameter parsers on untrusted PDUs: Set_Prm, Chk_Cfg, extended diagnosis blocks,
+//! Set_Slave_Add, Global_Control. No panic, and what they accept is consistent.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use pbcard::card;
+use pbcard::dp::cfg;
+use pbcard::dp::diag::validate_ext_diag;
+use pbcard::dp::global_control::GlobalControl;
+use pbcard::dp::prm::{SetPrm, StationStatus};
+use pbcard::dp::slave_add::SetSlaveAdd;
+
+fuzz_target!(|data: &[u8]| {
+    if let Ok(p) = SetPrm::parse(data) {
+        assert!(data.len() >= 7 && data.len() <= 7 + card::USER_PRM_LEN);
+        assert_eq!(u16::from_be_bytes([data[4], data[5]]), card::IDENT_NUMBER);
+        assert_eq!(p.watchdog().is_some(), p.status.contains(StationStatus::WD_ON));
+        assert_eq!(&p.user[..data.len() - 7], &data[7..]);
+    }
+    let io = cfg::io_lengths(data);
+    if let Ok(io) = io {
+        assert!(!data.is_empty() && io.inputs <= 244 && io.outputs <= 244);
+    }
+    if let Ok(m) = cfg::check(data) {
+        assert_eq!(m.cfg, data);
+        let io = io.expect("check accepted what io_lengths refused");
+        assert_eq!((io.inputs, io.outputs), (m.inputs as usize, m.outputs as usize));
+    }
+    if validate_ext_diag(data).is_ok() {
+        assert!(data.len() <= card::MAX_EXT_DIAG_LEN);
+        // The slave takes exactly what the validator accepts.
+        let mut s = pbcard::dp::DpSlave::new(8);
+        s.set_ext_diag(data, true).expect("set_ext_diag refused validated blocks");
+    }
+    if let Ok(a) = SetSlaveAdd::parse(data) {
+        assert!(a.address <= 125 && data.len() >= 4);
+    }
+    if let Some(gc) = GlobalControl::parse(data) {
+        assert_eq!(data.len(), 2);
+        assert_eq!(gc.command.bits() | gc.reserved, data[0]);
+        let _ = gc.selects(data[1]);
+    }
+});

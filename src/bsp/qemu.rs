@@ -1,0 +1,300 @@
+//! QEMU's `netduinoplus2` machine (STM32F405): the same firmware without real hardware
+//! timing, for the end-to-end test, the demo and the instruction-count benchmark.
+//!
+//! What QEMU 7.2 models, and what this board module does about it
+//! (`/work/shared/reference/toolchain.md`, QEMU section):
+//!
+//! * **No RCC model** (reads 0): no HSE, no PLL — the reset HSI clock is kept
+//!   ([`Config::hsi`](stm32f4xx_hal::rcc::Config::hsi) waits for nothing). The SysTick runs at a
+//!   fixed [`SYSTICK_HZ`] = 168 MHz whatever RCC says, so the monotonic is started with that.
+//! * **USART1 carries data only** (`-serial` #0): RXNE/TXE/TC interrupts per byte, baud rate,
+//!   parity and word length ignored, no IDLE flag, no DMA. [`QemuUsart1`] is therefore a
+//!   per-byte interrupt driver that finds frame ends by length alone (the framer does that):
+//!   it reports no idle gaps — the bytes of one telegram may reach QEMU's socket milliseconds
+//!   apart on a busy host, so a gap measured here would cut telegrams — and it does not wait
+//!   for min_TSDR before answering (the emulated line has no bit time; the peer is a host
+//!   program). QEMU holds back the next received byte until DR has been read (no overrun),
+//!   and bytes sent before the receiver is enabled are dropped (the host waits for a first
+//!   answer before it starts its master).
+//! * **No GPIO, no DE pin**: nothing to switch; the pin multiplexer is not programmed.
+//! * **Logs**: defmt over semihosting (`defmt-semihosting`); QEMU's stdout carries the defmt
+//!   frames, decoded with `defmt-print -e <elf>`.
+//! * **Exit codes**: a panic or a HardFault ends QEMU through semihosting with exit code 1
+//!   (`-semihosting-config enable=on,target=native`), so a broken firmware fails a run instead
+//!   of hanging it.
+//! * **Benchmark** (feature `bench`): TIM2 with PSC = 0 counts one per executed instruction
+//!   under `-icount shift=0,align=off,sleep=off` (see [`bench`]).
+
+use core::sync::atomic::{AtomicBool, Ordering};
+
+use cortex_m::peripheral::SYST;
+use pbcard::fdl::telegram::MAX_FRAME_LEN;
+use pbcard::time::{Baudrate, BitTimes};
+use stm32f4xx_hal::pac::{self, RCC, USART1};
+use stm32f4xx_hal::rcc::{self, Enable, RccExt, Reset};
+
+use super::clock::{self, SysTickClock};
+use super::divisor::usart_brr;
+use super::{BusPort, Clock, LineError, LineEvent, TxError, UnsupportedRate};
+
+/// Board name for the boot log.
+pub const NAME: &str = "QEMU netduinoplus2 (STM32F405), USART1 per byte, no line timing";
+
+/// QEMU's SysTick frequency on netduinoplus2 (fixed, independent of RCC).
+pub const SYSTICK_HZ: u32 = 168_000_000;
+
+/// The line port of this board.
+pub type Port = QemuUsart1<SysTickClock>;
+
+/// What [`init`] hands to the application.
+pub struct Board {
+    /// USART1, receiving.
+    pub port: Port,
+    /// The microsecond clock (SysTick monotonic).
+    pub clock: SysTickClock,
+}
+
+/// Clocks (reset HSI), SysTick monotonic at 168 MHz, USART1 at `rate` (receiving); with the
+/// `bench` feature also TIM2 as the instruction counter.
+pub fn init(dp: pac::Peripherals, syst: SYST, rate: Baudrate) -> Board {
+    let mut rcc = dp.RCC.freeze(rcc::Config::hsi());
+    let pclk2 = rcc.clocks.pclk2().raw();
+    let clock = clock::start(syst, SYSTICK_HZ);
+    #[cfg(feature = "bench")]
+    bench::start(dp.TIM2, &mut rcc);
+    let port = QemuUsart1::new(dp.USART1, clock, pclk2, rate, &mut rcc);
+    defmt::info!("USART1 {} (QEMU ignores the rate), HSI {=u32} Hz, SysTick {=u32} Hz", port.baud(), pclk2, SYSTICK_HZ);
+    Board { port, clock }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Tx {
+    /// Receiving.
+    Idle,
+    /// Characters left to hand to the data register (TXE interrupt enabled).
+    Sending,
+    /// All characters handed over; waiting for TC (TC interrupt enabled).
+    Draining,
+}
+
+/// USART1 as a [`BusPort`] under QEMU: one interrupt per character, no timing.
+pub struct QemuUsart1<C: Clock> {
+    usart: USART1,
+    clock: C,
+    pclk_hz: u32,
+    rate: Baudrate,
+    tx: Tx,
+    tx_buf: [u8; MAX_FRAME_LEN],
+    tx_len: usize,
+    tx_pos: usize,
+    /// TIM2 when the first response character was written to DR (benchmark build).
+    #[cfg(feature = "bench")]
+    tx_first_count: u32,
+}
+
+impl<C: Clock> QemuUsart1<C> {
+    /// Take USART1 (clock enabled and reset — no-ops under QEMU, kept for the real F405), program
+    /// 8 data bits + even parity and start receiving with the RXNE interrupt. The NVIC line is
+    /// unmasked by RTIC for the task bound to USART1.
+    pub fn new(usart: USART1, clock: C, pclk_hz: u32, rate: Baudrate, rcc: &mut RCC) -> Self {
+        USART1::enable(rcc);
+        USART1::reset(rcc);
+        let mut port = QemuUsart1 {
+            usart,
+            clock,
+            pclk_hz,
+            rate,
+            tx: Tx::Idle,
+            tx_buf: [0; MAX_FRAME_LEN],
+            tx_len: 0,
+            tx_pos: 0,
+            #[cfg(feature = "bench")]
+            tx_first_count: 0,
+        };
+        port.usart.cr2().write(|w| w.stop().stop1());
+        port.usart.cr3().reset();
+        // Every rate is "supported": QEMU ignores the divisor.
+        let _ = port.set_baud(rate);
+        port
+    }
+
+    /// TIM2 count at the write of the first character of the last response started.
+    #[cfg(feature = "bench")]
+    pub fn tx_first_count(&self) -> u32 {
+        self.tx_first_count
+    }
+
+    fn abort_tx(&mut self) {
+        self.usart.cr1().modify(|_, w| w.txeie().clear_bit().tcie().clear_bit());
+        self.tx = Tx::Idle;
+        self.tx_len = 0;
+        self.tx_pos = 0;
+    }
+}
+
+impl<C: Clock> BusPort for QemuUsart1<C> {
+    fn set_baud(&mut self, rate: Baudrate) -> Result<(), UnsupportedRate> {
+        self.abort_tx();
+        self.usart.cr1().write(|w| w.ue().clear_bit());
+        // QEMU ignores BRR; program the nearest divisor the HSI clock allows, for a real F405.
+        if let Some((over8, brr)) = usart_brr(self.pclk_hz, rate.bits_per_second()) {
+            self.usart.brr().write(|w| w.div_mantissa().set(brr >> 4).div_fraction().set((brr & 0xF) as u8));
+            self.usart.cr1().write(|w| w.over8().bit(over8));
+        }
+        self.usart.cr1().modify(|_, w| {
+            w.m().m9(); // 9-bit word: 8 data bits + the parity bit
+            w.pce().enabled().ps().even();
+            w.rxneie().enabled();
+            w.te().enabled().re().enabled();
+            w.ue().enabled()
+        });
+        let _ = self.usart.sr().read();
+        let _ = self.usart.dr().read();
+        self.rate = rate;
+        Ok(())
+    }
+
+    fn baud(&self) -> Baudrate {
+        self.rate
+    }
+
+    /// Starts at once: there is no line timing to keep under QEMU (see the module comment).
+    fn start_tx(&mut self, bytes: &[u8], _min_gap: BitTimes) -> Result<(), TxError> {
+        if self.tx != Tx::Idle {
+            return Err(TxError::Busy);
+        }
+        if bytes.is_empty() || bytes.len() > self.tx_buf.len() {
+            return Err(TxError::BadLength);
+        }
+        self.tx_buf[..bytes.len()].copy_from_slice(bytes);
+        self.tx_len = bytes.len();
+        let _ = self.usart.sr().read();
+        self.usart.dr().write(|w| w.dr().set(u16::from(self.tx_buf[0])));
+        #[cfg(feature = "bench")]
+        {
+            self.tx_first_count = bench::count();
+        }
+        self.tx_pos = 1;
+        if self.tx_pos < self.tx_len {
+            self.tx = Tx::Sending;
+            self.usart.cr1().modify(|_, w| w.txeie().enabled());
+        } else {
+            self.tx = Tx::Draining;
+            self.usart.cr1().modify(|_, w| w.tcie().enabled());
+        }
+        Ok(())
+    }
+
+    fn tx_busy(&self) -> bool {
+        self.tx != Tx::Idle
+    }
+
+    /// Order matters under QEMU, where TC is set the moment the last character is written and
+    /// the host may have sent the next request before this handler gets to it: the end of our
+    /// response is reported before received characters (so a request that arrives meanwhile
+    /// never finds the port still busy), and a received character is taken before the next
+    /// response character is written (QEMU's DR write clears RXNE).
+    fn poll_event(&mut self) -> Option<LineEvent> {
+        loop {
+            let sr = self.usart.sr().read();
+            if self.tx == Tx::Draining && sr.tc().bit_is_set() {
+                self.usart.cr1().modify(|_, w| w.tcie().disabled());
+                self.tx = Tx::Idle;
+                self.tx_len = 0;
+                self.tx_pos = 0;
+                return Some(LineEvent::TxDone);
+            }
+            if sr.rxne().bit_is_set() || sr.ore().bit_is_set() {
+                let at = self.clock.now();
+                let word = self.usart.dr().read().dr().bits();
+                let err = LineError {
+                    parity: sr.pe().bit_is_set(),
+                    framing: sr.fe().bit_is_set(),
+                    noise: sr.nf().bit_is_set(),
+                    overrun: sr.ore().bit_is_set(),
+                };
+                if err != LineError::default() {
+                    return Some(LineEvent::Error(err));
+                }
+                // Frames end by length: no idle gaps are reported (module comment).
+                return Some(LineEvent::Byte { byte: word as u8, at, idle_before: BitTimes(0) });
+            }
+            if self.tx == Tx::Sending && sr.txe().bit_is_set() {
+                self.usart.dr().write(|w| w.dr().set(u16::from(self.tx_buf[self.tx_pos])));
+                self.tx_pos += 1;
+                if self.tx_pos >= self.tx_len {
+                    self.tx = Tx::Draining;
+                    self.usart.cr1().modify(|_, w| w.txeie().disabled().tcie().enabled());
+                }
+                continue;
+            }
+            return None;
+        }
+    }
+}
+
+/// End QEMU through semihosting: exit code 0 (`success`) or 1.
+pub fn exit(success: bool) -> ! {
+    use cortex_m_semihosting::debug;
+    debug::exit(if success { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
+    // Only reached when semihosting is off (`-semihosting-config` missing): stop here.
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+static PANICKING: AtomicBool = AtomicBool::new(false);
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    cortex_m::interrupt::disable();
+    // A panic inside the logger must not recurse: log once, then exit.
+    if !PANICKING.swap(true, Ordering::Relaxed) {
+        defmt::error!("panic: {}", defmt::Display2Format(info));
+    }
+    exit(false)
+}
+
+#[defmt::panic_handler]
+fn defmt_panic() -> ! {
+    // `defmt::panic!` / `defmt::assert!` have logged already.
+    cortex_m::interrupt::disable();
+    exit(false)
+}
+
+#[cortex_m_rt::exception]
+unsafe fn HardFault(ef: &cortex_m_rt::ExceptionFrame) -> ! {
+    if !PANICKING.swap(true, Ordering::Relaxed) {
+        defmt::error!("HardFault at pc {=u32:#010x}", ef.pc());
+    }
+    exit(false)
+}
+
+/// The instruction counter of the benchmark build: TIM2, prescaler 0, which QEMU advances by
+/// one per executed instruction under `-icount shift=0,align=off,sleep=off` (1 GHz timer
+/// clock, 1 ns per instruction). Its counter does not wrap at ARR under QEMU; differences are
+/// taken with wrapping arithmetic anyway.
+#[cfg(feature = "bench")]
+pub mod bench {
+    use stm32f4xx_hal::pac::{RCC, TIM2};
+    use stm32f4xx_hal::rcc::{Enable, Reset};
+
+    /// Start TIM2 as a free-running counter (PSC = 0, ARR = max).
+    pub fn start(tim: TIM2, rcc: &mut RCC) {
+        TIM2::enable(rcc);
+        TIM2::reset(rcc);
+        tim.psc().write(|w| w.psc().set(0));
+        tim.arr().write(|w| unsafe { w.bits(u32::MAX) });
+        tim.egr().write(|w| w.ug().set_bit());
+        tim.cr1().modify(|_, w| w.cen().set_bit());
+        // From here on only `count()` reads the counter; the handle itself is not needed.
+    }
+
+    /// The counter now.
+    #[inline(always)]
+    pub fn count() -> u32 {
+        // SAFETY: a read of TIM2's counter register, which `start` configured and which
+        // nothing writes afterwards; reading it has no side effect.
+        unsafe { (*TIM2::ptr()).cnt().read().bits() }
+    }
+}
