@@ -30,6 +30,10 @@ echo "== host-tests: profirust master on a simulated bus, GSD cross-check, scrip
 echo "   and end to end: the firmware in QEMU brought to data exchange by profirust over a socket"
 PBCARD_QEMU_REQUIRED=1 cargo test -p host-tests --target "$HOST"
 
+echo "== soft slave: clippy and its own tests (the pty end-to-end run is in host-tests)"
+cargo clippy -p pbcard-softslave --all-targets --target "$HOST" -- -D warnings
+cargo test -p pbcard-softslave --target "$HOST"
+
 echo "== benchmark: instructions from the last request byte to the first response byte (QEMU -icount)"
 cargo run -q -p host-tests --bin qemu_bench --target "$HOST"
 

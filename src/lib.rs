@@ -24,6 +24,10 @@
 //! * [`profile`] — drive profiles on top of DP-V1 records: PROFIdrive base-mode parameter access
 //!   (record 47) and WEG's simple parameter access (record 48) (reference §5.1).
 //! * [`node`] — framer + station + slave as one object that every platform drives.
+//! * [`dpm`] — the dual-port memory image shared with the drive's control board (layout,
+//!   sequenced tear-free blocks, P0740 / P0963 status) and the card-side [`dpm::Link`].
+//! * [`drive`] — a simulated drive behind the DPM (PROFIdrive STW1/ZSW1 state machine, ramp).
+//! * [`app`] — node + DPM + simulated drive in one step, for QEMU, the soft slave and tests.
 //! * [`time`] — instants, durations and bit times.
 //! * [`phy`] — USART divisors per rate and the autobaud search / Baud_Control supervision (reference §1.2, §1.6).
 //! * [`store`] — the station address and No_Add_Chg as a power-loss-safe journal in two flash sectors.
@@ -31,9 +35,12 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod app;
 pub mod card;
 pub mod dp;
+pub mod dpm;
 pub mod dpv1;
+pub mod drive;
 pub mod fdl;
 pub mod node;
 pub mod phy;

@@ -1,0 +1,216 @@
+//! # pbcard-softslave — the card's PROFIBUS DP slave and a simulated drive on a serial port
+//!
+//! The same sans-IO stack as the firmware ([`pbcard::node::Node`]) and the same simulated
+//! drive behind the same DPM image ([`pbcard::app::Application`]), driven by a host loop:
+//!
+//! * bytes are read non-blocking and fed to [`Node::on_byte`] with their arrival time;
+//!   telegrams are found by their length, parity/framing errors (8E1 with `PARMRK`) go to
+//!   [`Node::on_line_error`], silence of at least the idle threshold to [`Node::on_idle`];
+//! * a response is written once min_TSDR has passed since the request was read (spinning for
+//!   the last stretch);
+//! * [`Application::step`] runs every 2 ms and after every received chunk;
+//! * [`run`] returns when `stop` is set (the binary sets it on Ctrl-C).
+//!
+//! A pseudo-terminal has no parity and no line timing: bytes pass, and the DP master at the
+//! other end must use generous slot times.
+
+pub mod args;
+mod monitor;
+pub mod parmrk;
+pub mod serial;
+
+use std::io;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant as StdInstant};
+
+use pbcard::app::Application;
+use pbcard::card;
+use pbcard::dp::DpSlave;
+use pbcard::drive::DriveConfig;
+use pbcard::node::Node;
+use pbcard::time::{BitTimes, Instant};
+
+pub use args::{parse_args, ArgError, Command, Options, USAGE};
+pub use monitor::hex;
+use monitor::Monitor;
+use parmrk::{Parmrk, Rx};
+use serial::Port;
+
+/// How often the application (DPM, simulated drive, timers) runs when no telegram arrives.
+const STEP_EVERY: Duration = Duration::from_millis(2);
+/// Waits for min_TSDR shorter than this are spun, not slept.
+const SPIN_BELOW: Duration = Duration::from_millis(2);
+
+/// Counters at the end of a run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Summary {
+    /// Run time.
+    pub elapsed: Duration,
+    /// Requests the FDL station handled.
+    pub requests: u32,
+    /// FCB retries answered from the stored response.
+    pub retries: u32,
+    /// Data_Exchange requests answered.
+    pub data_exchanges: u32,
+    /// Corrupt telegrams.
+    pub corrupt: u32,
+    /// Responses written.
+    pub responses: u32,
+}
+
+/// Open the device and run the slave until `stop` is set. Every log line (already
+/// timestamped, seconds since start) goes to `log`.
+pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::Result<Summary> {
+    let t0 = StdInstant::now();
+    let mut emit = |msg: String| log(&format!("[{:>9.3}] {msg}", t0.elapsed().as_secs_f64()));
+    let rate = opts.baud;
+    let mut port = if opts.device == "pty" { Port::create_pty(rate)? } else { Port::open(&opts.device, rate)? };
+
+    emit(format!(
+        "pbcard soft slave {}: station {}, ident 0x{:04X}, {} bit/s on {}",
+        env!("CARGO_PKG_VERSION"),
+        opts.address,
+        card::IDENT_NUMBER,
+        rate.bits_per_second(),
+        port.path()
+    ));
+    if opts.device == "pty" {
+        emit(format!("created a pseudo-terminal: point the DP master program at {}", port.path()));
+    }
+    emit(match (port.parity(), port.is_pty()) {
+        (true, _) => "line: 8E1 (11-bit characters), parity and framing errors detected".into(),
+        (false, true) => "line: 8N1 — a pseudo-terminal cannot do parity; bytes pass unchanged, no line timing".into(),
+        (false, false) => "WARNING: the device refused even parity, running 8N1: a PROFIBUS master sends 8E1, \
+                           expect garbled telegrams on a real line"
+            .into(),
+    });
+    if !port.is_pty() && port.speed() != rate.bits_per_second() {
+        emit(format!("WARNING: the device reports {} bit/s", port.speed()));
+    }
+    let modules: Vec<String> = card::MODULES.iter().map(|m| format!("{} ({})", m.name, hex(m.cfg))).collect();
+    emit(format!("modules (the master's Chk_Cfg picks one): {}", modules.join(", ")));
+    emit(format!(
+        "simulated drive: PROFIdrive STW1/ZSW1, 0x4000 = 100 %, ramp 0 → 100 % in {} ms; 0x047E → ready, 0x047F → run",
+        opts.ramp.as_millis()
+    ));
+    emit("waiting for a DP master (Ctrl-C stops)".into());
+
+    let mut node = Node::new(DpSlave::new(opts.address));
+    let mut app = Application::new(DriveConfig {
+        ramp_time: pbcard::time::Duration::from_micros(opts.ramp.as_micros() as u64),
+        ..DriveConfig::DEFAULT
+    });
+    app.set_baudrate(Some(rate));
+    let mut monitor = Monitor::new(opts.verbose, opts.address);
+    let mut decoder = Parmrk::new(port.parity());
+    let to_us = |d: pbcard::time::Duration| Duration::from_micros(d.as_micros());
+    let idle =
+        opts.idle.unwrap_or_else(|| to_us(rate.bits_to_duration(BitTimes::TSYN.0)).max(Duration::from_millis(10)));
+    let now_pb = |t: StdInstant| Instant::from_micros(t.duration_since(t0).as_micros() as u64);
+
+    let mut buf = [0u8; 512];
+    let mut last_activity = t0;
+    let mut idle_reported = true;
+    let mut tx: Option<(StdInstant, Vec<u8>)> = None;
+    let mut last_step = t0;
+    let mut last_pd = t0;
+    let mut responses = 0u32;
+
+    while !stop.load(Ordering::Relaxed) {
+        let now = StdInstant::now();
+        let mut timeout = STEP_EVERY.saturating_sub(now - last_step);
+        if let Some((at, _)) = &tx {
+            timeout = timeout.min(at.saturating_duration_since(now).saturating_sub(SPIN_BELOW));
+        }
+        if !idle_reported {
+            timeout = timeout.min((last_activity + idle).saturating_duration_since(now));
+        }
+        let mut got = false;
+        if port.wait_readable(timeout)? {
+            loop {
+                let n = port.read(&mut buf)?;
+                if n == 0 {
+                    break;
+                }
+                got = true;
+                let t = StdInstant::now();
+                last_activity = t;
+                idle_reported = false;
+                let now = now_pb(t);
+                decoder.feed(&buf[..n], |rx| match rx {
+                    Rx::Byte(b) => {
+                        let frames = node.framer().stats().frames;
+                        let response = node.on_byte(now, b).map(<[u8]>::to_vec);
+                        if let Some(r) = response {
+                            let wait = to_us(rate.bits_to_duration(node.min_tsdr().0));
+                            tx = Some((t + wait, r));
+                        }
+                        if node.framer().stats().frames != frames {
+                            monitor.on_frame(node.framer().frame(), &node, &mut emit);
+                        }
+                    }
+                    Rx::Error => node.on_line_error(),
+                });
+            }
+        }
+        let now = StdInstant::now();
+        if !got && !idle_reported && now.saturating_duration_since(last_activity) >= idle {
+            let bits = rate.duration_to_bits(pbcard::time::Duration::from_micros(
+                now.saturating_duration_since(last_activity).as_micros() as u64,
+            ));
+            if opts.verbose && !node.framer().pending().is_empty() {
+                emit(format!("partial telegram dropped after idle line: {}", hex(node.framer().pending())));
+            }
+            node.on_idle(BitTimes(bits.min(u32::MAX as u64) as u32));
+            idle_reported = true;
+        }
+        if let Some((at, _)) = &tx {
+            if at.saturating_duration_since(now) < SPIN_BELOW {
+                let at = *at;
+                while StdInstant::now() < at {
+                    std::hint::spin_loop();
+                }
+                let (_, bytes) = tx.take().unwrap_or((at, Vec::new()));
+                let sent = StdInstant::now();
+                port.write_all(&bytes)?;
+                responses = responses.wrapping_add(1);
+                let late = (sent - at).as_micros() as u64;
+                monitor.on_response(&bytes, (late > 100).then_some(late), &mut emit);
+                // The line is busy while our answer goes out.
+                last_activity = sent + to_us(rate.bits_to_duration(11 * bytes.len() as u32));
+                idle_reported = false;
+            }
+        }
+        if got || now - last_step >= STEP_EVERY {
+            last_step = now;
+            let events = app.step(now_pb(now), &mut node);
+            monitor.on_step(events, &node, &app, &mut emit);
+        }
+        if let Some(every) = opts.pd_every {
+            if now - last_pd >= every {
+                monitor.process_data((now - last_pd).as_secs_f64(), &node, &app, &mut emit);
+                last_pd = now;
+            }
+        }
+    }
+
+    let st = node.station().stats();
+    let summary = Summary {
+        elapsed: t0.elapsed(),
+        requests: st.requests,
+        retries: st.retries,
+        data_exchanges: node.slave().stats().data_exchanges,
+        corrupt: node.framer().stats().corrupt,
+        responses,
+    };
+    emit(format!(
+        "stopped after {:.1} s: {} requests, {} Data_Exchange, {} FCB retries, {} corrupt telegrams, {} responses",
+        summary.elapsed.as_secs_f64(),
+        summary.requests,
+        summary.data_exchanges,
+        summary.retries,
+        summary.corrupt,
+        summary.responses
+    ));
+    Ok(summary)
+}

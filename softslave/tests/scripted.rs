@@ -1,0 +1,142 @@
+//! The soft slave over a pseudo-terminal with scripted requests (no master library): refusals
+//! are answered and logged with their reason, data exchange works byte for byte, and the binary
+//! stops cleanly on SIGINT. Every wait is "until it happened", with deadlines of seconds.
+
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use pbcard::card;
+use pbcard::fdl::telegram::{self, Decoded, FunctionCode, Header};
+use pbcard::time::Baudrate;
+use pbcard_softslave::serial::Port;
+use pbcard_softslave::Options;
+
+const SLAVE: u8 = 7;
+const MASTER: u8 = 1;
+
+struct Line {
+    port: Port,
+    fcb: bool,
+}
+
+impl Line {
+    /// Send an SRD request and wait for one telegram back.
+    fn srd(&mut self, dsap: Option<u8>, pdu: &[u8]) -> Vec<u8> {
+        self.fcb = !self.fcb;
+        let hdr = Header {
+            da: SLAVE,
+            sa: MASTER,
+            fc: FunctionCode::request(0xD, self.fcb, true),
+            dsap,
+            ssap: dsap.map(|_| 62),
+        };
+        let mut buf = [0u8; telegram::MAX_FRAME_LEN];
+        let n = telegram::emit(&mut buf, &hdr, pdu).unwrap();
+        self.port.write_all(&buf[..n]).unwrap();
+        let mut rx = Vec::new();
+        let end = Instant::now() + Duration::from_secs(20);
+        while Instant::now() < end {
+            let mut b = [0u8; 256];
+            if self.port.wait_readable(Duration::from_millis(10)).unwrap() {
+                let k = self.port.read(&mut b).unwrap();
+                rx.extend_from_slice(&b[..k]);
+                if let Decoded::Frame(_, len) = telegram::decode(&rx) {
+                    return rx[..len].to_vec();
+                }
+            }
+        }
+        panic!("no answer to {}", pbcard_softslave::hex(&buf[..n]));
+    }
+}
+
+fn set_prm(ident: u16) -> Vec<u8> {
+    let mut p = vec![0x80, 0, 0, 11, (ident >> 8) as u8, ident as u8, 0];
+    p.extend_from_slice(&card::USER_PRM_DEFAULTS);
+    p
+}
+
+fn wait_for(log: &Mutex<Vec<String>>, needle: &str) {
+    let end = Instant::now() + Duration::from_secs(20);
+    while Instant::now() < end {
+        if log.lock().unwrap().iter().any(|l| l.contains(needle)) {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    panic!("'{needle}' not logged:\n{}", log.lock().unwrap().join("\n"));
+}
+
+#[test]
+fn refusals_are_logged_with_their_reason_and_data_flows() {
+    let port = Port::create_pty(Baudrate::B19200).unwrap();
+    let mut opts = Options::new(port.path());
+    opts.address = SLAVE;
+    opts.pd_every = None;
+    let stop = Arc::new(AtomicBool::new(false));
+    let log = Arc::new(Mutex::new(Vec::new()));
+    let (s, l) = (stop.clone(), log.clone());
+    let t = std::thread::spawn(move || {
+        pbcard_softslave::run(&opts, &s, &mut |line| l.lock().unwrap().push(line.to_string()))
+    });
+    wait_for(&log, "waiting for a DP master");
+    let mut line = Line { port, fcb: false };
+
+    assert_eq!(line.srd(Some(61), &set_prm(0x1234)), [telegram::SC]);
+    wait_for(&log, "Set_Prm refused (Prm_Fault): ident number 0x1234, this slave is 0x0F11");
+    wait_for(&log, "P0740 = 4 (parameterization data error)");
+
+    assert_eq!(line.srd(Some(61), &set_prm(card::IDENT_NUMBER)), [telegram::SC]);
+    wait_for(&log, "Set_Prm accepted from master 1: watchdog off");
+    assert_eq!(line.srd(Some(62), &[0xF3, 0xF3]), [telegram::SC]);
+    wait_for(&log, "Chk_Cfg refused (Cfg_Fault): F3 F3 is no module of the GSD");
+    wait_for(&log, "P0740 = 3 (configuration data error)");
+
+    // Standard telegram 1: 0x047E brings the drive to S2; its ZSW1 comes back (a cycle later).
+    assert_eq!(line.srd(Some(61), &set_prm(card::IDENT_NUMBER)), [telegram::SC]);
+    assert_eq!(line.srd(Some(62), card::MODULES[0].cfg), [telegram::SC]);
+    wait_for(&log, "P0740 = 6 (online)");
+    let end = Instant::now() + Duration::from_secs(20);
+    loop {
+        let r = line.srd(None, &[0x04, 0x7E, 0x00, 0x00]);
+        let pdu = &r[telegram::pdu_range(r.len(), 4)];
+        if u16::from_be_bytes([pdu[0], pdu[1]]) == 0x0231 {
+            break;
+        }
+        assert!(Instant::now() < end, "ZSW1 never 0x0231:\n{}", log.lock().unwrap().join("\n"));
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    stop.store(true, Ordering::Relaxed);
+    let summary = t.join().unwrap().unwrap();
+    assert!(summary.data_exchanges >= 1 && summary.responses >= 7, "{summary:?}");
+}
+
+#[test]
+fn the_binary_stops_cleanly_on_ctrl_c() {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_pbcard-softslave"))
+        .args(["--device", "pty", "--address", "9"])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut out = BufReader::new(child.stdout.take().unwrap());
+    let mut lines = Vec::new();
+    loop {
+        let mut l = String::new();
+        assert!(out.read_line(&mut l).unwrap() > 0, "ended early: {lines:?}");
+        let ready = l.contains("waiting for a DP master");
+        lines.push(l);
+        if ready {
+            break;
+        }
+    }
+    // SAFETY: signalling our own child process.
+    assert_eq!(unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGINT) }, 0);
+    let status = child.wait().unwrap();
+    let mut rest = String::new();
+    let _ = std::io::Read::read_to_string(&mut out, &mut rest);
+    assert!(status.success(), "exit status {status:?}");
+    assert!(rest.contains("stopped after"), "{rest}");
+    assert!(lines.iter().any(|l| l.contains("created a pseudo-terminal: point the DP master program at /dev/pts/")));
+}

@@ -1,0 +1,585 @@
+//! The dual-port memory (DPM) image: what the card and the drive's control board share
+//! (ARCHITECTURE §5). Layout version 1 — process data both ways and a status block; the
+//! parameter mailbox, events, configuration and heartbeat are later versions that append
+//! blocks ([`layout`] is the one source of truth for every offset).
+//!
+//! [`Dpm`] is a plain byte array. The card side ([`CardSide`], via [`Dpm::card`]) writes the
+//! status and the master's outputs and reads the drive's inputs; the host side
+//! ([`HostSide`], via [`Dpm::host`]) is what the drive's control board does with the same
+//! bytes (the simulated drive in [`crate::drive`] uses it; a transport such as SPI moves
+//! [`Dpm::as_bytes`] ranges). [`Link`] moves data between a [`Node`](crate::node::Node)
+//! and the image.
+//!
+//! ## Tear-free exchange (sequenced blocks)
+//!
+//! Each block that changes at run time (STATUS, OUTPUTS, INPUTS) starts with `SEQ_HEAD` and ends
+//! with `SEQ_TAIL`, two copies of one 16-bit sequence counter (1, 2, … 65535, 1, …; 0 = never
+//! written). One rule fixes the order, because a transport moves the host's accesses in
+//! ascending address order:
+//!
+//! * **The host reads and writes a block in one ascending pass.** It writes `SEQ_HEAD = n`,
+//!   the payload, `SEQ_TAIL = n`; it reads `SEQ_HEAD`, the payload, `SEQ_TAIL`.
+//! * **The card goes the other way round.** It writes `SEQ_TAIL = n` first, then the payload,
+//!   then `SEQ_HEAD = n`; it reads `SEQ_TAIL` first, then the payload, then `SEQ_HEAD`.
+//!
+//! A reader whose two counter reads differ saw a write in progress ([`Torn`]) and tries again
+//! later; equal counters mean the payload it read belongs to write *n* entirely (the counter
+//! the writer writes first is the one the reader reads last). A changed counter also tells
+//! the reader that the block is new. `tests::seqlock_model` checks the rule byte by byte
+//! against every interleaving it generates.
+//!
+//! ## Codings shown to the drive
+//!
+//! * Communication state: [`CommState`], the CFW500 manual's P0740 values.
+//! * Baud rate: P0963 ([`Baudrate::p0963_code`], [`BAUD_NOT_DETECTED`] = 5).
+//! * Active telegram: [`Telegram`] — PROFIdrive telegram number (P922) or PPO type.
+
+pub mod layout;
+mod link;
+
+pub use link::{Link, LinkStats};
+
+use crate::card::Module;
+use crate::dp::diag::Status1;
+use crate::dp::{DpSlave, DpState};
+use crate::time::Baudrate;
+use layout::{pd, status, PD_CAPACITY};
+
+/// Size of the image in bytes.
+pub const IMAGE_SIZE: usize = layout::IMAGE_SIZE;
+
+/// P0963 value "not detected" (CFW500 manual, P0963).
+pub const BAUD_NOT_DETECTED: u8 = 5;
+
+/// The P0963 code of a detected rate, or [`BAUD_NOT_DETECTED`].
+pub const fn p0963(rate: Option<Baudrate>) -> u8 {
+    match rate {
+        Some(r) => r.p0963_code(),
+        None => BAUD_NOT_DETECTED,
+    }
+}
+
+/// The rate a P0963 code names (`None` for "not detected", "reserved" and unknown codes).
+pub fn baudrate_from_p0963(code: u8) -> Option<Baudrate> {
+    Baudrate::ALL.into_iter().find(|r| r.p0963_code() == code)
+}
+
+/// A reader saw a block while it was being written: its two sequence counters differ. Read
+/// again later.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct Torn {
+    /// `SEQ_HEAD` as read.
+    pub head: u16,
+    /// `SEQ_TAIL` as read.
+    pub tail: u16,
+}
+
+/// PROFIBUS communication state in the coding of the CFW500 manual's P0740 (Table 4.5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[repr(u8)]
+pub enum CommState {
+    /// 0: the PROFIBUS interface is not running (image created, stack not started).
+    Inactive = 0,
+    /// 1: the interface failed to initialise (set by the platform).
+    InitError = 1,
+    /// 2: running and configured, but no cyclic exchange with a master.
+    Offline = 2,
+    /// 3: the last Chk_Cfg matched no module (Cfg_Fault).
+    ConfigError = 3,
+    /// 4: the last Set_Prm was refused (Prm_Fault).
+    ParameterError = 4,
+    /// 5: in data exchange, the master is in Clear (Global_Control Clear_Data or fail-safe).
+    ClearMode = 5,
+    /// 6: cyclic data exchange with the master.
+    Online = 6,
+}
+
+impl CommState {
+    /// Every value, in code order.
+    pub const ALL: [CommState; 7] = [
+        CommState::Inactive,
+        CommState::InitError,
+        CommState::Offline,
+        CommState::ConfigError,
+        CommState::ParameterError,
+        CommState::ClearMode,
+        CommState::Online,
+    ];
+
+    /// The state a running slave is in.
+    pub fn of(slave: &DpSlave) -> CommState {
+        let s1 = slave.standard_diag().status1;
+        match slave.state() {
+            DpState::DataExch if slave.is_clear() => CommState::ClearMode,
+            DpState::DataExch => CommState::Online,
+            _ if s1.contains(Status1::PRM_FAULT) => CommState::ParameterError,
+            _ if s1.contains(Status1::CFG_FAULT) => CommState::ConfigError,
+            _ => CommState::Offline,
+        }
+    }
+
+    /// The P0740 code.
+    pub const fn code(self) -> u8 {
+        self as u8
+    }
+
+    /// The state of a P0740 code.
+    pub fn from_code(code: u8) -> Option<CommState> {
+        CommState::ALL.get(code as usize).copied()
+    }
+
+    /// The manual's text.
+    pub const fn text(self) -> &'static str {
+        match self {
+            CommState::Inactive => "inactive",
+            CommState::InitError => "interface initialization error",
+            CommState::Offline => "offline",
+            CommState::ConfigError => "configuration data error",
+            CommState::ParameterError => "parameterization data error",
+            CommState::ClearMode => "clear mode",
+            CommState::Online => "online",
+        }
+    }
+}
+
+/// Which process-data layout is active: a PROFIdrive telegram (P922 number) or a PPO type of
+/// PROFIdrive 2.0. Coded in the DPM as a u16: 0 = none, 1..=0x7FFF = telegram number,
+/// 0x8000 | n = PPO n.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum Telegram {
+    /// No module configured.
+    None,
+    /// PROFIdrive telegram number (1 = Standard Telegram 1).
+    Standard(u16),
+    /// PPO type 1..=6.
+    Ppo(u8),
+}
+
+impl Telegram {
+    /// The DPM code.
+    pub const fn code(self) -> u16 {
+        match self {
+            Telegram::None => 0,
+            Telegram::Standard(n) => n & 0x7FFF,
+            Telegram::Ppo(n) => 0x8000 | n as u16,
+        }
+    }
+
+    /// The telegram of a DPM code (PPO numbers above 255 read as PPO 0, i.e. unknown).
+    pub const fn from_code(code: u16) -> Telegram {
+        match code {
+            0 => Telegram::None,
+            c if c & 0x8000 != 0 => Telegram::Ppo(if c & 0x7F00 == 0 { c as u8 } else { 0 }),
+            c => Telegram::Standard(c),
+        }
+    }
+
+    /// The telegram a GSD module carries (`card::Module::reference`: 1 = Standard Telegram 1,
+    /// 101..=106 = PPO 1..6). `None` for a module this map does not know yet.
+    pub const fn of_module(module: &Module) -> Option<Telegram> {
+        match module.reference {
+            1 => Some(Telegram::Standard(1)),
+            r @ 101..=106 => Some(Telegram::Ppo((r - 100) as u8)),
+            _ => None,
+        }
+    }
+
+    /// PKW words at the start of the image (4 for PPO 1, 2 and 5; 0 otherwise).
+    pub const fn pkw_words(self) -> usize {
+        match self {
+            Telegram::Ppo(1 | 2 | 5) => 4,
+            _ => 0,
+        }
+    }
+
+    /// PZD words after the PKW (0 for an unknown layout).
+    pub const fn pzd_words(self) -> usize {
+        match self {
+            Telegram::Standard(1) | Telegram::Ppo(1 | 3) => 2,
+            Telegram::Ppo(2 | 4) => 6,
+            Telegram::Ppo(5 | 6) => 10,
+            _ => 0,
+        }
+    }
+
+    /// Whether the layout is known ([`Self::pzd_words`] > 0).
+    pub const fn is_known(self) -> bool {
+        self.pzd_words() > 0
+    }
+}
+
+bitflags::bitflags! {
+    /// `STATUS.FLAGS`.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+    pub struct StatusFlags: u8 {
+        /// The master is in Clear (Clear_Data or fail-safe zero-length outputs).
+        const CLEAR = 1 << 0;
+        /// Sync mode.
+        const SYNC = 1 << 1;
+        /// Freeze mode.
+        const FREEZE = 1 << 2;
+        /// The DP watchdog is on.
+        const WATCHDOG_ON = 1 << 3;
+        /// The address may no longer be changed by Set_Slave_Add (No_Add_Chg).
+        const ADDRESS_LOCKED = 1 << 4;
+    }
+}
+
+bitflags::bitflags! {
+    /// `OUTPUTS.FLAGS` / `INPUTS.FLAGS`.
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+    pub struct PdFlags: u8 {
+        /// OUTPUTS: the card is in data exchange, the data is the master's. Outside data
+        /// exchange the data is all zero.
+        const DATA_EXCHANGE = 1 << 0;
+        /// OUTPUTS: the master is in Clear; the data is all zero.
+        const CLEAR = 1 << 1;
+    }
+}
+
+/// The status block's content.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Status {
+    /// Communication state (P0740).
+    pub comm: CommState,
+    /// Detected baud rate, P0963 coding ([`p0963`]).
+    pub baud: u8,
+    /// Own station address.
+    pub station_address: u8,
+    /// The master holding the lock.
+    pub master_address: Option<u8>,
+    /// Active telegram.
+    pub telegram: Telegram,
+    /// DP state.
+    pub dp_state: DpState,
+    /// Flags.
+    pub flags: StatusFlags,
+    /// DP watchdog in ms (0 = off).
+    pub watchdog_ms: u16,
+    /// Data_Exchange requests answered.
+    pub data_exchanges: u32,
+    /// Set_Prm refused.
+    pub prm_faults: u16,
+    /// Chk_Cfg refused.
+    pub cfg_faults: u16,
+    /// DP watchdog expiries.
+    pub watchdog_expiries: u16,
+    /// Corrupt telegrams.
+    pub corrupt_frames: u16,
+}
+
+impl Status {
+    /// The status of an image nobody has started: P0740 "inactive", baud not detected.
+    pub const INACTIVE: Status = Status {
+        comm: CommState::Inactive,
+        baud: BAUD_NOT_DETECTED,
+        station_address: 0,
+        master_address: None,
+        telegram: Telegram::None,
+        dp_state: DpState::WaitPrm,
+        flags: StatusFlags::empty(),
+        watchdog_ms: 0,
+        data_exchanges: 0,
+        prm_faults: 0,
+        cfg_faults: 0,
+        watchdog_expiries: 0,
+        corrupt_frames: 0,
+    };
+
+    fn encode(&self, b: &mut [u8]) {
+        b[status::COMM_STATE] = self.comm.code();
+        b[status::BAUD] = self.baud;
+        b[status::STATION_ADDRESS] = self.station_address;
+        b[status::MASTER_ADDRESS] = self.master_address.unwrap_or(0xFF);
+        put16(b, status::TELEGRAM, self.telegram.code());
+        b[status::DP_STATE] = match self.dp_state {
+            DpState::WaitPrm => 0,
+            DpState::WaitCfg => 1,
+            DpState::DataExch => 2,
+        };
+        b[status::FLAGS] = self.flags.bits();
+        put16(b, status::WATCHDOG_MS, self.watchdog_ms);
+        b[status::DATA_EXCHANGES..status::DATA_EXCHANGES + 4].copy_from_slice(&self.data_exchanges.to_be_bytes());
+        put16(b, status::PRM_FAULTS, self.prm_faults);
+        put16(b, status::CFG_FAULTS, self.cfg_faults);
+        put16(b, status::WATCHDOG_EXPIRIES, self.watchdog_expiries);
+        put16(b, status::CORRUPT_FRAMES, self.corrupt_frames);
+    }
+
+    fn decode(b: &[u8]) -> Status {
+        let mut dx = [0u8; 4];
+        dx.copy_from_slice(&b[status::DATA_EXCHANGES..status::DATA_EXCHANGES + 4]);
+        Status {
+            // An unknown code (a newer card) reads as "init error": something is wrong.
+            comm: CommState::from_code(b[status::COMM_STATE]).unwrap_or(CommState::InitError),
+            baud: b[status::BAUD],
+            station_address: b[status::STATION_ADDRESS],
+            master_address: match b[status::MASTER_ADDRESS] {
+                0xFF => None,
+                a => Some(a),
+            },
+            telegram: Telegram::from_code(get16(b, status::TELEGRAM)),
+            dp_state: match b[status::DP_STATE] {
+                1 => DpState::WaitCfg,
+                2 => DpState::DataExch,
+                _ => DpState::WaitPrm,
+            },
+            flags: StatusFlags::from_bits_retain(b[status::FLAGS]),
+            watchdog_ms: get16(b, status::WATCHDOG_MS),
+            data_exchanges: u32::from_be_bytes(dx),
+            prm_faults: get16(b, status::PRM_FAULTS),
+            cfg_faults: get16(b, status::CFG_FAULTS),
+            watchdog_expiries: get16(b, status::WATCHDOG_EXPIRIES),
+            corrupt_frames: get16(b, status::CORRUPT_FRAMES),
+        }
+    }
+}
+
+/// One process-data image as a block holds it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ProcessData {
+    /// The block's sequence counter (0 = never written).
+    pub seq: u16,
+    /// The layout of [`Self::bytes`].
+    pub telegram: Telegram,
+    /// Flags.
+    pub flags: PdFlags,
+    len: u8,
+    data: [u8; PD_CAPACITY],
+}
+
+impl ProcessData {
+    /// Process data for `telegram` (longer data is cut to [`layout::PD_CAPACITY`]); `seq` is
+    /// set when written.
+    pub fn new(telegram: Telegram, flags: PdFlags, bytes: &[u8]) -> Self {
+        let n = bytes.len().min(PD_CAPACITY);
+        let mut data = [0u8; PD_CAPACITY];
+        data[..n].copy_from_slice(&bytes[..n]);
+        ProcessData { seq: 0, telegram, flags, len: n as u8, data }
+    }
+
+    /// The valid bytes.
+    pub fn bytes(&self) -> &[u8] {
+        &self.data[..self.len as usize]
+    }
+
+    /// Word `i` (big-endian; 0 beyond the valid bytes).
+    pub fn word(&self, i: usize) -> u16 {
+        match self.bytes().get(2 * i..2 * i + 2) {
+            Some(w) => u16::from_be_bytes([w[0], w[1]]),
+            None => 0,
+        }
+    }
+
+    fn encode(&self, b: &mut [u8]) {
+        put16(b, pd::TELEGRAM, self.telegram.code());
+        b[pd::LEN] = self.len;
+        b[pd::FLAGS] = self.flags.bits();
+        b[pd::DATA..pd::DATA + PD_CAPACITY].copy_from_slice(&self.data);
+    }
+
+    fn decode(b: &[u8]) -> ProcessData {
+        let len = b[pd::LEN].min(PD_CAPACITY as u8);
+        let mut data = [0u8; PD_CAPACITY];
+        data[..len as usize].copy_from_slice(&b[pd::DATA..pd::DATA + len as usize]);
+        ProcessData {
+            seq: get16(b, pd::SEQ_HEAD),
+            telegram: Telegram::from_code(get16(b, pd::TELEGRAM)),
+            flags: PdFlags::from_bits_retain(b[pd::FLAGS]),
+            len,
+            data,
+        }
+    }
+}
+
+/// The DPM image.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Dpm {
+    image: [u8; IMAGE_SIZE],
+}
+
+impl Default for Dpm {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Dpm {
+    /// A fresh image: header written, status [`Status::INACTIVE`], no process data (every
+    /// sequence counter 0).
+    pub fn new() -> Self {
+        let mut image = [0u8; IMAGE_SIZE];
+        image[layout::header::MAGIC..layout::header::MAGIC + 4].copy_from_slice(&layout::MAGIC);
+        put16(&mut image, layout::header::LAYOUT_VERSION, layout::LAYOUT_VERSION);
+        put16(&mut image, layout::header::IMAGE_SIZE, IMAGE_SIZE as u16);
+        Status::INACTIVE.encode(&mut image[status::START..status::START + status::LEN]);
+        Dpm { image }
+    }
+
+    /// The raw image (for a transport, a dump, a test).
+    pub fn as_bytes(&self) -> &[u8; IMAGE_SIZE] {
+        &self.image
+    }
+
+    /// The raw image, writable (a transport writing the host's bytes).
+    pub fn as_bytes_mut(&mut self) -> &mut [u8; IMAGE_SIZE] {
+        &mut self.image
+    }
+
+    /// The card's view.
+    pub fn card(&mut self) -> CardSide<'_> {
+        CardSide { image: &mut self.image }
+    }
+
+    /// The host's (drive control board's) view.
+    pub fn host(&mut self) -> HostSide<'_> {
+        HostSide { image: &mut self.image }
+    }
+
+    /// Read the status as the host does (no write access needed).
+    pub fn status(&self) -> Result<Status, Torn> {
+        read_status(&self.image)
+    }
+
+    /// Read the outputs as the host does.
+    pub fn outputs(&self) -> Result<ProcessData, Torn> {
+        read_outputs(&self.image)
+    }
+
+    /// Read the inputs as the card does.
+    pub fn inputs(&self) -> Result<ProcessData, Torn> {
+        read_inputs(&self.image)
+    }
+}
+
+/// The card's access to the image: writes STATUS and OUTPUTS, reads INPUTS.
+#[derive(Debug)]
+pub struct CardSide<'a> {
+    image: &'a mut [u8; IMAGE_SIZE],
+}
+
+impl CardSide<'_> {
+    /// Write the status block; returns its new sequence counter.
+    pub fn write_status(&mut self, s: &Status) -> u16 {
+        card_write(self.image, status::START, status::LEN, |b| s.encode(b))
+    }
+
+    /// Write the outputs block (the master's process data); returns its new sequence counter.
+    pub fn write_outputs(&mut self, pd: &ProcessData) -> u16 {
+        card_write(self.image, layout::outputs::START, pd::LEN_BLOCK, |b| pd.encode(b))
+    }
+
+    /// Read the inputs block (the drive's process data).
+    pub fn read_inputs(&self) -> Result<ProcessData, Torn> {
+        read_inputs(self.image)
+    }
+}
+
+/// The host's (drive control board's) access: reads STATUS and OUTPUTS, writes INPUTS.
+#[derive(Debug)]
+pub struct HostSide<'a> {
+    image: &'a mut [u8; IMAGE_SIZE],
+}
+
+impl HostSide<'_> {
+    /// Read the status block.
+    pub fn read_status(&self) -> Result<Status, Torn> {
+        read_status(self.image)
+    }
+
+    /// Read the outputs block (the master's process data).
+    pub fn read_outputs(&self) -> Result<ProcessData, Torn> {
+        read_outputs(self.image)
+    }
+
+    /// Write the inputs block (the drive's process data); returns its new sequence counter.
+    pub fn write_inputs(&mut self, pd: &ProcessData) -> u16 {
+        let start = layout::inputs::START;
+        let len = pd::LEN_BLOCK;
+        let seq = next_seq(get16(self.image, start));
+        // Ascending: head, payload, tail.
+        put16(self.image, start, seq);
+        pd.encode(&mut self.image[start..start + len]);
+        put16(self.image, start + len - 2, seq);
+        seq
+    }
+}
+
+/// Largest block (for the readers' local copies).
+const MAX_BLOCK: usize = if status::LEN > pd::LEN_BLOCK { status::LEN } else { pd::LEN_BLOCK };
+
+const fn next_seq(s: u16) -> u16 {
+    if s == u16::MAX {
+        1
+    } else {
+        s + 1
+    }
+}
+
+fn get16(b: &[u8], at: usize) -> u16 {
+    u16::from_be_bytes([b[at], b[at + 1]])
+}
+
+fn put16(b: &mut [u8], at: usize, v: u16) {
+    b[at..at + 2].copy_from_slice(&v.to_be_bytes());
+}
+
+/// The card writes a block: tail first, payload (`fill` gets the whole block; it must leave
+/// the two counters alone), head last.
+fn card_write(image: &mut [u8; IMAGE_SIZE], start: usize, len: usize, fill: impl FnOnce(&mut [u8])) -> u16 {
+    let block = &mut image[start..start + len];
+    let seq = next_seq(get16(block, 0));
+    put16(block, len - 2, seq);
+    fill(block);
+    put16(block, 0, seq);
+    seq
+}
+
+/// STATUS as the host reads it.
+fn read_status(image: &[u8; IMAGE_SIZE]) -> Result<Status, Torn> {
+    host_read(image, status::START, status::LEN).map(|b| Status::decode(&b[..status::LEN]))
+}
+
+/// OUTPUTS as the host reads it.
+fn read_outputs(image: &[u8; IMAGE_SIZE]) -> Result<ProcessData, Torn> {
+    host_read(image, layout::outputs::START, pd::LEN_BLOCK).map(|b| ProcessData::decode(&b[..pd::LEN_BLOCK]))
+}
+
+/// INPUTS as the card reads it.
+fn read_inputs(image: &[u8; IMAGE_SIZE]) -> Result<ProcessData, Torn> {
+    card_read(image, layout::inputs::START, pd::LEN_BLOCK).map(|b| ProcessData::decode(&b[..pd::LEN_BLOCK]))
+}
+
+/// The card reads a block: tail first, payload, head last.
+fn card_read(image: &[u8; IMAGE_SIZE], start: usize, len: usize) -> Result<[u8; MAX_BLOCK], Torn> {
+    let block = &image[start..start + len];
+    let tail = get16(block, len - 2);
+    let mut copy = [0u8; MAX_BLOCK];
+    copy[2..len - 2].copy_from_slice(&block[2..len - 2]);
+    let head = get16(block, 0);
+    put16(&mut copy, 0, head);
+    put16(&mut copy, len - 2, tail);
+    if head == tail {
+        Ok(copy)
+    } else {
+        Err(Torn { head, tail })
+    }
+}
+
+/// The host reads a block in one ascending pass.
+fn host_read(image: &[u8; IMAGE_SIZE], start: usize, len: usize) -> Result<[u8; MAX_BLOCK], Torn> {
+    let mut copy = [0u8; MAX_BLOCK];
+    copy[..len].copy_from_slice(&image[start..start + len]);
+    let (head, tail) = (get16(&copy, 0), get16(&copy, len - 2));
+    if head == tail {
+        Ok(copy)
+    } else {
+        Err(Torn { head, tail })
+    }
+}
+
+#[cfg(test)]
+mod tests;
