@@ -1,4 +1,6 @@
-//! The DPM memory map, layout version 1: every offset the card and the host use, in one place.
+//! The DPM memory map, layout version 2: every offset the card and the host use, in one place.
+//! [`FIELDS`] lists every byte of the image (reserved bytes included) and is what
+//! `docs/DPM.md` is generated from ([`write_markdown`]); a test fails when the two differ.
 //!
 //! All multi-byte fields are **big-endian** (as the PROFIBUS wire and the PZD words), so the
 //! process data bytes are the telegram's bytes unchanged. Offsets of a field inside a block
@@ -10,18 +12,46 @@
 //!                                   active telegram, DP state, flags, watchdog, counters
 //! 0x30  OUTPUTS  72 B  card → host  process data master → drive (STW1, NSOLL_A … / PKW + PZD)
 //! 0x78  INPUTS   72 B  host → card  process data drive → master (ZSW1, NIST_A … / PKW + PZD)
-//! 0xC0  end (IMAGE_SIZE = 192)
+//! 0xC0  IDENT    16 B  card, once   card type, firmware version, ident number, serial   (v2)
+//! 0xD0  CARD     32 B  card → host  card heartbeat, configuration acknowledge, event
+//!                                   counters, drive-lost state                          (v2)
+//! 0xF0  DRIVE    48 B  host → card  drive heartbeat, fault / warning reports, ext. diag.  (v2)
+//! 0x120 CONFIG   48 B  host → card  station address, telegram, profile, operate mode,
+//!                                   PZD mapping, communication-loss reaction and delay  (v2)
+//! 0x150 MBX_REQ 144 B  card → host  parameter mailbox request                           (v2)
+//! 0x1E0 MBX_RSP 144 B  host → card  parameter mailbox response                          (v2)
+//! 0x270 end (IMAGE_SIZE = 624)
 //! ```
 //!
-//! STATUS, OUTPUTS and INPUTS are *sequenced blocks*: the first word (`SEQ_HEAD`) and the last
+//! Version 1 ended at 0xC0; version 2 only appended blocks and the header's capability word
+//! (a version-1 host that checks `IMAGE_SIZE >= 0xC0` keeps working).
+//!
+//! Every block except HEADER and IDENT is a *sequenced block*: the first word (`SEQ_HEAD`) and the last
 //! word (`SEQ_TAIL`) hold the same sequence counter once a write is complete (see
-//! [`super`] for the protocol). Later layout versions (parameter mailbox, events,
-//! configuration, heartbeat) append blocks after `0xC0`; the offsets below do not move.
+//! [`super`] for the protocol). Later layout versions append blocks; the offsets below do not
+//! move.
 
 /// `HEADER.MAGIC` value: ASCII "PBDM".
 pub const MAGIC: [u8; 4] = *b"PBDM";
 /// `HEADER.LAYOUT_VERSION` value of this map.
-pub const LAYOUT_VERSION: u16 = 1;
+pub const LAYOUT_VERSION: u16 = 2;
+
+/// Bits of `HEADER.CAPABILITIES`: which optional blocks this card serves. The host reads the
+/// header (magic, version, size, capabilities) before anything else.
+pub mod cap {
+    /// IDENT is filled in.
+    pub const IDENT: u32 = 1 << 0;
+    /// CARD: card heartbeat and event counters.
+    pub const CARD_EVENTS: u32 = 1 << 1;
+    /// DRIVE: the card supervises the drive heartbeat and takes fault / warning / ext. diag.
+    pub const DRIVE_REPORTS: u32 = 1 << 2;
+    /// CONFIG is taken over (outside data exchange) and acknowledged in CARD.
+    pub const CONFIG: u32 = 1 << 3;
+    /// MBX_REQ / MBX_RSP: the parameter mailbox.
+    pub const MAILBOX: u32 = 1 << 4;
+    /// Everything this card implements.
+    pub const ALL: u32 = IDENT | CARD_EVENTS | DRIVE_REPORTS | CONFIG | MAILBOX;
+}
 
 /// Header: written once by the card when the image is created.
 pub mod header {
@@ -35,6 +65,8 @@ pub mod header {
     pub const LAYOUT_VERSION: usize = 0x04;
     /// u16, [`super::IMAGE_SIZE`].
     pub const IMAGE_SIZE: usize = 0x06;
+    /// u32, [`super::cap`] bits (layout version 2).
+    pub const CAPABILITIES: usize = 0x08;
 }
 
 /// Status block (card → host).
@@ -113,14 +145,550 @@ pub mod inputs {
     pub const LEN: usize = super::pd::LEN_BLOCK;
 }
 
+/// Identification (card → host), written once when the image is created.
+pub mod ident {
+    /// Block start.
+    pub const START: usize = super::inputs::START + super::inputs::LEN;
+    /// Block length.
+    pub const LEN: usize = 16;
+    /// u16 card type ([`crate::dpm::CARD_TYPE`]).
+    pub const CARD_TYPE: usize = 0x00;
+    /// u8 firmware major version.
+    pub const FW_MAJOR: usize = 0x02;
+    /// u8 firmware minor version.
+    pub const FW_MINOR: usize = 0x03;
+    /// u8 firmware patch version.
+    pub const FW_PATCH: usize = 0x04;
+    /// u16 PROFIBUS ident number (the GSD's).
+    pub const IDENT_NUMBER: usize = 0x06;
+    /// u32 serial number (0 = not programmed).
+    pub const SERIAL: usize = 0x08;
+}
+
+/// Number of card → drive event counters in CARD ([`crate::dpm::CardEvent`]).
+pub const CARD_EVENT_COUNT: usize = 8;
+
+/// Card block (card → host): heartbeat, configuration acknowledge, events.
+pub mod card {
+    /// Block start.
+    pub const START: usize = super::ident::START + super::ident::LEN;
+    /// Block length.
+    pub const LEN: usize = 32;
+    /// u16 sequence counter, written last by the card.
+    pub const SEQ_HEAD: usize = 0x00;
+    /// u16 card heartbeat: incremented on every card cycle (wraps, skips 0).
+    pub const HEARTBEAT: usize = 0x02;
+    /// u8 card state flags ([`crate::dpm::CardFlags`]).
+    pub const FLAGS: usize = 0x04;
+    /// u8 result of the configuration named by `CONFIG_ACK` ([`crate::dpm::ConfigResult`]).
+    pub const CONFIG_RESULT: usize = 0x05;
+    /// u16 the CONFIG sequence counter `CONFIG_RESULT` is about (0 = none yet).
+    pub const CONFIG_ACK: usize = 0x06;
+    /// u8 × 8 event counters, one per [`crate::dpm::CardEvent`] (wrap); a change = new event.
+    pub const EVENTS: usize = 0x08;
+    /// u16 drive heartbeat losses detected (wraps).
+    pub const DRIVE_LOSSES: usize = 0x10;
+    /// u16 late or unknown mailbox responses ignored (wraps).
+    pub const LATE_RESPONSES: usize = 0x12;
+    /// u16 mailbox requests timed out (wraps).
+    pub const MAILBOX_TIMEOUTS: usize = 0x14;
+    /// u16 sequence counter, written first by the card.
+    pub const SEQ_TAIL: usize = LEN - 2;
+}
+
+/// Bytes of extended diagnosis the drive can hand over in DRIVE.
+pub const EXT_DIAG_CAPACITY: usize = 32;
+
+/// Drive block (host → card): drive heartbeat, fault and warning reports, ext. diagnosis.
+pub mod drive {
+    /// Block start.
+    pub const START: usize = super::card::START + super::card::LEN;
+    /// Block length.
+    pub const LEN: usize = 48;
+    /// u16 sequence counter: the head.
+    pub const SEQ_HEAD: usize = 0x00;
+    /// u16 drive heartbeat: changed on every drive cycle (0 = drive not started).
+    pub const HEARTBEAT: usize = 0x02;
+    /// u16 active fault code (0 = none).
+    pub const FAULT_CODE: usize = 0x04;
+    /// u16 active warning code (0 = none).
+    pub const WARNING_CODE: usize = 0x06;
+    /// u8 fault reports (wraps): incremented for each new fault.
+    pub const FAULT_COUNT: usize = 0x08;
+    /// u8 warning reports (wraps): incremented for each new warning.
+    pub const WARNING_COUNT: usize = 0x09;
+    /// u8 valid bytes in `EXT_DIAG` (larger values read as the capacity).
+    pub const EXT_DIAG_LEN: usize = 0x0A;
+    /// Extended diagnosis blocks as DP sends them (device / identifier / channel related).
+    pub const EXT_DIAG: usize = 0x0C;
+    /// u16 sequence counter: the tail.
+    pub const SEQ_TAIL: usize = LEN - 2;
+}
+
+/// Words of programmable PZD mapping each way (PZD3..PZD10).
+pub const PZD_MAP_WORDS: usize = 8;
+
+/// Configuration block (host → card), taken over only while no cyclic exchange runs.
+pub mod config {
+    /// Block start.
+    pub const START: usize = super::drive::START + super::drive::LEN;
+    /// Block length.
+    pub const LEN: usize = 48;
+    /// u16 sequence counter: the head.
+    pub const SEQ_HEAD: usize = 0x00;
+    /// u8 station address (0..=125; 126 = default / not set).
+    pub const STATION_ADDRESS: usize = 0x02;
+    /// u8 profile ([`crate::dpm::HostConfig::profile`]: 0 PROFIdrive, 1 manufacturer).
+    pub const PROFILE: usize = 0x03;
+    /// u8 operate mode (drive-defined, e.g. speed / position).
+    pub const OPERATE_MODE: usize = 0x04;
+    /// u8 communication-loss reaction (0 none, 1 ramp stop, 2 coast, 3 fault, 4 last setpoint).
+    pub const COMM_LOSS_REACTION: usize = 0x05;
+    /// u16 telegram selection ([`crate::dpm::Telegram`] code, 0 = any module).
+    pub const TELEGRAM: usize = 0x06;
+    /// u16 communication-loss delay in ms.
+    pub const COMM_LOSS_DELAY_MS: usize = 0x08;
+    /// u16 × 8: drive PNU mapped to output PZD3..PZD10 (0 = unmapped).
+    pub const PZD_OUT_MAP: usize = 0x0A;
+    /// u16 × 8: drive PNU mapped to input PZD3..PZD10 (0 = unmapped).
+    pub const PZD_IN_MAP: usize = PZD_OUT_MAP + 2 * super::PZD_MAP_WORDS;
+    /// u16 sequence counter: the tail.
+    pub const SEQ_TAIL: usize = LEN - 2;
+}
+
+/// Bytes of parameter values a mailbox request or response carries.
+pub const MBX_CAPACITY: usize = 128;
+
+/// Mailbox request (card → host).
+pub mod mbx_req {
+    /// Block start.
+    pub const START: usize = super::config::START + super::config::LEN;
+    /// u16 sequence counter, written last by the card.
+    pub const SEQ_HEAD: usize = 0x00;
+    /// u16 request identifier (1..=65535, skips 0; 0 = no request yet).
+    pub const REQ_ID: usize = 0x02;
+    /// u8 kind ([`crate::dpm::RequestKind`]: 1 read, 2 write, 3 read description).
+    pub const KIND: usize = 0x04;
+    /// u8 axis / DO-ID.
+    pub const AXIS: usize = 0x05;
+    /// u16 parameter number.
+    pub const PNU: usize = 0x06;
+    /// u16 subindex (first element / description element).
+    pub const SUBINDEX: usize = 0x08;
+    /// u8 number of elements.
+    pub const COUNT: usize = 0x0A;
+    /// u8 PROFIdrive format of `VALUES` (write only).
+    pub const FORMAT: usize = 0x0B;
+    /// u8 valid bytes in `VALUES` (write only).
+    pub const VALUES_LEN: usize = 0x0C;
+    /// Values to write, big-endian, `COUNT × size of FORMAT` bytes.
+    pub const VALUES: usize = 0x0E;
+    /// u16 sequence counter, written first by the card.
+    pub const SEQ_TAIL: usize = VALUES + super::MBX_CAPACITY;
+    /// Block length.
+    pub const LEN: usize = SEQ_TAIL + 2;
+}
+
+/// Mailbox response (host → card).
+pub mod mbx_rsp {
+    /// Block start.
+    pub const START: usize = super::mbx_req::START + super::mbx_req::LEN;
+    /// u16 sequence counter: the head.
+    pub const SEQ_HEAD: usize = 0x00;
+    /// u16 the request identifier answered (a response naming another is ignored).
+    pub const REQ_ID: usize = 0x02;
+    /// u8 0 = values / write done, 1 = error (`ERROR`, `ERROR_INFO`).
+    pub const RESULT: usize = 0x04;
+    /// u8 PROFIdrive format of `VALUES`.
+    pub const FORMAT: usize = 0x05;
+    /// u8 number of values.
+    pub const COUNT: usize = 0x06;
+    /// u8 valid bytes in `VALUES`.
+    pub const VALUES_LEN: usize = 0x07;
+    /// u16 PROFIdrive error value (RESULT = 1).
+    pub const ERROR: usize = 0x08;
+    /// u16 additional information (RESULT = 1 and `HAS_INFO` = 1).
+    pub const ERROR_INFO: usize = 0x0A;
+    /// u8 1 = `ERROR_INFO` is valid.
+    pub const HAS_INFO: usize = 0x0C;
+    /// Values read, big-endian.
+    pub const VALUES: usize = 0x0E;
+    /// u16 sequence counter: the tail.
+    pub const SEQ_TAIL: usize = VALUES + super::MBX_CAPACITY;
+    /// Block length.
+    pub const LEN: usize = SEQ_TAIL + 2;
+}
+
 /// Size of the whole image.
-pub const IMAGE_SIZE: usize = inputs::START + inputs::LEN;
+pub const IMAGE_SIZE: usize = mbx_rsp::START + mbx_rsp::LEN;
 
 const _: () = {
     assert!(header::START + header::LEN == status::START);
     assert!(status::START + status::LEN == outputs::START);
-    assert!(outputs::START == 0x30 && inputs::START == 0x78 && IMAGE_SIZE == 0xC0);
+    assert!(outputs::START == 0x30 && inputs::START == 0x78 && ident::START == 0xC0);
+    assert!(IMAGE_SIZE == 0x270 && IMAGE_SIZE <= u16::MAX as usize);
+    assert!(card::MAILBOX_TIMEOUTS + 2 <= card::SEQ_TAIL);
+    assert!(drive::EXT_DIAG + EXT_DIAG_CAPACITY <= drive::SEQ_TAIL);
+    assert!(config::PZD_IN_MAP + 2 * PZD_MAP_WORDS <= config::SEQ_TAIL);
+    assert!(MBX_CAPACITY <= u8::MAX as usize && EXT_DIAG_CAPACITY <= crate::card::MAX_EXT_DIAG_LEN);
     assert!(status::CORRUPT_FRAMES + 2 <= status::SEQ_TAIL);
     assert!(PD_CAPACITY >= crate::card::MAX_INPUT_LEN && PD_CAPACITY >= crate::card::MAX_OUTPUT_LEN);
     assert!(PD_CAPACITY <= u8::MAX as usize);
 };
+
+/// Who writes a field.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Writer {
+    /// The card.
+    Card,
+    /// The host (the drive's control board).
+    Host,
+}
+
+impl Writer {
+    /// "card" / "host".
+    pub const fn name(self) -> &'static str {
+        match self {
+            Writer::Card => "card",
+            Writer::Host => "host",
+        }
+    }
+}
+
+/// One block of the map.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Block {
+    /// Name as used in [`FIELDS`] (`NAME.FIELD`).
+    pub name: &'static str,
+    /// Absolute offset.
+    pub start: usize,
+    /// Length in bytes.
+    pub len: usize,
+    /// Who writes it.
+    pub writer: Writer,
+    /// Whether it is a sequenced block (`SEQ_HEAD` / `SEQ_TAIL`).
+    pub sequenced: bool,
+    /// Layout version that introduced it.
+    pub since: u16,
+    /// What it holds.
+    pub text: &'static str,
+}
+
+/// Every block, in address order.
+pub const BLOCKS: &[Block] = &[
+    Block {
+        name: "HEADER",
+        start: header::START,
+        len: header::LEN,
+        writer: Writer::Card,
+        sequenced: false,
+        since: 1,
+        text: "Magic, layout version, image size, capabilities. Written once when the image is created.",
+    },
+    Block {
+        name: "STATUS",
+        start: status::START,
+        len: status::LEN,
+        writer: Writer::Card,
+        sequenced: true,
+        since: 1,
+        text: "Communication state, baud rate, addresses, telegram, DP state, counters. Written when it changes.",
+    },
+    Block {
+        name: "OUTPUTS",
+        start: outputs::START,
+        len: outputs::LEN,
+        writer: Writer::Card,
+        sequenced: true,
+        since: 1,
+        text: "Process data master → drive. Written on every Data_Exchange and when its meaning changes.",
+    },
+    Block {
+        name: "INPUTS",
+        start: inputs::START,
+        len: inputs::LEN,
+        writer: Writer::Host,
+        sequenced: true,
+        since: 1,
+        text: "Process data drive → master. The card takes an image written for the active telegram.",
+    },
+    Block {
+        name: "IDENT",
+        start: ident::START,
+        len: ident::LEN,
+        writer: Writer::Card,
+        sequenced: false,
+        since: 2,
+        text: "Identification. Written once when the image is created, with the header.",
+    },
+    Block {
+        name: "CARD",
+        start: card::START,
+        len: card::LEN,
+        writer: Writer::Card,
+        sequenced: true,
+        since: 2,
+        text: "Card heartbeat, configuration acknowledge, card → drive event counters. Written on every card cycle.",
+    },
+    Block {
+        name: "DRIVE",
+        start: drive::START,
+        len: drive::LEN,
+        writer: Writer::Host,
+        sequenced: true,
+        since: 2,
+        text: "Drive heartbeat, fault / warning reports, extended diagnosis. Written on every drive cycle.",
+    },
+    Block {
+        name: "CONFIG",
+        start: config::START,
+        len: config::LEN,
+        writer: Writer::Host,
+        sequenced: true,
+        since: 2,
+        text: "Configuration from the drive. Taken over only while no cyclic exchange runs; acknowledged in CARD.",
+    },
+    Block {
+        name: "MBX_REQ",
+        start: mbx_req::START,
+        len: mbx_req::LEN,
+        writer: Writer::Card,
+        sequenced: true,
+        since: 2,
+        text: "Parameter mailbox request. A new REQ_ID is a new request.",
+    },
+    Block {
+        name: "MBX_RSP",
+        start: mbx_rsp::START,
+        len: mbx_rsp::LEN,
+        writer: Writer::Host,
+        sequenced: true,
+        since: 2,
+        text: "Parameter mailbox response. Taken only when REQ_ID names the outstanding request.",
+    },
+];
+
+/// One field of the map.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Field {
+    /// `BLOCK.FIELD`.
+    pub name: &'static str,
+    /// Absolute offset.
+    pub offset: usize,
+    /// Size in bytes.
+    pub size: usize,
+    /// Type: `u8`, `u16`, `u32`, `u8[n]`, `u16[n]` or `reserved`.
+    pub ty: &'static str,
+    /// Who writes it.
+    pub writer: Writer,
+    /// When the value is valid, and what it means.
+    pub valid: &'static str,
+}
+
+impl Field {
+    /// Byte order: big-endian for multi-byte integers, none for bytes.
+    pub fn byte_order(&self) -> &'static str {
+        if self.ty.starts_with("u16") || self.ty.starts_with("u32") {
+            "big-endian"
+        } else {
+            "-"
+        }
+    }
+}
+
+const C: Writer = Writer::Card;
+const H: Writer = Writer::Host;
+
+macro_rules! f {
+    ($name:literal, $block:ident :: $field:ident, $size:expr, $ty:literal, $w:expr, $valid:expr) => {
+        Field { name: $name, offset: $block::START + $block::$field, size: $size, ty: $ty, writer: $w, valid: $valid }
+    };
+    ($name:literal, @ $off:expr, $size:expr, $ty:literal, $w:expr, $valid:expr) => {
+        Field { name: $name, offset: $off, size: $size, ty: $ty, writer: $w, valid: $valid }
+    };
+}
+
+const SEQ_VALID: &str = "sequence counter, 0 = never written; head = tail: the block is consistent";
+const PD: usize = PD_CAPACITY;
+
+/// Every byte of the image, in address order (reserved bytes included). `docs/DPM.md` is
+/// generated from this table and the tests check it covers the image exactly.
+pub const FIELDS: &[Field] = &[
+    f!("HEADER.MAGIC", header::MAGIC, 4, "u8[4]", C, "always: ASCII \"PBDM\""),
+    f!("HEADER.LAYOUT_VERSION", header::LAYOUT_VERSION, 2, "u16", C, "always: 2 (read first, with the magic)"),
+    f!("HEADER.IMAGE_SIZE", header::IMAGE_SIZE, 2, "u16", C, "always: bytes in the image (624)"),
+    f!("HEADER.CAPABILITIES", header::CAPABILITIES, 4, "u32", C, "always (version >= 2): bit 0 IDENT, 1 CARD events, 2 DRIVE reports, 3 CONFIG, 4 MAILBOX"),
+    f!("HEADER.reserved", @ header::START + 0x0C, 4, "reserved", C, "0"),
+    f!("STATUS.SEQ_HEAD", status::SEQ_HEAD, 2, "u16", C, SEQ_VALID),
+    f!("STATUS.COMM_STATE", status::COMM_STATE, 1, "u8", C, "consistent block: P0740 coding 0 inactive, 1 init error, 2 offline, 3 cfg error, 4 prm error, 5 clear, 6 online"),
+    f!("STATUS.BAUD", status::BAUD, 1, "u8", C, "consistent block: P0963 coding, 5 = not detected"),
+    f!("STATUS.STATION_ADDRESS", status::STATION_ADDRESS, 1, "u8", C, "consistent block: own address 0..=126"),
+    f!("STATUS.MASTER_ADDRESS", status::MASTER_ADDRESS, 1, "u8", C, "consistent block: master holding the lock, 0xFF = none"),
+    f!("STATUS.TELEGRAM", status::TELEGRAM, 2, "u16", C, "consistent block: 0 none, n = telegram n, 0x8000|n = PPO n"),
+    f!("STATUS.DP_STATE", status::DP_STATE, 1, "u8", C, "consistent block: 0 Wait_Prm, 1 Wait_Cfg, 2 Data_Exch"),
+    f!("STATUS.FLAGS", status::FLAGS, 1, "u8", C, "consistent block: bit 0 clear, 1 sync, 2 freeze, 3 watchdog on, 4 address locked"),
+    f!("STATUS.WATCHDOG_MS", status::WATCHDOG_MS, 2, "u16", C, "consistent block: DP watchdog ms, 0 = off"),
+    f!("STATUS.DATA_EXCHANGES", status::DATA_EXCHANGES, 4, "u32", C, "consistent block: Data_Exchange count (wraps)"),
+    f!("STATUS.PRM_FAULTS", status::PRM_FAULTS, 2, "u16", C, "consistent block: Set_Prm refused (wraps)"),
+    f!("STATUS.CFG_FAULTS", status::CFG_FAULTS, 2, "u16", C, "consistent block: Chk_Cfg refused (wraps)"),
+    f!("STATUS.WATCHDOG_EXPIRIES", status::WATCHDOG_EXPIRIES, 2, "u16", C, "consistent block: DP watchdog expiries (wraps)"),
+    f!("STATUS.CORRUPT_FRAMES", status::CORRUPT_FRAMES, 2, "u16", C, "consistent block: corrupt telegrams (wraps)"),
+    f!("STATUS.reserved", @ status::START + status::CORRUPT_FRAMES + 2, status::SEQ_TAIL - status::CORRUPT_FRAMES - 2, "reserved", C, "0"),
+    f!("STATUS.SEQ_TAIL", status::SEQ_TAIL, 2, "u16", C, SEQ_VALID),
+    f!("OUTPUTS.SEQ_HEAD", @ outputs::START + pd::SEQ_HEAD, 2, "u16", C, SEQ_VALID),
+    f!("OUTPUTS.TELEGRAM", @ outputs::START + pd::TELEGRAM, 2, "u16", C, "consistent block: layout of DATA (STATUS.TELEGRAM coding)"),
+    f!("OUTPUTS.LEN", @ outputs::START + pd::LEN, 1, "u8", C, "consistent block: valid bytes of DATA (<= 64)"),
+    f!("OUTPUTS.FLAGS", @ outputs::START + pd::FLAGS, 1, "u8", C, "consistent block: bit 0 data exchange, bit 1 clear (data all zero)"),
+    f!("OUTPUTS.DATA", @ outputs::START + pd::DATA, PD, "u8[64]", C, "consistent block, first LEN bytes: the master's outputs as on the wire (big-endian words)"),
+    f!("OUTPUTS.SEQ_TAIL", @ outputs::START + pd::SEQ_TAIL, 2, "u16", C, SEQ_VALID),
+    f!("INPUTS.SEQ_HEAD", @ inputs::START + pd::SEQ_HEAD, 2, "u16", H, SEQ_VALID),
+    f!("INPUTS.TELEGRAM", @ inputs::START + pd::TELEGRAM, 2, "u16", H, "consistent block: layout of DATA; taken only if it is the active telegram"),
+    f!("INPUTS.LEN", @ inputs::START + pd::LEN, 1, "u8", H, "consistent block: valid bytes of DATA (<= 64)"),
+    f!("INPUTS.FLAGS", @ inputs::START + pd::FLAGS, 1, "u8", H, "consistent block: 0 (reserved flags)"),
+    f!("INPUTS.DATA", @ inputs::START + pd::DATA, PD, "u8[64]", H, "consistent block, first LEN bytes: the drive's inputs as on the wire"),
+    f!("INPUTS.SEQ_TAIL", @ inputs::START + pd::SEQ_TAIL, 2, "u16", H, SEQ_VALID),
+    f!("IDENT.CARD_TYPE", ident::CARD_TYPE, 2, "u16", C, "once the magic is valid: card type (0x0DB1 = this PROFIBUS DP-V1 card)"),
+    f!("IDENT.FW_MAJOR", ident::FW_MAJOR, 1, "u8", C, "once the magic is valid: firmware major version"),
+    f!("IDENT.FW_MINOR", ident::FW_MINOR, 1, "u8", C, "once the magic is valid: firmware minor version"),
+    f!("IDENT.FW_PATCH", ident::FW_PATCH, 1, "u8", C, "once the magic is valid: firmware patch version"),
+    f!("IDENT.reserved", @ ident::START + 0x05, 1, "reserved", C, "0"),
+    f!("IDENT.IDENT_NUMBER", ident::IDENT_NUMBER, 2, "u16", C, "once the magic is valid: PROFIBUS ident number"),
+    f!("IDENT.SERIAL", ident::SERIAL, 4, "u32", C, "once the magic is valid: serial number, 0 = not programmed"),
+    f!("IDENT.reserved", @ ident::START + 0x0C, 4, "reserved", C, "0"),
+    f!("CARD.SEQ_HEAD", card::SEQ_HEAD, 2, "u16", C, SEQ_VALID),
+    f!("CARD.HEARTBEAT", card::HEARTBEAT, 2, "u16", C, "consistent block: changes every card cycle; unchanged for the drive's timeout = card lost"),
+    f!("CARD.FLAGS", card::FLAGS, 1, "u8", C, "consistent block: bit 0 drive heartbeat lost, bit 1 configuration pending, bit 2 card fault"),
+    f!("CARD.CONFIG_RESULT", card::CONFIG_RESULT, 1, "u8", C, "consistent block, CONFIG_ACK != 0: 1 taken over, 2 pending (cyclic exchange runs), 3 refused (invalid)"),
+    f!("CARD.CONFIG_ACK", card::CONFIG_ACK, 2, "u16", C, "consistent block: the CONFIG.SEQ_HEAD the result is about, 0 = none"),
+    f!("CARD.EVENTS", card::EVENTS, 8, "u8[8]", C, "consistent block: counters, a change = event: 0 clear mode, 1 offline, 2 online, 3 watchdog, 4 prm error, 5 cfg error, 6 card fault, 7 drive heartbeat returned"),
+    f!("CARD.DRIVE_LOSSES", card::DRIVE_LOSSES, 2, "u16", C, "consistent block: drive heartbeat losses (wraps)"),
+    f!("CARD.LATE_RESPONSES", card::LATE_RESPONSES, 2, "u16", C, "consistent block: mailbox responses ignored, late or unknown REQ_ID (wraps)"),
+    f!("CARD.MAILBOX_TIMEOUTS", card::MAILBOX_TIMEOUTS, 2, "u16", C, "consistent block: mailbox requests timed out (wraps)"),
+    f!("CARD.reserved", @ card::START + card::MAILBOX_TIMEOUTS + 2, card::SEQ_TAIL - card::MAILBOX_TIMEOUTS - 2, "reserved", C, "0"),
+    f!("CARD.SEQ_TAIL", card::SEQ_TAIL, 2, "u16", C, SEQ_VALID),
+    f!("DRIVE.SEQ_HEAD", drive::SEQ_HEAD, 2, "u16", H, SEQ_VALID),
+    f!("DRIVE.HEARTBEAT", drive::HEARTBEAT, 2, "u16", H, "consistent block: changes every drive cycle; unchanged for the card's timeout = drive lost"),
+    f!("DRIVE.FAULT_CODE", drive::FAULT_CODE, 2, "u16", H, "consistent block: active fault, 0 = none"),
+    f!("DRIVE.WARNING_CODE", drive::WARNING_CODE, 2, "u16", H, "consistent block: active warning, 0 = none"),
+    f!("DRIVE.FAULT_COUNT", drive::FAULT_COUNT, 1, "u8", H, "consistent block: fault reports (wraps), a change = new fault"),
+    f!("DRIVE.WARNING_COUNT", drive::WARNING_COUNT, 1, "u8", H, "consistent block: warning reports (wraps), a change = new warning"),
+    f!("DRIVE.EXT_DIAG_LEN", drive::EXT_DIAG_LEN, 1, "u8", H, "consistent block: valid bytes of EXT_DIAG (<= 32)"),
+    f!("DRIVE.reserved", @ drive::START + 0x0B, 1, "reserved", H, "0"),
+    f!("DRIVE.EXT_DIAG", drive::EXT_DIAG, EXT_DIAG_CAPACITY, "u8[32]", H, "consistent block, first EXT_DIAG_LEN bytes: DP extended diagnosis blocks (refused if malformed)"),
+    f!("DRIVE.reserved", @ drive::START + drive::EXT_DIAG + EXT_DIAG_CAPACITY, drive::SEQ_TAIL - drive::EXT_DIAG - EXT_DIAG_CAPACITY, "reserved", H, "0"),
+    f!("DRIVE.SEQ_TAIL", drive::SEQ_TAIL, 2, "u16", H, SEQ_VALID),
+    f!("CONFIG.SEQ_HEAD", config::SEQ_HEAD, 2, "u16", H, SEQ_VALID),
+    f!("CONFIG.STATION_ADDRESS", config::STATION_ADDRESS, 1, "u8", H, "consistent block, SEQ != 0: station address 0..=125"),
+    f!("CONFIG.PROFILE", config::PROFILE, 1, "u8", H, "consistent block, SEQ != 0: 0 PROFIdrive, 1 manufacturer"),
+    f!("CONFIG.OPERATE_MODE", config::OPERATE_MODE, 1, "u8", H, "consistent block, SEQ != 0: drive-defined operate mode"),
+    f!("CONFIG.COMM_LOSS_REACTION", config::COMM_LOSS_REACTION, 1, "u8", H, "consistent block, SEQ != 0: 0 none, 1 ramp stop, 2 coast, 3 fault, 4 keep last setpoint"),
+    f!("CONFIG.TELEGRAM", config::TELEGRAM, 2, "u16", H, "consistent block, SEQ != 0: telegram selection (STATUS.TELEGRAM coding, 0 = any)"),
+    f!("CONFIG.COMM_LOSS_DELAY_MS", config::COMM_LOSS_DELAY_MS, 2, "u16", H, "consistent block, SEQ != 0: communication-loss delay in ms"),
+    f!("CONFIG.PZD_OUT_MAP", config::PZD_OUT_MAP, 16, "u16[8]", H, "consistent block, SEQ != 0: PNU of output PZD3..PZD10, 0 = unmapped"),
+    f!("CONFIG.PZD_IN_MAP", config::PZD_IN_MAP, 16, "u16[8]", H, "consistent block, SEQ != 0: PNU of input PZD3..PZD10, 0 = unmapped"),
+    f!("CONFIG.reserved", @ config::START + config::PZD_IN_MAP + 16, config::SEQ_TAIL - config::PZD_IN_MAP - 16, "reserved", H, "0"),
+    f!("CONFIG.SEQ_TAIL", config::SEQ_TAIL, 2, "u16", H, SEQ_VALID),
+    f!("MBX_REQ.SEQ_HEAD", mbx_req::SEQ_HEAD, 2, "u16", C, SEQ_VALID),
+    f!("MBX_REQ.REQ_ID", mbx_req::REQ_ID, 2, "u16", C, "consistent block: request identifier, a new value = a new request, 0 = none"),
+    f!("MBX_REQ.KIND", mbx_req::KIND, 1, "u8", C, "consistent block, REQ_ID != 0: 1 read value, 2 write value, 3 read description"),
+    f!("MBX_REQ.AXIS", mbx_req::AXIS, 1, "u8", C, "consistent block, REQ_ID != 0: axis / DO-ID"),
+    f!("MBX_REQ.PNU", mbx_req::PNU, 2, "u16", C, "consistent block, REQ_ID != 0: parameter number"),
+    f!("MBX_REQ.SUBINDEX", mbx_req::SUBINDEX, 2, "u16", C, "consistent block, REQ_ID != 0: first element / description element"),
+    f!("MBX_REQ.COUNT", mbx_req::COUNT, 1, "u8", C, "consistent block, REQ_ID != 0: number of elements (0 counts as 1)"),
+    f!("MBX_REQ.FORMAT", mbx_req::FORMAT, 1, "u8", C, "consistent block, KIND = 2: PROFIdrive format of VALUES"),
+    f!("MBX_REQ.VALUES_LEN", mbx_req::VALUES_LEN, 1, "u8", C, "consistent block, KIND = 2: valid bytes of VALUES (<= 128)"),
+    f!("MBX_REQ.reserved", @ mbx_req::START + 0x0D, 1, "reserved", C, "0"),
+    f!("MBX_REQ.VALUES", mbx_req::VALUES, MBX_CAPACITY, "u8[128]", C, "consistent block, KIND = 2, first VALUES_LEN bytes: the values, big-endian"),
+    f!("MBX_REQ.SEQ_TAIL", mbx_req::SEQ_TAIL, 2, "u16", C, SEQ_VALID),
+    f!("MBX_RSP.SEQ_HEAD", mbx_rsp::SEQ_HEAD, 2, "u16", H, SEQ_VALID),
+    f!("MBX_RSP.REQ_ID", mbx_rsp::REQ_ID, 2, "u16", H, "consistent block: the MBX_REQ.REQ_ID answered"),
+    f!("MBX_RSP.RESULT", mbx_rsp::RESULT, 1, "u8", H, "consistent block: 0 values (read) / done (write), 1 error"),
+    f!("MBX_RSP.FORMAT", mbx_rsp::FORMAT, 1, "u8", H, "consistent block, RESULT = 0: PROFIdrive format of VALUES"),
+    f!("MBX_RSP.COUNT", mbx_rsp::COUNT, 1, "u8", H, "consistent block, RESULT = 0: number of values"),
+    f!("MBX_RSP.VALUES_LEN", mbx_rsp::VALUES_LEN, 1, "u8", H, "consistent block, RESULT = 0: valid bytes of VALUES (<= 128)"),
+    f!("MBX_RSP.ERROR", mbx_rsp::ERROR, 2, "u16", H, "consistent block, RESULT = 1: PROFIdrive error value"),
+    f!("MBX_RSP.ERROR_INFO", mbx_rsp::ERROR_INFO, 2, "u16", H, "consistent block, RESULT = 1, HAS_INFO = 1: additional information"),
+    f!("MBX_RSP.HAS_INFO", mbx_rsp::HAS_INFO, 1, "u8", H, "consistent block, RESULT = 1: 1 = ERROR_INFO valid"),
+    f!("MBX_RSP.reserved", @ mbx_rsp::START + 0x0D, 1, "reserved", H, "0"),
+    f!("MBX_RSP.VALUES", mbx_rsp::VALUES, MBX_CAPACITY, "u8[128]", H, "consistent block, RESULT = 0, first VALUES_LEN bytes: the values, big-endian"),
+    f!("MBX_RSP.SEQ_TAIL", mbx_rsp::SEQ_TAIL, 2, "u16", H, SEQ_VALID),
+];
+
+/// Write the map as Markdown (the content of `docs/DPM.md`).
+pub fn write_markdown(out: &mut impl core::fmt::Write) -> core::fmt::Result {
+    writeln!(out, "# DPM memory map, layout version {LAYOUT_VERSION}")?;
+    writeln!(out)?;
+    writeln!(out, "<!-- Generated from src/dpm/layout.rs (FIELDS, BLOCKS). Do not edit: run")?;
+    writeln!(
+        out,
+        "     DPM_DOC_WRITE=1 cargo test --lib --target x86_64-unknown-linux-gnu dpm::tests_v2::doc_is_current -->"
+    )?;
+    writeln!(out)?;
+    writeln!(out, "Image size {IMAGE_SIZE} bytes (0x{IMAGE_SIZE:X}). All multi-byte integers are big-endian. Offsets are absolute.")?;
+    writeln!(
+        out,
+        "Reserved bytes are written as 0 and must be ignored. The host reads the header first: magic \"PBDM\","
+    )?;
+    writeln!(out, "`LAYOUT_VERSION` (a newer version only appends blocks), `IMAGE_SIZE` and `CAPABILITIES`.")?;
+    writeln!(out)?;
+    writeln!(out, "**Sequenced blocks.** `SEQ_HEAD` (first word) and `SEQ_TAIL` (last word) hold the same counter")?;
+    writeln!(
+        out,
+        "(1..=65535, then 1; 0 = never written) once a write is complete. The host reads and writes a block"
+    )?;
+    writeln!(out, "in one ascending pass (head, payload, tail); the card writes tail, payload, head and reads tail,")?;
+    writeln!(out, "payload, head. Counters that differ mean the read was torn: read again. A field of a sequenced")?;
+    writeln!(out, "block is valid only in a read whose counters are equal (\"consistent block\").")?;
+    writeln!(out)?;
+    writeln!(
+        out,
+        "**Mailbox.** The card writes MBX_REQ with a new `REQ_ID`; the host answers in MBX_RSP with the same"
+    )?;
+    writeln!(
+        out,
+        "`REQ_ID`. The card ignores a response naming another id (late answer). Without an answer within its"
+    )?;
+    writeln!(
+        out,
+        "timeout the card answers the request itself with PROFIdrive error 0x11 and additional info 0xDD01;"
+    )?;
+    writeln!(out, "while the drive heartbeat is lost, with 0x11 / 0xDD02.")?;
+    writeln!(out)?;
+    writeln!(out, "## Blocks")?;
+    writeln!(out)?;
+    writeln!(out, "| Block | Offset | Size | Writer | Sequenced | Since | Content |")?;
+    writeln!(out, "|---|---|---|---|---|---|---|")?;
+    for b in BLOCKS {
+        let seq = if b.sequenced { "yes" } else { "no" };
+        writeln!(
+            out,
+            "| {} | 0x{:03X} | {} | {} | {} | v{} | {} |",
+            b.name,
+            b.start,
+            b.len,
+            b.writer.name(),
+            seq,
+            b.since,
+            b.text
+        )?;
+    }
+    writeln!(out)?;
+    writeln!(out, "## Fields")?;
+    writeln!(out)?;
+    writeln!(out, "| Field | Offset | Size | Type | Byte order | Writer | Valid / meaning |")?;
+    writeln!(out, "|---|---|---|---|---|---|---|")?;
+    for f in FIELDS {
+        writeln!(
+            out,
+            "| {} | 0x{:03X} | {} | {} | {} | {} | {} |",
+            f.name,
+            f.offset,
+            f.size,
+            f.ty,
+            f.byte_order(),
+            f.writer.name(),
+            f.valid
+        )?;
+    }
+    Ok(())
+}

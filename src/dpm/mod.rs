@@ -1,7 +1,8 @@
 //! The dual-port memory (DPM) image: what the card and the drive's control board share
-//! (ARCHITECTURE §5). Layout version 1 — process data both ways and a status block; the
-//! parameter mailbox, events, configuration and heartbeat are later versions that append
-//! blocks ([`layout`] is the one source of truth for every offset).
+//! (ARCHITECTURE §5). Layout version 2 — process data both ways, a status block, and (appended
+//! to version 1) identification, heartbeats and events both ways, configuration from the
+//! drive and the parameter mailbox ([`layout`] is the one source of truth for every offset;
+//! `docs/DPM.md` is generated from it).
 //!
 //! [`Dpm`] is a plain byte array. The card side ([`CardSide`], via [`Dpm::card`]) writes the
 //! status and the master's outputs and reads the drive's inputs; the host side
@@ -25,8 +26,18 @@
 //! A reader whose two counter reads differ saw a write in progress ([`Torn`]) and tries again
 //! later; equal counters mean the payload it read belongs to write *n* entirely (the counter
 //! the writer writes first is the one the reader reads last). A changed counter also tells
-//! the reader that the block is new. `tests::seqlock_model` checks the rule byte by byte
-//! against every interleaving it generates.
+//! the reader that the block is new. `tests_v2::every_interleaving_reads_whole_or_torn`
+//! enumerates every interleaving of one or two writes with one read, both directions, block
+//! sizes 5..=8, and checks that a read is either torn or one whole image; the same enumeration
+//! catches a wrong order (`the_enumeration_catches_a_wrong_order`).
+//!
+//! ## Layout version 2
+//!
+//! IDENT (card type, firmware, ident number, serial), CARD (card heartbeat, configuration
+//! acknowledge, card → drive event counters), DRIVE (drive heartbeat, fault / warning reports,
+//! extended diagnosis), CONFIG (taken over only outside data exchange) and the parameter
+//! mailbox ([`mailbox`]: request id, timeout, late answers ignored). [`Link`] supervises the
+//! drive's heartbeat; [`HeartbeatMonitor`] is what the drive uses on the card's.
 //!
 //! ## Codings shown to the drive
 //!
@@ -34,10 +45,17 @@
 //! * Baud rate: P0963 ([`Baudrate::p0963_code`], [`BAUD_NOT_DETECTED`] = 5).
 //! * Active telegram: [`Telegram`] — PROFIdrive telegram number (P922) or PPO type.
 
+mod blocks;
 pub mod layout;
 mod link;
+pub mod mailbox;
 
-pub use link::{Link, LinkStats};
+pub use blocks::{
+    CardEvent, CardFlags, CardReport, ConfigResult, DriveReport, HeartbeatMonitor, HostConfig, Identity, Liveness,
+    MailboxRequest, MailboxResponse, ParamValues, RequestKind, CARD_TYPE,
+};
+pub use link::{Link, LinkStats, ZSW1_FAULT};
+pub use mailbox::{Mailbox, MailboxBusy, MailboxServer, MailboxStats};
 
 use crate::card::Module;
 use crate::dp::diag::Status1;
@@ -415,8 +433,60 @@ impl Dpm {
         image[layout::header::MAGIC..layout::header::MAGIC + 4].copy_from_slice(&layout::MAGIC);
         put16(&mut image, layout::header::LAYOUT_VERSION, layout::LAYOUT_VERSION);
         put16(&mut image, layout::header::IMAGE_SIZE, IMAGE_SIZE as u16);
+        image[layout::header::CAPABILITIES..layout::header::CAPABILITIES + 4]
+            .copy_from_slice(&layout::cap::ALL.to_be_bytes());
         Status::INACTIVE.encode(&mut image[status::START..status::START + status::LEN]);
+        Identity::THIS_CARD.encode(&mut image[layout::ident::START..layout::ident::START + layout::ident::LEN]);
         Dpm { image }
+    }
+
+    /// A fresh image with `identity` in IDENT (the platform knows the serial number).
+    pub fn with_identity(identity: &Identity) -> Self {
+        let mut dpm = Self::new();
+        identity.encode(&mut dpm.image[layout::ident::START..layout::ident::START + layout::ident::LEN]);
+        dpm
+    }
+
+    /// `HEADER.LAYOUT_VERSION`.
+    pub fn layout_version(&self) -> u16 {
+        get16(&self.image, layout::header::LAYOUT_VERSION)
+    }
+
+    /// `HEADER.CAPABILITIES`.
+    pub fn capabilities(&self) -> u32 {
+        let c = layout::header::CAPABILITIES;
+        u32::from_be_bytes([self.image[c], self.image[c + 1], self.image[c + 2], self.image[c + 3]])
+    }
+
+    /// The identification block.
+    pub fn identity(&self) -> Identity {
+        Identity::decode(&self.image[layout::ident::START..layout::ident::START + layout::ident::LEN])
+    }
+
+    /// The card block as the host reads it.
+    pub fn card_report(&self) -> Result<CardReport, Torn> {
+        read_card_report(&self.image)
+    }
+
+    /// The drive block as the card reads it.
+    pub fn drive_report(&self) -> Result<DriveReport, Torn> {
+        read_drive_report(&self.image)
+    }
+
+    /// The configuration block as the card reads it, with its sequence counter (0 = never
+    /// written).
+    pub fn config(&self) -> Result<(u16, HostConfig), Torn> {
+        read_config(&self.image)
+    }
+
+    /// The mailbox request as the host reads it (`None`: no request yet).
+    pub fn request(&self) -> Result<Option<MailboxRequest>, Torn> {
+        read_request(&self.image)
+    }
+
+    /// The mailbox response as the card reads it, with its sequence counter.
+    pub fn response(&self) -> Result<(u16, MailboxResponse), Torn> {
+        read_response(&self.image)
     }
 
     /// The raw image (for a transport, a dump, a test).
@@ -476,6 +546,31 @@ impl CardSide<'_> {
     pub fn read_inputs(&self) -> Result<ProcessData, Torn> {
         read_inputs(self.image)
     }
+
+    /// Write the card block; returns its new sequence counter.
+    pub fn write_card_report(&mut self, r: &CardReport) -> u16 {
+        card_write(self.image, layout::card::START, layout::card::LEN, |b| r.encode(b))
+    }
+
+    /// Write the mailbox request (use [`Mailbox::submit`], which assigns the request id).
+    pub fn write_request(&mut self, r: &MailboxRequest) -> u16 {
+        card_write(self.image, layout::mbx_req::START, layout::mbx_req::LEN, |b| r.encode(b))
+    }
+
+    /// Read the drive block.
+    pub fn read_drive_report(&self) -> Result<DriveReport, Torn> {
+        read_drive_report(self.image)
+    }
+
+    /// Read the configuration block with its sequence counter (0 = never written).
+    pub fn read_config(&self) -> Result<(u16, HostConfig), Torn> {
+        read_config(self.image)
+    }
+
+    /// Read the mailbox response with its sequence counter (0 = never written).
+    pub fn read_response(&self) -> Result<(u16, MailboxResponse), Torn> {
+        read_response(self.image)
+    }
 }
 
 /// The host's (drive control board's) access: reads STATUS and OUTPUTS, writes INPUTS.
@@ -497,19 +592,51 @@ impl HostSide<'_> {
 
     /// Write the inputs block (the drive's process data); returns its new sequence counter.
     pub fn write_inputs(&mut self, pd: &ProcessData) -> u16 {
-        let start = layout::inputs::START;
-        let len = pd::LEN_BLOCK;
-        let seq = next_seq(get16(self.image, start));
-        // Ascending: head, payload, tail.
-        put16(self.image, start, seq);
-        pd.encode(&mut self.image[start..start + len]);
-        put16(self.image, start + len - 2, seq);
-        seq
+        host_write(self.image, layout::inputs::START, pd::LEN_BLOCK, |b| pd.encode(b))
+    }
+
+    /// The identification block.
+    pub fn read_identity(&self) -> Identity {
+        Identity::decode(&self.image[layout::ident::START..layout::ident::START + layout::ident::LEN])
+    }
+
+    /// Read the card block.
+    pub fn read_card_report(&self) -> Result<CardReport, Torn> {
+        read_card_report(self.image)
+    }
+
+    /// Write the drive block; returns its new sequence counter.
+    pub fn write_drive_report(&mut self, r: &DriveReport) -> u16 {
+        host_write(self.image, layout::drive::START, layout::drive::LEN, |b| r.encode(b))
+    }
+
+    /// Write the configuration block; returns its sequence counter (the card acknowledges
+    /// it in `CARD.CONFIG_ACK`).
+    pub fn write_config(&mut self, c: &HostConfig) -> u16 {
+        host_write(self.image, layout::config::START, layout::config::LEN, |b| c.encode(b))
+    }
+
+    /// Read the mailbox request (`None`: no request yet).
+    pub fn read_request(&self) -> Result<Option<MailboxRequest>, Torn> {
+        read_request(self.image)
+    }
+
+    /// Write the mailbox response (see [`MailboxServer`]).
+    pub fn write_response(&mut self, r: &MailboxResponse) -> u16 {
+        host_write(self.image, layout::mbx_rsp::START, layout::mbx_rsp::LEN, |b| r.encode(b))
     }
 }
 
 /// Largest block (for the readers' local copies).
-const MAX_BLOCK: usize = if status::LEN > pd::LEN_BLOCK { status::LEN } else { pd::LEN_BLOCK };
+const MAX_BLOCK: usize = layout::mbx_req::LEN;
+
+const _: () = {
+    let mut i = 0;
+    while i < layout::BLOCKS.len() {
+        assert!(layout::BLOCKS[i].len <= MAX_BLOCK);
+        i += 1;
+    }
+};
 
 const fn next_seq(s: u16) -> u16 {
     if s == u16::MAX {
@@ -536,6 +663,42 @@ fn card_write(image: &mut [u8; IMAGE_SIZE], start: usize, len: usize, fill: impl
     fill(block);
     put16(block, 0, seq);
     seq
+}
+
+/// The host writes a block in one ascending pass: head, payload (`fill` gets the whole
+/// block; it must leave the counters alone), tail.
+fn host_write(image: &mut [u8; IMAGE_SIZE], start: usize, len: usize, fill: impl FnOnce(&mut [u8])) -> u16 {
+    let block = &mut image[start..start + len];
+    let seq = next_seq(get16(block, 0));
+    put16(block, 0, seq);
+    fill(block);
+    put16(block, len - 2, seq);
+    seq
+}
+
+fn read_card_report(image: &[u8; IMAGE_SIZE]) -> Result<CardReport, Torn> {
+    let (s, n) = (layout::card::START, layout::card::LEN);
+    host_read(image, s, n).map(|b| CardReport::decode(&b[..n]))
+}
+
+fn read_request(image: &[u8; IMAGE_SIZE]) -> Result<Option<MailboxRequest>, Torn> {
+    let (s, n) = (layout::mbx_req::START, layout::mbx_req::LEN);
+    host_read(image, s, n).map(|b| MailboxRequest::decode(&b[..n]))
+}
+
+fn read_drive_report(image: &[u8; IMAGE_SIZE]) -> Result<DriveReport, Torn> {
+    let (s, n) = (layout::drive::START, layout::drive::LEN);
+    card_read(image, s, n).map(|b| DriveReport::decode(&b[..n]))
+}
+
+fn read_config(image: &[u8; IMAGE_SIZE]) -> Result<(u16, HostConfig), Torn> {
+    let (s, n) = (layout::config::START, layout::config::LEN);
+    card_read(image, s, n).map(|b| (get16(&b, 0), HostConfig::decode(&b[..n])))
+}
+
+fn read_response(image: &[u8; IMAGE_SIZE]) -> Result<(u16, MailboxResponse), Torn> {
+    let (s, n) = (layout::mbx_rsp::START, layout::mbx_rsp::LEN);
+    card_read(image, s, n).map(|b| (get16(&b, 0), MailboxResponse::decode(&b[..n])))
 }
 
 /// STATUS as the host reads it.
@@ -583,3 +746,5 @@ fn host_read(image: &[u8; IMAGE_SIZE], start: usize, len: usize) -> Result<[u8; 
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_v2;

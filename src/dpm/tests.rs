@@ -7,7 +7,15 @@ fn fresh_image_has_header_and_inactive_status() {
     let dpm = Dpm::new();
     let b = dpm.as_bytes();
     assert_eq!(&b[0..4], b"PBDM");
-    assert_eq!(&b[4..8], &[0x00, 0x01, 0x00, 0xC0], "version 1, 192 bytes, big-endian");
+    assert_eq!(&b[4..8], &[0x00, 0x02, 0x02, 0x70], "version 2, 624 bytes, big-endian");
+    assert_eq!(&b[8..12], &[0, 0, 0, 0x1F], "capabilities: ident, card, drive, config, mailbox");
+    assert_eq!((dpm.layout_version(), dpm.capabilities()), (2, layout::cap::ALL));
+    let id = dpm.identity();
+    assert_eq!((id.card_type, id.ident_number, id.serial), (CARD_TYPE, card::IDENT_NUMBER, 0));
+    assert_eq!(id.firmware, [0, 1, 0], "Cargo.toml version 0.1.0");
+    assert_eq!(dpm.card_report().unwrap(), CardReport::default(), "never written: all zero, seq 0");
+    assert_eq!(dpm.request(), Ok(None));
+    assert_eq!(dpm.config().unwrap().0, 0);
     let s = dpm.status().unwrap();
     assert_eq!(s, Status::INACTIVE);
     assert_eq!(b[layout::status::START + layout::status::BAUD], 5, "P0963 5 = not detected");

@@ -1,0 +1,711 @@
+//! Layout version 2: the map and its document, every field read back, the exhaustive
+//! interleaving proof of the sequenced blocks, configuration take-over, the parameter
+//! mailbox and heartbeat supervision both ways.
+
+use super::blocks::*;
+use super::layout::{self, BLOCKS, FIELDS};
+use super::mailbox::{self, DRIVE_LOST_ERROR, TIMEOUT_ERROR};
+use super::*;
+use crate::card;
+use crate::dp::diag::Status2;
+use crate::dp::{DpSlave, DpState};
+use crate::fdl::telegram::{self, FunctionCode, Header};
+use crate::node::Node;
+use crate::profile::param::{ErrorValue, Format, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
+use crate::time::{Duration, Instant};
+
+// ---------------------------------------------------------------------------------------
+// The map and its document
+
+#[test]
+fn fields_cover_the_image_exactly_once() {
+    let mut at = 0;
+    for f in FIELDS {
+        assert_eq!(f.offset, at, "{} must start where the previous field ends", f.name);
+        assert!(f.size > 0, "{}", f.name);
+        at += f.size;
+        let block = BLOCKS.iter().find(|b| f.offset >= b.start && f.offset < b.start + b.len).unwrap();
+        assert!(f.offset + f.size <= block.start + block.len, "{} crosses its block", f.name);
+        assert!(
+            f.name.starts_with(block.name) && f.name[block.name.len()..].starts_with('.'),
+            "{} not in {}",
+            f.name,
+            block.name
+        );
+        assert_eq!(f.writer, block.writer, "{}", f.name);
+        let expect = match f.ty {
+            "u8" => 1,
+            "u16" => 2,
+            "u32" => 4,
+            "reserved" => f.size,
+            t => {
+                let n: usize = t[t.find('[').unwrap() + 1..t.len() - 1].parse().unwrap();
+                n * if t.starts_with("u16") { 2 } else { 1 }
+            }
+        };
+        assert_eq!(f.size, expect, "{}: size and type {}", f.name, f.ty);
+    }
+    assert_eq!(at, IMAGE_SIZE);
+    let mut at = 0;
+    for b in BLOCKS {
+        assert_eq!(b.start, at, "{}", b.name);
+        at += b.len;
+        if b.sequenced {
+            let head = FIELDS.iter().find(|f| f.offset == b.start).unwrap();
+            let tail = FIELDS.iter().find(|f| f.offset == b.start + b.len - 2).unwrap();
+            assert!(head.name.ends_with(".SEQ_HEAD") && tail.name.ends_with(".SEQ_TAIL"), "{}", b.name);
+        }
+    }
+    assert_eq!(at, IMAGE_SIZE);
+    // Version 1 offsets stay where they were.
+    assert_eq!((layout::status::START, layout::outputs::START, layout::inputs::START), (0x10, 0x30, 0x78));
+}
+
+#[test]
+fn doc_is_current() {
+    let mut doc = String::new();
+    layout::write_markdown(&mut doc).unwrap();
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/DPM.md");
+    if std::env::var_os("DPM_DOC_WRITE").is_some() {
+        std::fs::create_dir_all(concat!(env!("CARGO_MANIFEST_DIR"), "/docs")).unwrap();
+        std::fs::write(path, &doc).unwrap();
+    }
+    let committed = std::fs::read_to_string(path).unwrap_or_default();
+    assert!(
+        committed == doc,
+        "docs/DPM.md differs from src/dpm/layout.rs; regenerate it with\n  \
+         DPM_DOC_WRITE=1 cargo test --lib --target x86_64-unknown-linux-gnu dpm::tests_v2::doc_is_current"
+    );
+}
+
+fn field(name: &str) -> &'static layout::Field {
+    FIELDS.iter().find(|f| f.name == name).unwrap_or_else(|| panic!("no field {name}"))
+}
+
+/// Decode block `name` from an image and encode it into a zeroed image (the API's view).
+fn roundtrip(name: &str, image: &[u8; IMAGE_SIZE]) -> [u8; IMAGE_SIZE] {
+    let b = BLOCKS.iter().find(|b| b.name == name).unwrap();
+    let src = &image[b.start..b.start + b.len];
+    let mut out = [0u8; IMAGE_SIZE];
+    let dst = &mut out[b.start..b.start + b.len];
+    match name {
+        "IDENT" => Identity::decode(src).encode(dst),
+        "CARD" => CardReport::decode(src).encode(dst),
+        "DRIVE" => DriveReport::decode(src).encode(dst),
+        "CONFIG" => HostConfig::decode(src).encode(dst),
+        "MBX_REQ" => MailboxRequest::decode(src).unwrap().encode(dst),
+        "MBX_RSP" => MailboxResponse::decode(src).encode(dst),
+        "STATUS" => Status::decode(src).encode(dst),
+        _ => unreachable!(),
+    }
+    out
+}
+
+/// Every field of every decoded block: a pattern written at its offset comes back through
+/// decode + encode at the same offset (so every field is read, and at the documented place).
+#[test]
+fn every_field_read_back() {
+    let skip = |n: &str| n.ends_with("SEQ_HEAD") || n.ends_with("SEQ_TAIL") || n.ends_with(".reserved");
+    for b in BLOCKS.iter().filter(|b| !matches!(b.name, "HEADER" | "OUTPUTS" | "INPUTS")) {
+        for f in FIELDS.iter().filter(|f| f.name.starts_with(b.name) && !skip(f.name)) {
+            let mut img = [0u8; IMAGE_SIZE];
+            // A base that makes every field meaningful.
+            let set = |img: &mut [u8; IMAGE_SIZE], n: &str, v: &[u8]| {
+                let f = field(n);
+                img[f.offset..f.offset + v.len()].copy_from_slice(v);
+            };
+            match b.name {
+                "DRIVE" => set(&mut img, "DRIVE.EXT_DIAG_LEN", &[32]),
+                "MBX_REQ" => {
+                    set(&mut img, "MBX_REQ.REQ_ID", &[0, 9]);
+                    set(&mut img, "MBX_REQ.KIND", &[2]);
+                    set(&mut img, "MBX_REQ.VALUES_LEN", &[128]);
+                }
+                "MBX_RSP" => {
+                    let err = matches!(
+                        f.name,
+                        "MBX_RSP.ERROR" | "MBX_RSP.ERROR_INFO" | "MBX_RSP.HAS_INFO" | "MBX_RSP.RESULT"
+                    );
+                    set(&mut img, "MBX_RSP.RESULT", &[err as u8]);
+                    set(&mut img, "MBX_RSP.HAS_INFO", &[err as u8]);
+                    set(&mut img, "MBX_RSP.VALUES_LEN", &[128]);
+                    if err {
+                        set(&mut img, "MBX_RSP.FORMAT", &[0x44]);
+                    }
+                }
+                "STATUS" => set(&mut img, "STATUS.MASTER_ADDRESS", &[0xFF]),
+                _ => {}
+            }
+            let pattern: Vec<u8> = match (f.name, f.size) {
+                (
+                    "STATUS.COMM_STATE" | "STATUS.DP_STATE" | "MBX_REQ.KIND" | "MBX_RSP.RESULT" | "MBX_RSP.HAS_INFO",
+                    _,
+                ) => vec![1],
+                (_, 1) => vec![0x05],
+                (_, n) => (0..n).map(|i| 0x11 + i as u8).collect(),
+            };
+            set(&mut img, f.name, &pattern);
+            let back = roundtrip(b.name, &img);
+            assert_eq!(&back[f.offset..f.offset + f.size], &pattern[..], "{} not read back", f.name);
+        }
+    }
+}
+
+#[test]
+fn new_blocks_round_trip_through_the_sides() {
+    let mut dpm = Dpm::with_identity(&Identity { serial: 0x1234_5678, ..Identity::THIS_CARD });
+    assert_eq!(dpm.host().read_identity().serial, 0x1234_5678);
+    let b = dpm.as_bytes();
+    assert_eq!(&b[field("IDENT.SERIAL").offset..][..4], &[0x12, 0x34, 0x56, 0x78], "big-endian");
+
+    let mut r = CardReport { heartbeat: 7, flags: CardFlags::DRIVE_LOST, config_ack: 3, ..Default::default() };
+    r.events[CardEvent::Watchdog as usize] = 2;
+    assert_eq!(dpm.card().write_card_report(&r), 1);
+    assert_eq!(dpm.host().read_card_report(), Ok(r));
+    assert_eq!(dpm.card_report().unwrap().event(CardEvent::Watchdog), 2);
+
+    let mut d = DriveReport { heartbeat: 1, fault_code: 0x2310, warning_code: 5, fault_count: 1, ..DriveReport::EMPTY };
+    d.set_ext_diag(&[0x05, 0x81, 0x00, 0x23, 0x10]);
+    dpm.host().write_drive_report(&d);
+    assert_eq!(dpm.card().read_drive_report(), Ok(d));
+
+    let c =
+        HostConfig { station_address: 9, telegram: Telegram::Ppo(2), comm_loss_delay_ms: 300, ..HostConfig::DEFAULT };
+    assert_eq!(dpm.host().write_config(&c), 1);
+    assert_eq!(dpm.card().read_config(), Ok((1, c)));
+
+    let v = ParamValues::new(Format::WORD, 2, &[0, 1, 0, 2]).unwrap();
+    let req = MailboxRequest { id: 5, ..MailboxRequest::write(1, 100, 0, v) };
+    dpm.card().write_request(&req);
+    assert_eq!(dpm.host().read_request(), Ok(Some(req)));
+    let rsp = MailboxResponse {
+        id: 5,
+        outcome: Err(ParamError { value: ErrorValue::LIMIT_EXCEEDED, additional_info: Some(1) }),
+    };
+    dpm.host().write_response(&rsp);
+    assert_eq!(dpm.card().read_response(), Ok((1, rsp)));
+    let rsp = MailboxResponse { id: 6, outcome: Ok(v) };
+    dpm.host().write_response(&rsp);
+    assert_eq!(dpm.card().read_response(), Ok((2, rsp)));
+}
+
+// ---------------------------------------------------------------------------------------
+// Consistency: every interleaving
+
+#[derive(Debug, Clone, Copy)]
+enum Step {
+    Write(usize, u8),
+    Read(usize),
+}
+
+/// Byte order of a pass over a block of `n` bytes: host = ascending; card = tail, payload, head.
+fn order(n: usize, card: bool) -> Vec<usize> {
+    if card {
+        (n - 2..n).chain(2..n - 2).chain(0..2).collect()
+    } else {
+        (0..n).collect()
+    }
+}
+
+fn image(seq: u16, fill: u8, n: usize) -> Vec<u8> {
+    let mut b = vec![fill; n];
+    b[..2].copy_from_slice(&seq.to_be_bytes());
+    b[n - 2..].copy_from_slice(&seq.to_be_bytes());
+    b
+}
+
+/// Run every interleaving of `writer` and `reader` (each kept in its own order) from `mem`;
+/// call `check` with what the reader saw. Returns the number of interleavings.
+fn interleavings(mem: &mut Vec<u8>, seen: &mut Vec<u8>, w: &[Step], r: &[Step], check: &mut dyn FnMut(&[u8])) -> usize {
+    if w.is_empty() && r.is_empty() {
+        check(seen);
+        return 1;
+    }
+    let mut n = 0;
+    if let Some((&s, rest)) = w.split_first() {
+        let Step::Write(i, v) = s else { unreachable!() };
+        let old = mem[i];
+        mem[i] = v;
+        n += interleavings(mem, seen, rest, r, check);
+        mem[i] = old;
+    }
+    if let Some((&s, rest)) = r.split_first() {
+        let Step::Read(i) = s else { unreachable!() };
+        let old = seen[i];
+        seen[i] = mem[i];
+        n += interleavings(mem, seen, w, rest, check);
+        seen[i] = old;
+    }
+    n
+}
+
+fn binomial(n: usize, k: usize) -> usize {
+    (0..k).fold(1, |acc, i| acc * (n - i) / (i + 1))
+}
+
+/// Exhaustive: for both directions, block sizes 5..=8 and one or two back-to-back writes,
+/// every interleaving of the writer's byte writes with the reader's byte reads gives a read
+/// that is either torn (counters differ) or exactly one whole image — never a mix accepted.
+#[test]
+fn every_interleaving_reads_whole_or_torn() {
+    for card_writes in [true, false] {
+        for n in 5..=8 {
+            for writes in 1..=2u8 {
+                let images: Vec<Vec<u8>> = (0..=writes).map(|k| image(100 + k as u16, 0x10 * (k + 1), n)).collect();
+                let mut w = vec![];
+                for img in &images[1..] {
+                    w.extend(order(n, card_writes).into_iter().map(|i| Step::Write(i, img[i])));
+                }
+                let r: Vec<Step> = order(n, !card_writes).into_iter().map(Step::Read).collect();
+                let (mut whole, mut torn) = (0, 0);
+                let mut check = |seen: &[u8]| {
+                    let head = u16::from_be_bytes([seen[0], seen[1]]);
+                    let tail = u16::from_be_bytes([seen[n - 2], seen[n - 1]]);
+                    if head == tail {
+                        assert!(images.iter().any(|img| img == seen), "accepted a mix: {seen:02X?}");
+                        whole += 1;
+                    } else {
+                        torn += 1;
+                    }
+                };
+                let mut mem = images[0].clone();
+                let mut seen = vec![0u8; n];
+                let count = interleavings(&mut mem, &mut seen, &w, &r, &mut check);
+                assert_eq!(count, binomial(w.len() + r.len(), r.len()), "all interleavings enumerated");
+                assert!(whole > 0 && torn > 0, "both outcomes occur (n {n}, writes {writes})");
+            }
+        }
+    }
+}
+
+/// The counter the writer writes first must be the one the reader reads last: the wrong
+/// order (both ascending) is caught by the same enumeration.
+#[test]
+fn the_enumeration_catches_a_wrong_order() {
+    let n = 6;
+    let (old, new) = (image(1, 0x11, n), image(2, 0x22, n));
+    // Host writer ascending (head first); a reader that also reads the head first.
+    let w: Vec<Step> = (0..n).map(|i| Step::Write(i, new[i])).collect();
+    let asc: Vec<Step> = (0..n).map(Step::Read).collect();
+    let mut mixes = 0;
+    let mut check = |seen: &[u8]| {
+        let (h, t) = (u16::from_be_bytes([seen[0], seen[1]]), u16::from_be_bytes([seen[n - 2], seen[n - 1]]));
+        if h == t && seen != &old[..] && seen != &new[..] {
+            mixes += 1;
+        }
+    };
+    interleavings(&mut old.clone(), &mut vec![0; n], &w, &asc, &mut check);
+    assert!(mixes > 0, "reading in the writer's order accepts mixes");
+}
+
+// ---------------------------------------------------------------------------------------
+// A node on a scripted bus
+
+const MASTER: u8 = 2;
+const SLAVE: u8 = 5;
+
+struct Bench {
+    node: Node,
+    dpm: Dpm,
+    link: Link,
+    now: Instant,
+    fcb: bool,
+}
+
+impl Bench {
+    fn new() -> Self {
+        Bench {
+            node: Node::new(DpSlave::new(SLAVE)),
+            dpm: Dpm::new(),
+            link: Link::new(),
+            now: Instant::from_millis(0),
+            fcb: false,
+        }
+    }
+
+    fn srd(&mut self, dsap: Option<u8>, pdu: &[u8]) -> Vec<u8> {
+        self.fcb = !self.fcb;
+        let hdr = Header {
+            da: SLAVE,
+            sa: MASTER,
+            fc: FunctionCode::request(0xD, self.fcb, true),
+            dsap,
+            ssap: dsap.map(|_| 62),
+        };
+        let mut buf = [0u8; telegram::MAX_FRAME_LEN];
+        let n = telegram::emit(&mut buf, &hdr, pdu).unwrap();
+        let mut resp = None;
+        for &b in &buf[..n] {
+            if let Some(r) = self.node.on_byte(self.now, b) {
+                resp = Some(r.to_vec());
+            }
+        }
+        resp.expect("no response")
+    }
+
+    /// One card cycle after `ms`, with `host` doing its part on the image in between.
+    fn step(&mut self, ms: u64, host: impl FnOnce(&mut HostSide<'_>)) -> Events {
+        self.now = self.now + Duration::from_millis(ms);
+        let ev = self.node.poll(self.now);
+        self.link.publish(&mut self.node, ev, &mut self.dpm);
+        host(&mut self.dpm.host());
+        self.link.collect(self.now, &mut self.node, &self.dpm);
+        ev
+    }
+
+    fn bring_up(&mut self) {
+        let mut prm = vec![0x88, 1, 100, 11, (card::IDENT_NUMBER >> 8) as u8, card::IDENT_NUMBER as u8, 0];
+        prm.extend_from_slice(&card::USER_PRM_DEFAULTS);
+        assert_eq!(self.srd(Some(61), &prm), [telegram::SC]);
+        self.step(1, |_| {});
+        assert_eq!(self.srd(Some(62), card::MODULES[0].cfg), [telegram::SC]);
+        self.step(1, |_| {});
+        assert_eq!(self.node.slave().state(), DpState::DataExch);
+    }
+
+    fn data_exchange(&mut self, out: &[u8]) -> Vec<u8> {
+        let r = self.srd(None, out);
+        r[telegram::pdu_range(r.len(), self.node.slave().input_len())].to_vec()
+    }
+}
+
+use crate::dp::Events;
+
+// ---------------------------------------------------------------------------------------
+// Configuration
+
+#[test]
+fn configuration_is_refused_in_data_exchange_and_taken_over_after() {
+    let mut b = Bench::new();
+    b.bring_up();
+    let cfg = HostConfig {
+        station_address: 9,
+        telegram: Telegram::Standard(1),
+        comm_loss_reaction: 1,
+        comm_loss_delay_ms: 500,
+        ..HostConfig::DEFAULT
+    };
+    let mut seq = 0;
+    b.step(1, |h| seq = h.write_config(&cfg));
+    b.step(1, |_| {});
+    let r = b.dpm.card_report().unwrap();
+    assert_eq!((r.config_ack, r.config_result()), (seq, ConfigResult::Pending));
+    assert!(r.flags.contains(CardFlags::CONFIG_PENDING));
+    assert_eq!(b.link.take_config(), None, "not taken over while in data exchange");
+    // Still pending on later cycles.
+    for _ in 0..3 {
+        b.step(10, |_| {});
+    }
+    assert_eq!(b.link.config(), None);
+    // The master stops: the DP watchdog (100 ms × ... from Set_Prm) expires, data exchange ends.
+    let ev = b.step(2000, |_| {});
+    assert!(ev.contains(Events::WATCHDOG_EXPIRED));
+    assert_ne!(b.node.slave().state(), DpState::DataExch);
+    b.step(1, |_| {});
+    let r = b.dpm.card_report().unwrap();
+    assert_eq!((r.config_ack, r.config_result()), (seq, ConfigResult::Accepted));
+    assert!(!r.flags.contains(CardFlags::CONFIG_PENDING));
+    assert_eq!(b.link.take_config(), Some(cfg));
+    assert_eq!(b.link.take_config(), None, "once");
+    assert!(r.event(CardEvent::Watchdog) >= 1 && r.event(CardEvent::Offline) >= 1 && r.event(CardEvent::Online) == 1);
+    // An invalid configuration is refused at once.
+    let bad = HostConfig { station_address: 200, ..cfg };
+    b.step(1, |h| seq = h.write_config(&bad));
+    b.step(1, |_| {});
+    let r = b.dpm.card_report().unwrap();
+    assert_eq!((r.config_ack, r.config_result()), (seq, ConfigResult::Refused));
+    assert_eq!(b.link.config(), Some(&cfg));
+}
+
+#[test]
+fn configuration_outside_data_exchange_is_taken_at_once() {
+    let mut b = Bench::new();
+    let cfg = HostConfig { station_address: 3, ..HostConfig::DEFAULT };
+    b.step(1, |h| {
+        h.write_config(&cfg);
+    });
+    b.step(1, |_| {});
+    assert_eq!(b.dpm.card_report().unwrap().config_result(), ConfigResult::Accepted);
+    assert_eq!(b.link.take_config(), Some(cfg));
+}
+
+// ---------------------------------------------------------------------------------------
+// Parameter mailbox
+
+/// PNU 100: u16 array of 4, limit 1000. PNU 200: read-only 0xBEEF with a description.
+struct Drive {
+    p100: [u16; 4],
+}
+
+impl ParameterAccess for Drive {
+    fn has_axis(&self, axis: u8) -> bool {
+        axis <= 1
+    }
+    fn read_value(&mut self, _: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        match a.pnu {
+            100 => {
+                let s = a.subindex as usize;
+                let n = a.count() as usize;
+                let v = self.p100.get(s..s + n).ok_or(ErrorValue::INVALID_SUBINDEX)?;
+                v.iter().try_for_each(|&x| out.push_u16(x))
+            }
+            200 => out.push_u16(0xBEEF),
+            _ => Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into()),
+        }
+    }
+    fn write_value(&mut self, _: u8, a: &ParamAddress, v: &ValueBlock<'_>) -> Result<(), ParamError> {
+        match a.pnu {
+            100 => {
+                for i in 0..v.count as usize {
+                    let x = v.u16(i).ok_or(ErrorValue::INCORRECT_DATA_TYPE)?;
+                    if x > 1000 {
+                        return Err(ParamError { value: ErrorValue::LIMIT_EXCEEDED, additional_info: Some(i as u16) });
+                    }
+                    *self.p100.get_mut(a.subindex as usize + i).ok_or(ErrorValue::INVALID_SUBINDEX)? = x;
+                }
+                Ok(())
+            }
+            200 => Err(ErrorValue::VALUE_CANNOT_BE_CHANGED.into()),
+            _ => Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into()),
+        }
+    }
+    fn read_description(&mut self, _: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        match (a.pnu, a.subindex) {
+            (200, 1) => out.push_u16(0x0006),
+            _ => Err(ErrorValue::NO_DESCRIPTION.into()),
+        }
+    }
+}
+
+fn words(v: &ParamValues) -> Vec<u16> {
+    v.bytes().chunks(2).map(|w| u16::from_be_bytes([w[0], w[1]])).collect()
+}
+
+#[test]
+fn mailbox_end_to_end_read_write_description_and_errors() {
+    let mut dpm = Dpm::new();
+    let mut mbx = Mailbox::default();
+    let mut srv = MailboxServer::new();
+    let mut drive = Drive { p100: [1, 2, 3, 4] };
+    let mut now = Instant::from_millis(0);
+    let mut ask = |dpm: &mut Dpm, mbx: &mut Mailbox, req: MailboxRequest| {
+        now = now + Duration::from_millis(5);
+        let id = mbx.submit(now, &req, false, &mut dpm.card()).unwrap();
+        assert_eq!(mbx.submit(now, &req, false, &mut dpm.card()), Err(MailboxBusy), "one at a time");
+        mbx.poll(now, dpm);
+        assert_eq!(mbx.take(), None, "no answer before the host served");
+        assert_eq!(srv.serve(&mut dpm.host(), &mut drive), Some(id));
+        assert_eq!(srv.serve(&mut dpm.host(), &mut drive), None, "each request once");
+        mbx.poll(now, dpm);
+        let (got, out) = mbx.take().unwrap();
+        assert_eq!(got, id);
+        out
+    };
+    let v = ask(&mut dpm, &mut mbx, MailboxRequest::read(1, 100, 1, 2)).unwrap();
+    assert_eq!((v.format, v.count, words(&v)), (Format::WORD, 2, vec![2, 3]));
+    let w = ParamValues::new(Format::WORD, 2, &[0x01, 0x00, 0x02, 0x00]).unwrap();
+    assert_eq!(ask(&mut dpm, &mut mbx, MailboxRequest::write(1, 100, 2, w)), Ok(ParamValues::NONE));
+    let v = ask(&mut dpm, &mut mbx, MailboxRequest::read(1, 100, 0, 4)).unwrap();
+    assert_eq!(words(&v), vec![1, 2, 0x100, 0x200]);
+    let bad = ParamValues::new(Format::WORD, 1, &[0x10, 0x00]).unwrap();
+    assert_eq!(
+        ask(&mut dpm, &mut mbx, MailboxRequest::write(1, 100, 0, bad)),
+        Err(ParamError { value: ErrorValue::LIMIT_EXCEEDED, additional_info: Some(0) })
+    );
+    assert_eq!(
+        ask(&mut dpm, &mut mbx, MailboxRequest::read(1, 999, 0, 1)),
+        Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into())
+    );
+    assert_eq!(ask(&mut dpm, &mut mbx, MailboxRequest::read(7, 100, 0, 1)), Err(ErrorValue::AXIS_NONEXISTENT.into()));
+    let one = ParamValues::new(Format::WORD, 1, &[0, 1]).unwrap();
+    assert_eq!(
+        ask(&mut dpm, &mut mbx, MailboxRequest::write(1, 200, 0, one)),
+        Err(ErrorValue::VALUE_CANNOT_BE_CHANGED.into())
+    );
+    let d = ask(&mut dpm, &mut mbx, MailboxRequest::read_description(1, 200, 1)).unwrap();
+    assert_eq!(words(&d), vec![6]);
+    assert_eq!(
+        ask(&mut dpm, &mut mbx, MailboxRequest::read_description(1, 100, 1)),
+        Err(ErrorValue::NO_DESCRIPTION.into())
+    );
+    assert_eq!(mbx.stats().responses, 9);
+    assert_eq!(mbx.stats().timeouts + mbx.stats().late_responses, 0);
+}
+
+#[test]
+fn mailbox_timeout_then_late_answer_is_not_taken_for_the_next_request() {
+    let mut dpm = Dpm::new();
+    let mut mbx = Mailbox::new(Duration::from_millis(100));
+    let mut srv = MailboxServer::new();
+    let t0 = Instant::from_millis(1000);
+    let id1 = mbx.submit(t0, &MailboxRequest::read(1, 100, 0, 1), false, &mut dpm.card()).unwrap();
+    // The host fetches it but is slow.
+    let req1 = srv.fetch(&dpm.host()).unwrap();
+    assert_eq!(req1.id, id1);
+    mbx.poll(t0 + Duration::from_millis(99), &dpm);
+    assert_eq!(mbx.take(), None);
+    mbx.poll(t0 + Duration::from_millis(100), &dpm);
+    assert_eq!(mbx.take(), Some((id1, Err(TIMEOUT_ERROR))), "timeout answers 0x11 / 0xDD01, never a hang");
+    assert_eq!(TIMEOUT_ERROR.value, ErrorValue::NOT_EXECUTABLE);
+    // The next request goes out; then the late answer to the first one arrives.
+    let t1 = t0 + Duration::from_millis(200);
+    let id2 = mbx.submit(t1, &MailboxRequest::read(1, 200, 0, 1), false, &mut dpm.card()).unwrap();
+    assert_ne!(id2, id1);
+    MailboxServer::respond(&mut dpm.host(), id1, Ok(ParamValues::new(Format::WORD, 1, &[0, 42]).unwrap()));
+    mbx.poll(t1, &dpm);
+    assert_eq!(mbx.take(), None, "a late answer is never taken for the next request");
+    assert_eq!(mbx.stats().late_responses, 1);
+    // The real answer to the second.
+    assert_eq!(srv.serve(&mut dpm.host(), &mut Drive { p100: [0; 4] }), Some(id2));
+    mbx.poll(t1 + Duration::from_millis(1), &dpm);
+    let (id, v) = mbx.take().unwrap();
+    assert_eq!((id, words(&v.unwrap())), (id2, vec![0xBEEF]));
+    assert_eq!(mbx.stats().timeouts, 1);
+}
+
+#[test]
+fn request_ids_skip_zero() {
+    let mut dpm = Dpm::new();
+    let mut mbx = Mailbox::new(Duration::from_millis(1));
+    mbx.last_id_for_test(u16::MAX);
+    let id = mbx.submit(Instant::from_millis(0), &MailboxRequest::read(1, 1, 0, 1), false, &mut dpm.card()).unwrap();
+    assert_eq!(id, 1);
+}
+
+#[test]
+fn execute_checks_write_values() {
+    let mut d = Drive { p100: [0; 4] };
+    let odd = ParamValues::new(Format::WORD, 2, &[0, 1, 0]).unwrap();
+    assert_eq!(
+        mailbox::execute(&MailboxRequest::write(1, 100, 0, odd), &mut d),
+        Err(ErrorValue::NUMBER_OF_VALUES_INCONSISTENT.into())
+    );
+    let weird = ParamValues::new(Format(0x20), 1, &[0, 1]).unwrap();
+    assert_eq!(
+        mailbox::execute(&MailboxRequest::write(1, 100, 0, weird), &mut d),
+        Err(ErrorValue::ILLEGAL_FORMAT.into())
+    );
+}
+
+// ---------------------------------------------------------------------------------------
+// Heartbeats both ways
+
+#[test]
+fn drive_heartbeat_loss_faults_zsw1_sets_stat_diag_refuses_parameters_and_returns() {
+    let mut b = Bench::new();
+    b.link.set_drive_timeout(Duration::from_millis(50));
+    b.bring_up();
+    let mut hb = 0u16;
+    let mut drive = |h: &mut HostSide<'_>, beat: bool| {
+        if beat {
+            hb += 1;
+        }
+        h.write_drive_report(&DriveReport { heartbeat: hb, ..DriveReport::EMPTY });
+        h.write_inputs(&ProcessData::new(Telegram::Standard(1), PdFlags::empty(), &[0x02, 0x37, 0x00, 0x10]));
+    };
+    for _ in 0..5 {
+        b.step(10, |h| drive(h, true));
+    }
+    assert_eq!(b.data_exchange(&[0x04, 0x7F, 0, 0]), [0x02, 0x37, 0x00, 0x10]);
+    assert!(!b.link.drive_lost());
+    // A request goes out; the drive then stops beating (and answering).
+    let id = b.link.submit_parameter(b.now, &MailboxRequest::read(1, 100, 0, 1), &mut b.dpm).unwrap();
+    for _ in 0..5 {
+        b.data_exchange(&[0x04, 0x7F, 0, 0]);
+        b.step(10, |h| drive(h, false));
+    }
+    assert!(!b.link.drive_lost(), "50 ms is not over yet");
+    b.data_exchange(&[0x04, 0x7F, 0, 0]);
+    b.step(10, |h| drive(h, false));
+    assert!(b.link.drive_lost());
+    assert_eq!(b.data_exchange(&[0x04, 0x7F, 0, 0]), [0x00, 0x08, 0x00, 0x00], "ZSW1 fault, nothing else");
+    assert!(b.node.slave().standard_diag().status2.contains(Status2::STAT_DIAG));
+    b.step(1, |h| drive(h, false)); // CARD shows it from the next card cycle on
+    let r = b.dpm.card_report().unwrap();
+    assert!(r.flags.contains(CardFlags::DRIVE_LOST));
+    assert_eq!(r.drive_losses, 1);
+    assert_eq!(b.link.take_parameter_response(), Some((id, Err(DRIVE_LOST_ERROR))), "the outstanding request ends");
+    let id2 = b.link.submit_parameter(b.now, &MailboxRequest::read(1, 100, 0, 1), &mut b.dpm).unwrap();
+    assert_eq!(b.link.take_parameter_response(), Some((id2, Err(DRIVE_LOST_ERROR))), "new ones are answered at once");
+    let returned = r.event(CardEvent::DriveReturned);
+    // The drive comes back.
+    b.step(10, |h| drive(h, true));
+    b.step(1, |h| drive(h, true));
+    assert!(!b.link.drive_lost());
+    assert!(!b.node.slave().standard_diag().status2.contains(Status2::STAT_DIAG));
+    let r = b.dpm.card_report().unwrap();
+    assert!(!r.flags.contains(CardFlags::DRIVE_LOST));
+    assert_eq!(r.event(CardEvent::DriveReturned), returned.wrapping_add(1), "event raised when it returns");
+    assert_eq!(b.data_exchange(&[0x04, 0x7F, 0, 0]), [0x02, 0x37, 0x00, 0x10], "the drive's inputs again");
+}
+
+#[test]
+fn a_host_that_never_beats_is_not_supervised() {
+    let mut b = Bench::new();
+    b.bring_up();
+    for _ in 0..100 {
+        b.step(10, |_| {});
+    }
+    assert!(!b.link.drive_lost());
+}
+
+#[test]
+fn drive_reports_reach_the_ext_diag_and_malformed_ones_are_refused() {
+    let mut b = Bench::new();
+    let mut d = DriveReport { heartbeat: 1, fault_code: 0x7500, fault_count: 1, ..DriveReport::EMPTY };
+    d.set_ext_diag(&[0x04, 0x75, 0x00, 0x01]);
+    b.step(1, |h| {
+        h.write_drive_report(&d);
+    });
+    assert_eq!(b.link.drive_report(), &d);
+    assert!(b.node.slave().standard_diag().status1.contains(crate::dp::diag::Status1::EXT_DIAG));
+    d.set_ext_diag(&[0x00]);
+    d.heartbeat = 2;
+    b.step(1, |h| {
+        h.write_drive_report(&d);
+    });
+    assert_eq!(b.link.stats().bad_ext_diag, 1);
+}
+
+#[test]
+fn card_heartbeat_watched_by_the_drive() {
+    let mut b = Bench::new();
+    let mut mon = HeartbeatMonitor::new(Duration::from_millis(30));
+    let mut t = Instant::from_millis(0);
+    assert_eq!(mon.observe(t, b.dpm.card_report().unwrap().heartbeat), Liveness::Unknown, "card not started");
+    for _ in 0..10 {
+        b.step(10, |_| {});
+        t = b.now;
+        assert_eq!(mon.observe(t, b.dpm.card_report().unwrap().heartbeat), Liveness::Alive);
+    }
+    // The card stops (no more publish): the drive sees the same value.
+    let hb = b.dpm.card_report().unwrap().heartbeat;
+    assert_eq!(mon.observe(t + Duration::from_millis(30), hb), Liveness::Alive);
+    assert_eq!(mon.observe(t + Duration::from_millis(31), hb), Liveness::Lost);
+    // It comes back.
+    b.step(40, |_| {});
+    assert_eq!(mon.observe(b.now, b.dpm.card_report().unwrap().heartbeat), Liveness::Alive);
+}
+
+#[test]
+fn card_events_count_clear_and_init_error() {
+    let mut b = Bench::new();
+    b.bring_up();
+    // Global_Control Clear_Data (SAP 58): control 0x02, group 0.
+    b.fcb = !b.fcb;
+    let hdr =
+        Header { da: SLAVE, sa: MASTER, fc: FunctionCode::request(0x6, false, false), dsap: Some(58), ssap: Some(62) };
+    let mut buf = [0u8; telegram::MAX_FRAME_LEN];
+    let n = telegram::emit(&mut buf, &hdr, &[0x02, 0x00]).unwrap();
+    for &x in &buf[..n] {
+        let _ = b.node.on_byte(b.now, x);
+    }
+    b.step(1, |_| {});
+    let r = b.dpm.card_report().unwrap();
+    assert_eq!(r.event(CardEvent::ClearMode), 1);
+    b.link.set_init_error(true);
+    b.step(1, |_| {});
+    let r = b.dpm.card_report().unwrap();
+    assert_eq!(r.event(CardEvent::CardFault), 1);
+    assert!(r.flags.contains(CardFlags::CARD_FAULT));
+}
