@@ -1,14 +1,27 @@
 //! The card firmware: one RTIC 2 application for every board.
 //!
 //! Wiring only, no protocol decisions (ARCHITECTURE §3): bytes from the PROFIBUS line go
-//! into a [`pbcard::node::Node`] (framer → FDL station → DP slave); the response comes back
-//! as bytes for the board's [`bsp::BusPort`].
+//! into a [`pbcard::node::Node`] (framer → FDL station → DP slave, DP-V1); the response comes
+//! back as bytes for the board's [`bsp::BusPort`]. Behind the node sits
+//! [`pbcard::app::Application`]: the first DPM image, the card-side link and the simulated
+//! drive (`pbcard::drive::SimDrive`, PROFIdrive state machine and ramp) — the same
+//! application as the soft slave's. On the F411 the simulated drive is a placeholder until
+//! the SPI transport of the DPM to the drive's control board exists (issue 7): then the
+//! housekeeping task runs `Node::poll`, `Link::publish`, the transfer and `Link::collect`
+//! instead of `Application::step`.
 //!
 //! | priority | task | does |
 //! |---|---|---|
-//! | 16 (highest) | `usart1` (USART1 interrupt) | per character: `Node::on_byte` → response; the placeholder drive |
-//! | 1 | `housekeeping` (async, every 1 ms) | `Node::poll` (watchdog), events, logs |
+//! | 16 (highest) | `usart1` (USART1 interrupt) | per character: `Node::on_byte` → response; after a Data_Exchange spawns `app_step`, after a DP-V1 request `acyclic` |
+//! | 8 | `acyclic` (software task) | `Node::process_acyclic`: DP-V1 records at slot 0, PROFIdrive parameter access (card PNUs, then [`params`]) |
+//! | 1 | `housekeeping` (async, every 1 ms) | `Application::step` (node timers, DPM status/outputs, drive, inputs), events, logs |
+//! | 1 | `app_step` (software task) | one `Application::step` right after a Data_Exchange (the drive sees new outputs at once) |
 //! | – | `idle` | WFI |
+//!
+//! The `Node` is shared by all of them; the lower tasks lock it (which masks USART1) only for
+//! one `Application::step` or one `Node::process_acyclic` call — still up to ≈ 68 µs at
+//! 96 MHz for the step (the `bench` build logs the counts, README "Benchmark"), longer than
+//! the per-character receiver of this edition can bridge at 1.5 Mbit/s (`bsp/f411.rs`).
 //!
 //! The board is chosen by cargo feature; only `bsp::board` differs between the builds:
 //!
@@ -16,7 +29,7 @@
 //! |---|---|---|
 //! | `board-f411` (default) | STM32F411 reference board (`bsp/f411.rs`), logs over RTT | `cargo build --release` |
 //! | `qemu` | QEMU netduinoplus2 = STM32F405 (`bsp/qemu.rs`), defmt over semihosting | `cargo build --release --no-default-features --features qemu` |
-//! | `bench` (+ `qemu`) | the same, logging TIM2 instruction counts per response | `... --features bench` |
+//! | `bench` (+ `qemu`) | the same, logging TIM2 instruction counts per response and under the Node lock | `... --features bench` |
 //!
 //! This edition is interrupt-per-character at a fixed rate ([`LINE_RATE`]); DMA, the bit
 //! timer and autobaud come with the board-support issue (see `bsp/f411.rs` for the
@@ -44,7 +57,7 @@ use defmt_semihosting as _;
 #[cfg(all(target_os = "none", feature = "board-f411"))]
 use {defmt_rtt as _, panic_probe as _};
 
-/// The PROFIBUS line rate until autobaud exists.
+/// The PROFIBUS line rate until autobaud exists (also shown as P0963 / PNU 963).
 #[cfg(target_os = "none")]
 const LINE_RATE: pbcard::time::Baudrate = pbcard::time::Baudrate::B1500k;
 
@@ -53,59 +66,41 @@ const LINE_RATE: pbcard::time::Baudrate = pbcard::time::Baudrate::B1500k;
 #[cfg(target_os = "none")]
 const STATION_ADDRESS: u8 = 126;
 
-/// **Placeholder** for the drive application (`src/drive`, in progress elsewhere): a loopback
-/// "drive" that makes the cyclic data visibly alive and checkable from outside (the QEMU
-/// end-to-end test models exactly this). It runs right after each new Data_Exchange; what it
-/// stages is served with the next one (pre-staging, one cycle of lag).
-///
-/// On the first PZD words (offset 0, or 8 behind a PKW area — modules whose Cfg starts with
-/// `F3`): STW1 → ZSW1, NSOLL_A → NIST_A ramping by [`Loopback::RAMP`] per Data_Exchange while
-/// "operation enabled" (STW1 bits 0–3 set, bit 10 control by PLC), towards 0 otherwise. Every
-/// other input byte echoes the output byte at the same position.
+/// The drive's parameter table behind the card's own PNUs.
 #[cfg(target_os = "none")]
-#[derive(Debug, Default)]
-pub struct Loopback {
-    nist: i16,
-}
+mod params {
+    use pbcard::profile::param::{ErrorValue, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
 
-#[cfg(target_os = "none")]
-impl Loopback {
-    /// NIST_A change per Data_Exchange.
-    pub const RAMP: i32 = 0x0200;
+    /// A drive without parameters of its own. `Node::process_acyclic` answers the card's PNUs
+    /// (918, 922, 930, 944, 947, 963, 964, 965, 975, 980: `pbcard::profile::pnu::CardTable`)
+    /// before it asks this table; every other PNU is answered 0x00 "impermissible parameter
+    /// number". Drive object (axis) 0 and 1 exist: WEG addresses the drive as 0, VACON as 1.
+    ///
+    /// Follow-up: the simulated drive's parameter table (`pbcard::drive::params`, being
+    /// written) takes this one's place; on a real card the parameter mailbox of the DPM does.
+    #[derive(Debug, Default)]
+    pub struct NoDriveParams;
 
-    fn on_data_exchange(&mut self, slave: &mut pbcard::dp::DpSlave) {
-        let mut buf = [0u8; pbcard::card::MAX_INPUT_LEN];
-        let n = slave.input_len().min(buf.len());
-        let out = slave.outputs();
-        let m = out.len().min(n);
-        buf[..m].copy_from_slice(&out[..m]);
-        let pzd = if slave.module().is_some_and(|m| m.cfg.first() == Some(&0xF3)) { 8 } else { 0 };
-        if out.len() >= pzd + 4 && n >= pzd + 4 {
-            let stw1 = u16::from_be_bytes([out[pzd], out[pzd + 1]]);
-            let nsoll = i16::from_be_bytes([out[pzd + 2], out[pzd + 3]]);
-            let plc = stw1 & 0x0400 != 0;
-            let enabled = plc && stw1 & 0x000F == 0x000F;
-            let target = if enabled { i32::from(nsoll) } else { 0 };
-            let nist = i32::from(self.nist);
-            let step = (target - nist).clamp(-Self::RAMP, Self::RAMP);
-            self.nist = (nist + step) as i16;
-            let zsw1: u16 = if !plc {
-                0x0040 // switching on inhibited
-            } else {
-                let bit = |on: bool, b: u16| if on { 1 << b } else { 0 };
-                bit(stw1 & 1 != 0, 0)
-                    | bit(stw1 & 0x0007 == 0x0007, 1)
-                    | bit(enabled, 2)
-                    | bit(stw1 & 0x0002 != 0, 4)
-                    | bit(stw1 & 0x0004 != 0, 5)
-                    | bit(true, 8)
-                    | bit(true, 9)
-                    | bit(enabled && i32::from(self.nist) == target, 10)
-            };
-            buf[pzd..pzd + 2].copy_from_slice(&zsw1.to_be_bytes());
-            buf[pzd + 2..pzd + 4].copy_from_slice(&self.nist.to_be_bytes());
+    impl ParameterAccess for NoDriveParams {
+        fn has_axis(&self, axis: u8) -> bool {
+            axis <= 1
         }
-        slave.set_inputs(&buf[..n]);
+
+        fn read_value(&mut self, _: u8, _: &ParamAddress, _: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+            Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into())
+        }
+
+        fn write_value(&mut self, _: u8, _: &ParamAddress, _: &ValueBlock<'_>) -> Result<(), ParamError> {
+            Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into())
+        }
+
+        fn read_description(&mut self, _: u8, _: &ParamAddress, _: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+            Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into())
+        }
+
+        fn read_text(&mut self, _: u8, _: &ParamAddress, _: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+            Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into())
+        }
     }
 }
 
@@ -116,10 +111,16 @@ mod app {
     use crate::bsp::board::{self, Port};
     use crate::bsp::clock::{Mono, SysTickClock};
     use crate::bsp::{BusPort, Clock, LineError, LineEvent, TxError};
-    use crate::{Loopback, LINE_RATE, STATION_ADDRESS};
+    use crate::params::NoDriveParams;
+    use crate::{LINE_RATE, STATION_ADDRESS};
 
-    use pbcard::dp::{DpSlave, Events};
+    use pbcard::app::Application;
+    use pbcard::dp::{DpSlave, DpState, Events};
+    use pbcard::dpm::CommState;
+    use pbcard::drive::profidrive::DriveState;
+    use pbcard::drive::DriveConfig;
     use pbcard::node::Node;
+    use rtic::Mutex;
     use rtic_monotonics::systick::prelude::*;
 
     /// Line-level counters (shown in the log; later in the DPM status block).
@@ -146,27 +147,152 @@ mod app {
         }
     }
 
+    /// What the log reports after a step, read while the node was locked.
+    struct NodeView {
+        events: Events,
+        state: DpState,
+        master: Option<u8>,
+        address: u8,
+        acyclic_work: bool,
+    }
+
+    /// The application behind the DPM (image, link, simulated drive) and what the log has
+    /// shown of it.
+    pub struct Drive {
+        app: Application,
+        clock: SysTickClock,
+        comm: Option<CommState>,
+        state: DriveState,
+        /// Largest instruction count of one `Application::step` under the Node lock.
+        #[cfg(feature = "bench")]
+        max_step: u32,
+    }
+
+    impl Drive {
+        fn new(clock: SysTickClock) -> Self {
+            let mut app = Application::new(DriveConfig::DEFAULT);
+            app.set_baudrate(Some(LINE_RATE));
+            let state = app.drive().state();
+            Drive {
+                app,
+                clock,
+                comm: None,
+                state,
+                #[cfg(feature = "bench")]
+                max_step: 0,
+            }
+        }
+
+        /// One [`Application::step`] now (node timers, DPM, drive, inputs), the node locked
+        /// for just that call; then the log of what changed.
+        fn step(&mut self, node: &mut impl Mutex<T = Node>) {
+            let now = self.clock.now();
+            let app = &mut self.app;
+            #[cfg(feature = "bench")]
+            let mut instr = 0u32;
+            // Masks the USART1 interrupt (ceiling = highest priority) for one step.
+            let v = node.lock(|n| {
+                #[cfg(feature = "bench")]
+                let t0 = board::bench::count();
+                let events = app.step(now, n);
+                #[cfg(feature = "bench")]
+                {
+                    instr = board::bench::count().wrapping_sub(t0);
+                }
+                let s = n.slave();
+                NodeView {
+                    events,
+                    state: s.state(),
+                    master: s.master_address(),
+                    address: s.address(),
+                    acyclic_work: n.has_acyclic_work(),
+                }
+            });
+            #[cfg(feature = "bench")]
+            if instr > self.max_step {
+                self.max_step = instr;
+                defmt::info!("LOCK app.step {=u32} instructions (new maximum)", instr);
+            }
+            // The ISR spawns the DP-V1 task; this catches a request that arrived while the
+            // task was finishing (its spawn failed then).
+            if v.acyclic_work {
+                acyclic::spawn().ok();
+            }
+            self.log(&v);
+        }
+
+        fn log(&mut self, v: &NodeView) {
+            let events = v.events;
+            if events.contains(Events::STATE_CHANGED) {
+                match v.master {
+                    Some(m) => defmt::info!("DP state {}, master {=u8}", v.state, m),
+                    None => defmt::info!("DP state {}", v.state),
+                }
+            }
+            if events.contains(Events::WATCHDOG_EXPIRED) {
+                defmt::warn!("DP watchdog expired: outputs cleared");
+            }
+            if events.contains(Events::ADDRESS_CHANGED) {
+                // Node::poll has reset the FCB memory of the old address. Persisting the
+                // address is the address-store issue.
+                defmt::warn!("station address changed to {=u8} (not stored yet)", v.address);
+            }
+            if !events.is_empty() {
+                defmt::debug!("DP events {=u16:#06x}", events.bits());
+            }
+            // What the drive sees: P0740 in the DPM status block, its own state.
+            if let Ok(status) = self.app.dpm().status() {
+                if self.comm != Some(status.comm) {
+                    defmt::info!("P0740 = {=u8} ({})", status.comm.code(), status.comm);
+                    self.comm = Some(status.comm);
+                }
+            }
+            let drive = self.app.drive();
+            if drive.state() != self.state {
+                defmt::info!(
+                    "drive: {=str} -> {=str} (STW1 {=u16:#06x}, ZSW1 {=u16:#06x}, NSOLL_A {=i16}, NIST_A {=i16})",
+                    self.state.name(),
+                    drive.state().name(),
+                    drive.control_word(),
+                    drive.status_word(),
+                    drive.setpoint(),
+                    drive.actual_speed()
+                );
+                self.state = drive.state();
+            }
+        }
+    }
+
     #[shared]
     struct Shared {
         node: Node,
         line: LineCounters,
+        drive: Drive,
     }
 
     #[local]
     struct Local {
         port: Port,
-        clock: SysTickClock,
-        drive: Loopback,
+        params: NoDriveParams,
+        acyclic_clock: SysTickClock,
     }
 
     #[init]
     fn init(cx: init::Context) -> (Shared, Local) {
         let board::Board { port, clock } = board::init(cx.device, cx.core.SYST, LINE_RATE);
         defmt::info!("pbcard: station {=u8}, {=str}", STATION_ADDRESS, board::NAME);
+        defmt::info!(
+            "drive: simulated behind the DPM (PROFIdrive STW1/ZSW1, NSOLL_A/NIST_A 0x4000 = 100 %, ramp {=u64} ms)",
+            DriveConfig::DEFAULT.ramp_time.as_millis()
+        );
+        #[cfg(feature = "board-f411")]
+        defmt::warn!("drive: the simulated drive stands in for the DPM transport to the drive (issue 7)");
+        let mut node = Node::new(DpSlave::new(STATION_ADDRESS));
+        node.set_baudrate(Some(LINE_RATE));
         housekeeping::spawn().ok();
         (
-            Shared { node: Node::new(DpSlave::new(STATION_ADDRESS)), line: LineCounters::default() },
-            Local { port, clock, drive: Loopback::default() },
+            Shared { node, line: LineCounters::default(), drive: Drive::new(clock) },
+            Local { port, params: NoDriveParams, acyclic_clock: clock },
         )
     }
 
@@ -179,13 +305,12 @@ mod app {
     }
 
     /// The PROFIBUS line, one interrupt per character (and per TXE/TC while responding).
-    #[task(binds = USART1, priority = 16, local = [port, drive], shared = [node, line])]
+    #[task(binds = USART1, priority = 16, local = [port], shared = [node, line])]
     fn usart1(cx: usart1::Context) {
         // Benchmark: instruction count at handler entry (then after each handled event).
         #[cfg(feature = "bench")]
         let mut entry = board::bench::count();
         let port = cx.local.port;
-        let drive = cx.local.drive;
         // Top priority: these locks only mask interrupts (cpsid), which changes nothing here.
         (cx.shared.node, cx.shared.line).lock(|node, line| {
             while let Some(ev) = port.poll_event() {
@@ -219,9 +344,16 @@ mod app {
                                     port.tx_first_count().wrapping_sub(entry)
                                 );
                             }
+                            // A DP-V1 request was acknowledged; the middle-priority task works
+                            // on it (if it is still running, the spawn fails and the next
+                            // housekeeping step spawns it again).
+                            if node.has_acyclic_work() {
+                                acyclic::spawn().ok();
+                            }
                         }
                         if node.slave().stats().data_exchanges != dx_before {
-                            drive.on_data_exchange(node.slave_mut());
+                            // New outputs: the drive sees them now, not at the next millisecond.
+                            app_step::spawn().ok();
                         }
                     }
                     LineEvent::Error(e) => {
@@ -240,53 +372,59 @@ mod app {
         });
     }
 
-    /// Timers of the DP slave and the log, every millisecond.
-    #[task(priority = 1, shared = [node, line], local = [clock])]
-    async fn housekeeping(mut cx: housekeeping::Context) {
+    /// DP-V1: data records at slot 0 (PROFIdrive parameter access, WEG record 48) for MSAC_C1
+    /// and MSAC_C2. The master polls until the response is there ("not ready" meanwhile).
+    #[task(priority = 8, shared = [node], local = [params, acyclic_clock])]
+    async fn acyclic(mut cx: acyclic::Context) {
+        let now = cx.local.acyclic_clock.now();
+        let params = cx.local.params;
+        #[cfg(feature = "bench")]
+        let mut instr = 0u32;
+        // Masks the USART1 interrupt for one pass over the waiting requests.
+        cx.shared.node.lock(|n| {
+            #[cfg(feature = "bench")]
+            let t0 = board::bench::count();
+            n.process_acyclic(now, params);
+            #[cfg(feature = "bench")]
+            {
+                instr = board::bench::count().wrapping_sub(t0);
+            }
+        });
+        #[cfg(feature = "bench")]
+        defmt::info!("LOCK process_acyclic {=u32} instructions", instr);
+    }
+
+    /// One application step right after a Data_Exchange.
+    #[task(priority = 1, shared = [node, drive])]
+    async fn app_step(cx: app_step::Context) {
+        let app_step::SharedResources { mut node, mut drive, .. } = cx.shared;
+        // Same priority as housekeeping: this lock costs nothing.
+        drive.lock(|d| d.step(&mut node));
+    }
+
+    /// The application and the node's timers every millisecond, and the log.
+    #[task(priority = 1, shared = [node, line, drive])]
+    async fn housekeeping(cx: housekeeping::Context) {
         const STATS_PERIOD_MS: u32 = 10_000;
-        let clock = *cx.local.clock;
+        let housekeeping::SharedResources { mut node, mut line, mut drive, .. } = cx.shared;
         let mut next = Mono::now();
         let mut ms: u32 = 0;
         let mut last_stats = None;
-        let state = cx.shared.node.lock(|n| n.slave().state());
+        let state = node.lock(|n| n.slave().state());
         defmt::info!("DP state {}", state);
         loop {
             next += 1.millis();
             Mono::delay_until(next).await;
-            let now = clock.now();
-
-            // Short lock: it masks the USART1 interrupt (ceiling = highest priority).
-            let (events, state, master, address) = cx.shared.node.lock(|n| {
-                let ev = n.poll(now);
-                let s = n.slave();
-                (ev, s.state(), s.master_address(), s.address())
-            });
-            if !events.is_empty() {
-                if events.contains(Events::STATE_CHANGED) {
-                    match master {
-                        Some(m) => defmt::info!("DP state {}, master {=u8}", state, m),
-                        None => defmt::info!("DP state {}", state),
-                    }
-                }
-                if events.contains(Events::WATCHDOG_EXPIRED) {
-                    defmt::warn!("DP watchdog expired: outputs cleared");
-                }
-                if events.contains(Events::ADDRESS_CHANGED) {
-                    // Node::poll has reset the FCB memory of the old address. Persisting the
-                    // address is the address-store issue.
-                    defmt::warn!("station address changed to {=u8} (not stored yet)", address);
-                }
-                defmt::debug!("DP events {=u16:#06x}", events.bits());
-            }
+            drive.lock(|d| d.step(&mut node));
 
             ms = ms.wrapping_add(1);
             if ms.is_multiple_of(STATS_PERIOD_MS) {
-                let line = cx.shared.line.lock(|l| *l);
-                let (framer, station, dp) =
-                    cx.shared.node.lock(|n| (n.framer().stats(), n.station().stats(), n.slave().stats()));
-                let stats = (line, framer, station, dp);
+                let line = line.lock(|l| *l);
+                let (framer, station, dp) = node.lock(|n| (n.framer().stats(), n.station().stats(), n.slave().stats()));
+                let link = drive.lock(|d| d.app.link().stats());
+                let stats = (line, framer, station, dp, link);
                 if last_stats != Some(stats) {
-                    defmt::info!("line {}, framer {}, station {}, dp {}", line, framer, station, dp);
+                    defmt::info!("line {}, framer {}, station {}, dp {}, dpm link {}", line, framer, station, dp, link);
                     last_stats = Some(stats);
                 }
             }

@@ -1,7 +1,9 @@
 //! The firmware in QEMU, driven from the host: boot `qemu-system-arm -M netduinoplus2` with
 //! USART1 on a Unix socket, collect the firmware's defmt log (decoded by `defmt-print`), and
 //! run profirust's DP master against it in wall-clock time ([`LiveMaster`]) or send scripted
-//! requests ([`StreamPhy::request`]).
+//! requests ([`StreamPhy::request`]). [`DriveSession`] is a PLC program on that master for the
+//! firmware's application — the simulated drive behind the DPM (`pbcard::app::Application`) —
+//! that checks every input image against what that drive may answer.
 //!
 //! Used by `tests/qemu.rs` (end-to-end test), `src/bin/qemu_demo.rs` (README command 1) and
 //! `src/bin/qemu_bench.rs` (the instruction-count benchmark). The ELFs are built by
@@ -11,7 +13,9 @@
 //! firmware in real time, the master uses `std::time::Instant`, and the master's slot time
 //! (160 ms), retries (15) and the DP watchdog (10 s) are far beyond any scheduling delay;
 //! bytes sent before the firmware has enabled its USART are lost, so [`wait_for_answer`]
-//! polls FDL_Status until the slave answers before the master starts.
+//! polls FDL_Status until the slave answers before the master starts. The drive's ramp runs on
+//! the firmware's clock, so the drive checks are about states, order and direction, never
+//! about how many cycles something takes.
 
 use std::io::{self, BufRead, BufReader, Read};
 use std::os::unix::net::UnixStream;
@@ -23,6 +27,8 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use pbcard::card;
+use pbcard::dpm::Telegram;
+use pbcard::drive::profidrive::{Stw1, Zsw1};
 use pbcard::fdl::telegram::{self, FunctionCode, Header};
 use profirust::dp::{DpMaster, Peripheral, PeripheralEvent, PeripheralHandle, PeripheralOptions};
 use profirust::fdl::FdlActiveStation;
@@ -525,98 +531,384 @@ impl<S: std::io::Read + std::io::Write> LiveMaster<S> {
     }
 }
 
-/// The firmware's placeholder drive (`Loopback` in `src/main.rs`), modelled on the host so
-/// that every input image can be predicted from the outputs sent before it.
+// ---------------------------------------------------------------------------------------------
+// The firmware's application: the simulated drive behind the DPM (pbcard::app::Application).
+// ---------------------------------------------------------------------------------------------
+
+/// 100 % speed in the N2 coding of NSOLL_A / NIST_A.
+pub const SPEED_100: i16 = 0x4000;
+
+/// An N2 speed in percent of the reference speed.
+pub fn percent(n2: i16) -> f64 {
+    f64::from(n2) * 100.0 / f64::from(SPEED_100)
+}
+
+/// What a control word asks the drive for (PROFIdrive, `pbcard::drive::profidrive`).
+pub fn stw1_meaning(stw1: u16) -> &'static str {
+    let s = Stw1::from_bits_retain(stw1);
+    if !s.contains(Stw1::CONTROL_BY_PLC) {
+        "not valid (b10 = 0)"
+    } else if !s.contains(Stw1::NO_COAST_STOP) {
+        "OFF2: coast stop"
+    } else if !s.contains(Stw1::NO_QUICK_STOP) {
+        "OFF3: quick stop"
+    } else if !s.contains(Stw1::ON) {
+        "OFF1: ready / ramp stop"
+    } else if !s.contains(Stw1::ENABLE_OPERATION) {
+        "ON, operation disabled"
+    } else {
+        "ON: run"
+    }
+}
+
+/// The drive state a status word shows, with the "at setpoint" (b8), "100 % reached" (b10)
+/// and warning (b7) bits. S3 and S5 look alike in ZSW1 (b0 b1); a non-zero speed tells S5.
+pub fn zsw1_meaning(zsw1: u16, nist: i16) -> String {
+    let z = Zsw1::from_bits_retain(zsw1);
+    let mut s = String::from(if zsw1 == 0 {
+        "no answer yet"
+    } else if z.contains(Zsw1::FAULT) {
+        "fault"
+    } else if z.contains(Zsw1::SWITCHING_ON_INHIBITED) {
+        "switching on inhibited"
+    } else if z.contains(Zsw1::OPERATION_ENABLED) {
+        "operation enabled"
+    } else if z.contains(Zsw1::READY_TO_OPERATE) && nist != 0 {
+        "switching off (ramp)"
+    } else if z.contains(Zsw1::READY_TO_OPERATE) {
+        "switched on"
+    } else if z.contains(Zsw1::READY_TO_SWITCH_ON) {
+        "ready to switch on"
+    } else {
+        "(no state bit)"
+    });
+    if z.contains(Zsw1::AT_SETPOINT) {
+        s.push_str(", at setpoint");
+    }
+    if z.contains(Zsw1::SPEED_REACHED) {
+        s.push_str(", 100 % reached");
+    }
+    if z.contains(Zsw1::WARNING) {
+        s.push_str(", warning");
+    }
+    s
+}
+
+/// ZSW1 patterns (masked with [`ZSW1_STATE_MASK`]) of the states the tests drive through;
+/// b4/b5 mirror STW1 b1/b2 (set in 0x047E / 0x047F), b9 "control requested" is always set.
+pub const ZSW1_STATE_MASK: u16 = 0x027F;
+/// S1 switching on inhibited, before any valid control word: b6 b9.
+pub const ZSW1_S1: u16 = 0x0240;
+/// S2 ready for switching on: b0 b4 b5 b9.
+pub const ZSW1_S2: u16 = 0x0231;
+/// S3 switched on or S5 switching off: b0 b1 b4 b5 b9.
+pub const ZSW1_S3_S5: u16 = 0x0233;
+/// S4 operation enabled: b0 b1 b2 b4 b5 b9.
+pub const ZSW1_S4: u16 = 0x0237;
+
+fn word(b: &[u8], i: usize) -> u16 {
+    u16::from_be_bytes([b[2 * i], b[2 * i + 1]])
+}
+
+/// Where the drive's words are in a module's process data (PKW first for PPO 1/2/5, then
+/// STW1/ZSW1, NSOLL_A/NIST_A, PZD3…), and the output images the tests send.
 #[derive(Debug, Clone)]
-pub struct LoopbackModel {
-    nist: i16,
+pub struct DriveImage {
+    pkw: usize,
     pzd: usize,
-    len: usize,
 }
 
-impl LoopbackModel {
-    /// NIST_A change per Data_Exchange (`Loopback::RAMP`).
-    pub const RAMP: i32 = 0x0200;
-
-    /// For `module`, from the reset state.
+impl DriveImage {
+    /// The layout of `module` (Standard telegram 1 or a PPO type).
     pub fn new(module: &card::Module) -> Self {
-        LoopbackModel { nist: 0, pzd: if module.cfg.first() == Some(&0xF3) { 8 } else { 0 }, len: module.inputs.into() }
+        let t = Telegram::of_module(module).expect("a drive telegram");
+        assert_eq!(usize::from(module.outputs), 2 * (t.pkw_words() + t.pzd_words()));
+        DriveImage { pkw: t.pkw_words(), pzd: t.pzd_words() }
     }
 
-    /// Offset of STW1/ZSW1 in the images.
-    pub fn pzd(&self) -> usize {
-        self.pzd
+    /// Word index of STW1 / ZSW1 (NSOLL_A / NIST_A follow).
+    pub fn pzd1(&self) -> usize {
+        self.pkw
     }
 
-    /// The input image the firmware stages after a Data_Exchange carrying `outputs`.
-    pub fn step(&mut self, outputs: &[u8]) -> Vec<u8> {
-        let mut inp = vec![0u8; self.len];
-        let m = outputs.len().min(self.len);
-        inp[..m].copy_from_slice(&outputs[..m]);
-        let p = self.pzd;
-        if outputs.len() >= p + 4 && self.len >= p + 4 {
-            let stw1 = u16::from_be_bytes([outputs[p], outputs[p + 1]]);
-            let nsoll = i16::from_be_bytes([outputs[p + 2], outputs[p + 3]]);
-            let plc = stw1 & 0x0400 != 0;
-            let enabled = plc && stw1 & 0x000F == 0x000F;
-            let target = if enabled { i32::from(nsoll) } else { 0 };
-            let nist = i32::from(self.nist);
-            self.nist = (nist + (target - nist).clamp(-Self::RAMP, Self::RAMP)) as i16;
-            let zsw1: u16 = if !plc {
-                0x0040
-            } else {
-                let bit = |on: bool, b: u16| if on { 1u16 << b } else { 0 };
-                bit(stw1 & 1 != 0, 0)
-                    | bit(stw1 & 7 == 7, 1)
-                    | bit(enabled, 2)
-                    | bit(stw1 & 2 != 0, 4)
-                    | bit(stw1 & 4 != 0, 5)
-                    | bit(true, 8)
-                    | bit(true, 9)
-                    | bit(enabled && i32::from(self.nist) == target, 10)
-            };
-            inp[p..p + 2].copy_from_slice(&zsw1.to_be_bytes());
-            inp[p + 2..p + 4].copy_from_slice(&self.nist.to_be_bytes());
+    /// Image length in bytes (both ways).
+    pub fn len(&self) -> usize {
+        2 * (self.pkw + self.pzd)
+    }
+
+    /// Never empty (at least STW1 and NSOLL_A).
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// Outputs: PKW all zero (no parameter request), STW1, NSOLL_A, and PZD3… made from `tag`
+    /// (distinct per cycle, so that their echo tells which outputs the drive answered).
+    pub fn outputs(&self, stw1: u16, nsoll: i16, tag: u16) -> Vec<u8> {
+        let mut w = vec![0u16; self.pkw + self.pzd];
+        w[self.pkw] = stw1;
+        w[self.pkw + 1] = nsoll as u16;
+        for (i, x) in w.iter_mut().enumerate().skip(self.pkw + 2) {
+            *x = tag.rotate_left(3 * i as u32) ^ (0x0101 * i as u16);
         }
-        inp
+        w.iter().flat_map(|x| x.to_be_bytes()).collect()
+    }
+
+    /// STW1 of an output image.
+    pub fn stw1(&self, outputs: &[u8]) -> u16 {
+        word(outputs, self.pkw)
+    }
+    /// NSOLL_A of an output image.
+    pub fn nsoll(&self, outputs: &[u8]) -> i16 {
+        word(outputs, self.pkw + 1) as i16
+    }
+    /// ZSW1 of an input image.
+    pub fn zsw1(&self, inputs: &[u8]) -> u16 {
+        word(inputs, self.pkw)
+    }
+    /// NIST_A of an input image.
+    pub fn nist(&self, inputs: &[u8]) -> i16 {
+        word(inputs, self.pkw + 1) as i16
+    }
+    /// The echoed words PZD3… (empty for Standard telegram 1, PPO 1 and 3).
+    fn echo<'a>(&self, image: &'a [u8]) -> &'a [u8] {
+        &image[2 * (self.pkw + 2)..]
     }
 }
 
-/// Check `cycles` against the model: PI_I of cycle k is what the firmware staged after
-/// cycle k − 1 (after the warm-up cycles with all-zero outputs for cycle 0).
-pub fn check_against_model(module: &card::Module, cycles: &[CycleRecord]) -> Result<(), String> {
-    let mut model = LoopbackModel::new(module);
-    let mut expect = model.step(&vec![0u8; module.outputs.into()]);
-    for (k, c) in cycles.iter().enumerate() {
-        if c.i_received != expect {
+/// One Data_Exchange cycle as the PLC program sees it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Sample {
+    /// Since the [`DriveSession`] started.
+    pub t: Duration,
+    /// Cycles of the session so far, this one included.
+    pub cycle: usize,
+    /// STW1 sent in this cycle.
+    pub stw1: u16,
+    /// NSOLL_A sent in this cycle.
+    pub nsoll: i16,
+    /// ZSW1 received in this cycle.
+    pub zsw1: u16,
+    /// NIST_A received in this cycle.
+    pub nist: i16,
+}
+
+/// A PLC program on the [`LiveMaster`] that runs the firmware's simulated drive, checking
+/// every input image against what that drive may answer — whatever the timing, since the
+/// drive runs on the firmware's clock (every millisecond and after each Data_Exchange) and
+/// its ramp depends on time, not on cycles:
+///
+/// * the length of the module, PKW all zero (no parameter request is sent);
+/// * all zero only until the drive's first answer (the input image of a new telegram);
+/// * ZSW1 shows one state of the PROFIdrive diagram (S1, S2, S3/S5, S4; a fault fails), b9
+///   "control requested" always, b4/b5 once past S1, b8 "at setpoint" only in S4, b10
+///   exactly when |NIST_A| ≥ 100 %, NIST_A ≠ 0 only with the motor powered (b0 b1);
+/// * PZD3… (PPO 2/4/5/6) echo an earlier output image — never the one of the request they
+///   answer (pre-staged, one cycle late at least), never one older than an echo already seen
+///   (in order, never torn).
+///
+/// The ramp's direction and end points are the callers' checks ([`monotonic`]).
+pub struct DriveSession<S: std::io::Read + std::io::Write> {
+    /// The master.
+    pub master: LiveMaster<S>,
+    /// The module's layout.
+    pub image: DriveImage,
+    /// Output images in the order sent; `[0]` stands for the all-zero outputs of the bring-up.
+    sent: Vec<Vec<u8>>,
+    echo_from: usize,
+    answered: bool,
+    /// Largest distance in cycles between outputs and their echo in the inputs (PPO 2/4/5/6).
+    pub max_echo_lag: usize,
+    /// Cycles checked.
+    pub cycles: usize,
+    t0: Instant,
+}
+
+impl<S: std::io::Read + std::io::Write> DriveSession<S> {
+    /// Start on a master in data exchange with all-zero outputs (as after
+    /// [`LiveMaster::bring_up`]).
+    pub fn new(mut master: LiveMaster<S>, module: &card::Module) -> Self {
+        let image = DriveImage::new(module);
+        let zeros = vec![0u8; image.len()];
+        master.peripheral().pi_q_mut().copy_from_slice(&zeros);
+        DriveSession {
+            master,
+            image,
+            sent: vec![zeros],
+            echo_from: 0,
+            answered: false,
+            max_echo_lag: 0,
+            cycles: 0,
+            t0: Instant::now(),
+        }
+    }
+
+    /// Send STW1 / NSOLL_A from the next cycle on and poll until `done` holds for a cycle (it
+    /// sees every checked [`Sample`]); returns the samples. `Err` on a failed check, when the
+    /// master loses the slave, or after `timeout`.
+    pub fn run(
+        &mut self,
+        stw1: u16,
+        nsoll: i16,
+        timeout: Duration,
+        mut done: impl FnMut(&Sample) -> bool,
+    ) -> Result<Vec<Sample>, String> {
+        let deadline = Instant::now() + timeout;
+        let mut samples: Vec<Sample> = Vec::new();
+        loop {
+            if Instant::now() > deadline {
+                let tail = &samples[samples.len().saturating_sub(5)..];
+                return Err(format!(
+                    "STW1 {stw1:04X} NSOLL_A {nsoll:+}: the expected state did not come within {timeout:?} \
+                     ({} cycles); last samples {tail:04X?}",
+                    samples.len()
+                ));
+            }
+            match self.master.poll() {
+                Some(PeripheralEvent::DataExchanged) => {
+                    // This cycle's request carried the last image sent.
+                    let q = self.sent.last().expect("sent").clone();
+                    let i = self.master.peripheral().pi_i().to_vec();
+                    self.cycles += 1;
+                    if let Err(e) = self.check(&i) {
+                        return Err(format!(
+                            "cycle {} (STW1 {:04X} NSOLL_A {:+} sent): PI_I {}: {e}",
+                            self.cycles,
+                            self.image.stw1(&q),
+                            self.image.nsoll(&q),
+                            hex(&i)
+                        ));
+                    }
+                    let s = Sample {
+                        t: self.t0.elapsed(),
+                        cycle: self.cycles,
+                        stw1: self.image.stw1(&q),
+                        nsoll: self.image.nsoll(&q),
+                        zsw1: self.image.zsw1(&i),
+                        nist: self.image.nist(&i),
+                    };
+                    samples.push(s);
+                    // The next request carries the new outputs (PI_Q is read when it is built).
+                    let tag = self.sent.len() as u16;
+                    let out = self.image.outputs(stw1, nsoll, tag);
+                    self.master.peripheral().pi_q_mut().copy_from_slice(&out);
+                    self.sent.push(out);
+                    if done(&s) {
+                        return Ok(samples);
+                    }
+                }
+                Some(PeripheralEvent::Offline) => {
+                    return Err(format!("the master lost the slave; events {:?}", self.master.events));
+                }
+                _ => {}
+            }
+        }
+    }
+
+    /// Time since the session started.
+    pub fn elapsed(&self) -> Duration {
+        self.t0.elapsed()
+    }
+
+    /// Keep STW1 / NSOLL_A for `cycles` more cycles; every sample must satisfy `ok`.
+    pub fn hold(
+        &mut self,
+        stw1: u16,
+        nsoll: i16,
+        cycles: usize,
+        timeout: Duration,
+        what: &str,
+        ok: impl Fn(&Sample) -> bool,
+    ) -> Result<Vec<Sample>, String> {
+        let mut n = 0;
+        let samples = self.run(stw1, nsoll, timeout, |_| {
+            n += 1;
+            n >= cycles
+        })?;
+        match samples.iter().find(|s| !ok(s)) {
+            Some(bad) => Err(format!("STW1 {stw1:04X} NSOLL_A {nsoll:+}, {what}: not so in {bad:04X?}")),
+            None => Ok(samples),
+        }
+    }
+
+    /// The input image checks of the type documentation.
+    fn check(&mut self, i: &[u8]) -> Result<(), String> {
+        let img = &self.image;
+        if i.len() != img.len() {
+            return Err(format!("{} bytes, the module has {}", i.len(), img.len()));
+        }
+        if i.iter().all(|&b| b == 0) {
+            return if self.answered { Err("all zero after the drive had answered".into()) } else { Ok(()) };
+        }
+        self.answered = true;
+        if i[..2 * img.pkw].iter().any(|&b| b != 0) {
+            return Err("PKW not zero (no parameter request was sent)".into());
+        }
+        // PZD3…: the echo of an earlier output image, in order.
+        if !img.echo(i).is_empty() {
+            let newest = self.sent.len().saturating_sub(2); // not the request this answers
+            let found = (self.echo_from..=newest).find(|&j| img.echo(&self.sent[j]) == img.echo(i));
+            match found {
+                Some(j) => {
+                    self.echo_from = j;
+                    self.max_echo_lag = self.max_echo_lag.max(self.sent.len() - 1 - j);
+                }
+                None => {
+                    return Err(format!(
+                        "PZD3… {} echo no output image sent between #{} and #{newest} (the last one echoed \
+                         before, and the one before this request)",
+                        hex(img.echo(i)),
+                        self.echo_from
+                    ))
+                }
+            }
+        }
+        let (zsw1, nist) = (img.zsw1(i), img.nist(i));
+        let z = Zsw1::from_bits_retain(zsw1);
+        let state = zsw1 & 0x004F;
+        if z.contains(Zsw1::FAULT) {
+            return Err(format!("ZSW1 {zsw1:04X}: the drive is in fault"));
+        }
+        if ![0x0040, 0x0001, 0x0003, 0x0007].contains(&state) {
+            return Err(format!("ZSW1 {zsw1:04X}: b0 b1 b2 b6 show no state of the PROFIdrive diagram"));
+        }
+        if !z.contains(Zsw1::CONTROL_REQUESTED) {
+            return Err(format!("ZSW1 {zsw1:04X}: b9 control requested missing"));
+        }
+        if state != 0x0040 && zsw1 & 0x0030 != 0x0030 {
+            return Err(format!("ZSW1 {zsw1:04X}: past S1, but b4/b5 (no OFF2/OFF3) not set"));
+        }
+        if z.contains(Zsw1::AT_SETPOINT) && state != 0x0007 {
+            return Err(format!("ZSW1 {zsw1:04X}: b8 at setpoint outside S4"));
+        }
+        if z.contains(Zsw1::SPEED_REACHED) != (i32::from(nist).abs() >= i32::from(SPEED_100)) {
+            return Err(format!("ZSW1 {zsw1:04X}: b10 does not match NIST_A {nist:+}"));
+        }
+        if nist != 0 && state & 0x0003 != 0x0003 {
+            return Err(format!("NIST_A {nist:+} with ZSW1 {zsw1:04X}: speed without the motor powered"));
+        }
+        Ok(())
+    }
+}
+
+/// Whether NIST_A of `samples` only moves toward `to` (never away, never past it), and how
+/// many distinct values lie strictly between `from` and `to` (a ramp, not a jump).
+pub fn monotonic(samples: &[Sample], from: i16, to: i16) -> Result<usize, String> {
+    let (lo, hi) = (from.min(to), from.max(to));
+    let mut last = from;
+    let mut between = std::collections::BTreeSet::new();
+    for s in samples {
+        let n = s.nist;
+        let backwards = if to >= from { n < last } else { n > last };
+        if n < lo || n > hi || backwards {
             return Err(format!(
-                "cycle {k}: PI_I {} but the firmware's application should have staged {} (PI_Q of cycle {} was {})",
-                hex(&c.i_received),
-                hex(&expect),
-                k as i64 - 1,
-                if k > 0 { hex(&cycles[k - 1].q_sent) } else { "zeros".into() }
+                "NIST_A {n:+} after {last:+} in cycle {}: not monotonic from {from:+} to {to:+}",
+                s.cycle
             ));
         }
-        expect = model.step(&c.q_sent);
+        if n != lo && n != hi {
+            between.insert(n);
+        }
+        last = n;
     }
-    Ok(())
-}
-
-/// A drive-like output pattern for cycle `k` of `n`: stopped, then run at +0x4000, reverse to
-/// −0x2000, stop again; every byte beyond the first PZD words changes every cycle.
-pub fn drive_outputs(module: &card::Module, k: usize, n: usize) -> Vec<u8> {
-    let len: usize = module.outputs.into();
-    let p = LoopbackModel::new(module).pzd();
-    let mut q: Vec<u8> =
-        (0..len).map(|i| (k as u8).wrapping_mul(37).wrapping_add((i as u8).wrapping_mul(11))).collect();
-    let phase = k * 8 / n.max(1);
-    let (stw1, nsoll): (u16, i16) = match phase {
-        0 => (0x047E, 0x4000), // ready, not running
-        1..=3 => (0x047F, 0x4000),
-        4..=5 => (0x047F, -0x2000),
-        _ => (0x047E, 0),
-    };
-    q[p..p + 2].copy_from_slice(&stw1.to_be_bytes());
-    q[p + 2..p + 4].copy_from_slice(&nsoll.to_be_bytes());
-    q
+    Ok(between.len())
 }

@@ -19,6 +19,11 @@
 //! * **Echo**: the receiver is switched off (CR1.RE = 0) while we drive the bus, so a
 //!   transceiver whose receiver stays on does not feed our own response back.
 //! * 12 Mbit/s (and in practice 6/3 Mbit/s) cannot work per byte: 0.9 µs per character.
+//! * **Masked receiver**: the lower-priority tasks lock the `Node`, which masks USART1, for one
+//!   `Application::step` (up to about 6500 instructions, ≈ 68 µs at 96 MHz) or one
+//!   `Node::process_acyclic` (README "Benchmark"). With one character of buffering, a request
+//!   arriving meanwhile at 1.5 Mbit/s (7.3 µs per character) overruns: the telegram is lost
+//!   (counted, resynchronised) and the master repeats it. The DMA receiver does not lose it.
 
 use pbcard::fdl::telegram::MAX_FRAME_LEN;
 use pbcard::time::{Baudrate, BitTimes, Duration, Instant};

@@ -1,44 +1,56 @@
 //! The live demo (README command 1): the card firmware — the same RTIC application as on the
 //! board, with the QEMU board module — boots in `qemu-system-arm -M netduinoplus2`;
 //! profirust's DP master (a master nobody here wrote) on the host brings it to data exchange
-//! through USART1 and runs the "drive" for a few seconds: control word and speed setpoint
-//! out, status word and actual speed in, printed as they change. The firmware's own log
-//! (defmt over semihosting, decoded by defmt-print) is interleaved, marked `firmware |`.
+//! through USART1 and runs the drive for a few seconds like a PLC program: control word and
+//! speed setpoint out, status word and actual speed in, printed as they change, decoded. The
+//! firmware's own log (defmt over semihosting, decoded by defmt-print) is interleaved, marked
+//! `firmware |`.
 //!
-//! The inputs come from the firmware's placeholder drive (`Loopback` in `src/main.rs`: NIST
-//! ramps towards NSOLL per Data_Exchange); every cycle is checked against a host model of it.
+//! The drive is the firmware's simulated drive behind the DPM (`pbcard::app::Application`,
+//! PROFIdrive state machine, 2 s ramp per 100 %). Every input image is checked
+//! ([`DriveSession`]: state bits, PKW, PZD echo), each ramp must be monotonic and reach its
+//! setpoint; the exit code says whether all was well.
 //!
 //! Run: `bash scripts/demo.sh` (builds the ELF with `scripts/qemu.sh build`, then
 //! `cargo run -p host-tests --bin qemu_demo --target <host triple>`).
 
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-use host_tests::qemu::{self, Build, LiveMaster, MasterSetup, Qemu, QemuOptions, SLAVE};
-use host_tests::{hex, CycleRecord};
+use host_tests::hex;
+use host_tests::qemu::{
+    self, monotonic, percent, stw1_meaning, zsw1_meaning, Build, DriveSession, LiveMaster, MasterSetup, Qemu,
+    QemuOptions, Sample, SLAVE, ZSW1_S2, ZSW1_S4, ZSW1_STATE_MASK,
+};
 use pbcard::card;
 use profirust::dp::PeripheralEvent;
 
-/// How long the drive runs.
-const RUN: Duration = Duration::from_secs(6);
+/// Deadline of each step of the program (about a second each on an idle machine).
+const DEADLINE: Duration = Duration::from_secs(60);
+/// How long each reached state is kept before the next step.
+const DWELL: Duration = Duration::from_millis(600);
 
-/// The "PLC program": (from second, STW1, NSOLL_A, what).
-const SCRIPT: &[(f64, u16, i16, &str)] = &[
-    (0.0, 0x047E, 0, "ready (ON not set): drive stopped"),
-    (1.0, 0x047F, 0x4000, "run, setpoint +16384 (100 %)"),
-    (2.5, 0x047F, -0x2000, "reverse, setpoint -8192 (-50 %)"),
-    (4.0, 0x047F, 0x1000, "setpoint +4096 (25 %)"),
-    (5.0, 0x047E, 0x1000, "ON removed: ramp down to standstill"),
-];
-
-fn step_at(t: f64) -> &'static (f64, u16, i16, &'static str) {
-    SCRIPT.iter().rev().find(|s| t >= s.0).unwrap_or(&SCRIPT[0])
+/// What the PLC program waits for in one step.
+#[derive(Debug, Clone, Copy)]
+enum Until {
+    /// S2 "ready to switch on", standstill.
+    Ready,
+    /// S4 "operation enabled" at the setpoint (ZSW1 b8), NIST_A = NSOLL_A.
+    AtSetpoint,
 }
+
+/// The "PLC program": (STW1, NSOLL_A, what for, until).
+const PROGRAM: &[(u16, i16, &str, Until)] = &[
+    (0x047E, 0x2000, "switch on ready (from S1 a 0 in b0 is needed first)", Until::Ready),
+    (0x047F, 0x2000, "run, setpoint 50 %", Until::AtSetpoint),
+    (0x047F, 0x4000, "setpoint 100 %", Until::AtSetpoint),
+    (0x047E, 0x4000, "OFF1: ramp stop to standstill", Until::Ready),
+];
 
 fn main() {
     let module = &card::MODULES[0];
     let elf = qemu::firmware_elf(Build::Qemu);
     println!("pbcard QEMU demo");
-    println!("  firmware: {} (RTIC app, board module bsp/qemu.rs)", elf.display());
+    println!("  firmware: {} (RTIC app, board module bsp/qemu.rs, simulated drive behind the DPM)", elf.display());
     println!("  machine:  qemu-system-arm -M netduinoplus2 (STM32F405), USART1 on a Unix socket");
     println!(
         "  master:   profirust DP master #{} on the host; slave #{SLAVE}, module \"{}\" (Chk_Cfg {})\n",
@@ -61,6 +73,21 @@ fn main() {
     std::process::exit(code);
 }
 
+fn line(x: &Sample) -> String {
+    format!(
+        "  {:>6.3} s  cycle {:>4} | out STW1 {:04X} NSOLL_A {:04X} ({:+6.1} %) | in ZSW1 {:04X} NIST_A {:04X} ({:+6.1} %)  {}",
+        x.t.as_secs_f64(),
+        x.cycle,
+        x.stw1,
+        x.nsoll as u16,
+        percent(x.nsoll),
+        x.zsw1,
+        x.nist as u16,
+        percent(x.nist),
+        zsw1_meaning(x.zsw1, x.nist)
+    )
+}
+
 fn run(q: &Qemu, module: &card::Module) -> i32 {
     let mut phy = match q.connect() {
         Ok(p) => p,
@@ -79,10 +106,10 @@ fn run(q: &Qemu, module: &card::Module) -> i32 {
         }
     }
     let mut m = LiveMaster::new(phy, SLAVE, module, &MasterSetup::default());
-    m.pause = Duration::from_millis(2); // a human-speed exchange (≈ 50 cycles/s)
+    m.pause = Duration::from_millis(2); // a human-speed exchange
 
     println!("\n-- bring-up: Slave_Diag, Set_Prm (ident 0x{:04X}, WD 10 s), Chk_Cfg, Slave_Diag", card::IDENT_NUMBER);
-    let up = m.run_until(Duration::from_secs(30), |m, e| {
+    let up = m.run_until(DEADLINE, |m, e| {
         if let Some(e) = e {
             println!("  master   | {:>5} ms  #{SLAVE} {e:?}", m.ms());
         }
@@ -93,77 +120,66 @@ fn run(q: &Qemu, module: &card::Module) -> i32 {
         return 1;
     }
 
-    println!(
-        "\n-- data exchange for {} s (PI_Q = STW1 NSOLL_A out, PI_I = ZSW1 NIST_A in, one cycle later)",
-        RUN.as_secs()
-    );
-    let t0 = Instant::now();
-    let mut cycles: Vec<CycleRecord> = Vec::new();
-    let mut current = vec![0u8; module.outputs.into()];
-    let mut last_print = 0.0f64;
-    let mut last_zsw = None;
-    let mut last_step = None;
-    let mut offline = false;
-    m.run_until(RUN + Duration::from_secs(5), |m, e| {
-        let t = t0.elapsed().as_secs_f64();
-        match e {
-            Some(PeripheralEvent::DataExchanged) => {
-                let p = m.peripheral();
-                let pi_i = p.pi_i().to_vec();
-                cycles.push(CycleRecord { t_us: (t * 1e6) as u64, q_sent: current.clone(), i_received: pi_i.clone() });
-                let (zsw1, nist) = (u16::from_be_bytes([pi_i[0], pi_i[1]]), i16::from_be_bytes([pi_i[2], pi_i[3]]));
-                let (stw1, nsoll) =
-                    (u16::from_be_bytes([current[0], current[1]]), i16::from_be_bytes([current[2], current[3]]));
-                if t - last_print >= 0.1 || last_zsw != Some(zsw1) {
-                    println!(
-                        "  {:>6.3} s  cycle {:>4} | out STW1 {stw1:04X}  NSOLL_A {nsoll:>+6} | in ZSW1 {zsw1:04X}  NIST_A {nist:>+6}{}",
-                        t,
-                        cycles.len(),
-                        if zsw1 & 0x0400 != 0 { "  (at setpoint)" } else { "" }
-                    );
-                    last_print = t;
-                    last_zsw = Some(zsw1);
-                }
-                let s = step_at(t);
-                if last_step != Some(s.0.to_bits()) {
-                    println!("  ---- PLC: STW1 {:04X}, NSOLL_A {:+}: {}", s.1, s.2, s.3);
-                    last_step = Some(s.0.to_bits());
-                }
-                current[..2].copy_from_slice(&s.1.to_be_bytes());
-                current[2..4].copy_from_slice(&s.2.to_be_bytes());
-                p.pi_q_mut().copy_from_slice(&current);
+    println!("\n-- data exchange (out = STW1 NSOLL_A, in = ZSW1 NIST_A; 4000h = 100 % speed, ramp 2 s per 100 %)");
+    let mut s = DriveSession::new(m, module);
+    let mut speed = 0i16;
+    for &(stw1, nsoll, what, until) in PROGRAM {
+        println!(
+            "  ---- PLC: STW1 {stw1:04X} ({}), NSOLL_A {nsoll:04X} ({:+.1} %): {what}",
+            stw1_meaning(stw1),
+            percent(nsoll)
+        );
+        let mut last: Option<Sample> = None;
+        let mut print = |x: &Sample| {
+            let due = last.is_none_or(|l| l.zsw1 != x.zsw1 || x.t >= l.t + Duration::from_millis(150));
+            if due {
+                println!("{}", line(x));
+                last = Some(*x);
             }
-            Some(PeripheralEvent::Offline) => offline = true,
-            Some(other) => println!("  master   | {:>5} ms  #{SLAVE} {other:?}", m.ms()),
-            None => {}
+        };
+        let reached = |x: &Sample| match until {
+            Until::Ready => x.zsw1 & ZSW1_STATE_MASK == ZSW1_S2 && x.nist == 0,
+            Until::AtSetpoint => x.zsw1 & ZSW1_STATE_MASK == ZSW1_S4 && x.zsw1 & 0x0100 != 0 && x.nist == nsoll,
+        };
+        let result = (|| {
+            let ramp = s.run(stw1, nsoll, DEADLINE, |x| {
+                print(x);
+                reached(x)
+            })?;
+            let target = if matches!(until, Until::Ready) { 0 } else { nsoll };
+            let between = monotonic(&ramp, speed, target)?;
+            if speed != target && between < 3 {
+                return Err(format!("NIST_A jumped from {speed:+} to {target:+}"));
+            }
+            speed = target;
+            let t_end = ramp.last().map_or(Duration::ZERO, |x| x.t) + DWELL;
+            let kept = s.run(stw1, nsoll, DEADLINE, |x| {
+                print(x);
+                x.t >= t_end
+            })?;
+            match kept.iter().find(|x| !reached(x)) {
+                Some(x) => Err(format!("the state did not hold: {}", line(x))),
+                None => Ok(()),
+            }
+        })();
+        if let Err(e) = result {
+            eprintln!("demo FAILED: {e}");
+            return 1;
         }
-        offline || t0.elapsed() >= RUN
-    });
-    let secs = t0.elapsed().as_secs_f64();
-    // Cycle 0 answers the bring-up's first Data_Exchange, which carried an all-zero PI_Q.
-    let check = qemu::check_against_model(module, &cycles);
-    let stats = m.phy.stats();
+    }
+    let stats = s.master.phy.stats();
+    let secs = s.elapsed().as_secs_f64();
     println!(
-        "\n{} cycles in {:.1} s ({:.0}/s); line: {} telegrams out, {} bytes out, {} bytes in",
-        cycles.len(),
-        secs,
-        cycles.len() as f64 / secs,
+        "\n{} cycles checked ({:.0}/s); line: {} telegrams out, {} bytes out, {} bytes in",
+        s.cycles,
+        s.cycles as f64 / secs.max(0.001),
         stats.tx_telegrams,
         stats.tx_bytes,
         stats.rx_bytes
     );
-    match (offline, check) {
-        (true, _) => {
-            eprintln!("the master lost the slave: {:?}", m.events);
-            1
-        }
-        (false, Err(e)) => {
-            eprintln!("{e}");
-            1
-        }
-        (false, Ok(())) => {
-            println!("demo passed: every input image is what the firmware's application must produce; QEMU stopped");
-            0
-        }
-    }
+    println!(
+        "demo passed: ready, 50 %, 100 % and back to standstill, every ramp monotonic, every input image checked; \
+         QEMU stopped"
+    );
+    0
 }
