@@ -13,7 +13,7 @@
 //! | priority | task | does |
 //! |---|---|---|
 //! | 16 (highest) | `usart1` (USART1 interrupt) | per character: `Node::on_byte` → response; after a Data_Exchange spawns `app_step`, after a DP-V1 request `acyclic` |
-//! | 8 | `acyclic` (software task) | `Node::process_acyclic`: DP-V1 records at slot 0, PROFIdrive parameter access (card PNUs, then [`params`]) |
+//! | 8 | `acyclic` (software task) | `Node::process_acyclic`: DP-V1 records at slot 0, PROFIdrive parameter access (card PNUs, then `pbcard::drive::params`) |
 //! | 1 | `housekeeping` (async, every 1 ms) | `Application::step` (node timers, DPM status/outputs, drive, inputs), events, logs |
 //! | 1 | `app_step` (software task) | one `Application::step` right after a Data_Exchange (the drive sees new outputs at once) |
 //! | – | `idle` | WFI |
@@ -66,44 +66,6 @@ const LINE_RATE: pbcard::time::Baudrate = pbcard::time::Baudrate::B1500k;
 #[cfg(target_os = "none")]
 const STATION_ADDRESS: u8 = 126;
 
-/// The drive's parameter table behind the card's own PNUs.
-#[cfg(target_os = "none")]
-mod params {
-    use pbcard::profile::param::{ErrorValue, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
-
-    /// A drive without parameters of its own. `Node::process_acyclic` answers the card's PNUs
-    /// (918, 922, 930, 944, 947, 963, 964, 965, 975, 980: `pbcard::profile::pnu::CardTable`)
-    /// before it asks this table; every other PNU is answered 0x00 "impermissible parameter
-    /// number". Drive object (axis) 0 and 1 exist: WEG addresses the drive as 0, VACON as 1.
-    ///
-    /// Follow-up: the simulated drive's parameter table (`pbcard::drive::params`, being
-    /// written) takes this one's place; on a real card the parameter mailbox of the DPM does.
-    #[derive(Debug, Default)]
-    pub struct NoDriveParams;
-
-    impl ParameterAccess for NoDriveParams {
-        fn has_axis(&self, axis: u8) -> bool {
-            axis <= 1
-        }
-
-        fn read_value(&mut self, _: u8, _: &ParamAddress, _: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-            Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into())
-        }
-
-        fn write_value(&mut self, _: u8, _: &ParamAddress, _: &ValueBlock<'_>) -> Result<(), ParamError> {
-            Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into())
-        }
-
-        fn read_description(&mut self, _: u8, _: &ParamAddress, _: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-            Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into())
-        }
-
-        fn read_text(&mut self, _: u8, _: &ParamAddress, _: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-            Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into())
-        }
-    }
-}
-
 #[cfg(target_os = "none")]
 #[cfg_attr(feature = "board-f411", rtic::app(device = stm32f4xx_hal::pac, dispatchers = [SPI4, SPI5]))]
 #[cfg_attr(feature = "qemu", rtic::app(device = stm32f4xx_hal::pac, dispatchers = [SPI2, SPI3]))]
@@ -111,8 +73,8 @@ mod app {
     use crate::bsp::board::{self, Port};
     use crate::bsp::clock::{Mono, SysTickClock};
     use crate::bsp::{BusPort, Clock, LineError, LineEvent, TxError};
-    use crate::params::NoDriveParams;
     use crate::{LINE_RATE, STATION_ADDRESS};
+    use pbcard::drive::params::{sim_drive_table, DriveTable};
 
     use pbcard::app::Application;
     use pbcard::dp::{DpSlave, DpState, Events};
@@ -273,7 +235,9 @@ mod app {
     #[local]
     struct Local {
         port: Port,
-        params: NoDriveParams,
+        /// The simulated drive's parameters behind the card's own PNUs (`Node::process_acyclic`
+        /// answers 918 … 980 itself). On a real card the DPM parameter mailbox takes its place.
+        params: DriveTable,
         acyclic_clock: SysTickClock,
     }
 
@@ -292,7 +256,7 @@ mod app {
         housekeeping::spawn().ok();
         (
             Shared { node, line: LineCounters::default(), drive: Drive::new(clock) },
-            Local { port, params: NoDriveParams, acyclic_clock: clock },
+            Local { port, params: sim_drive_table(), acyclic_clock: clock },
         )
     }
 

@@ -301,3 +301,143 @@ fn class2_send_timeout_aborts_the_connection() {
     }
     assert_eq!(m.c2(10, sap, &[0x5E, 0, 47, 240]), Ans::Sd1(0x03));
 }
+
+// ----- The simulated drive's parameter table (pbcard::profile::table) behind the node -----
+
+use pbcard::drive::params::{self, DriveTable};
+
+/// Request, process with `table` as the drive, poll: one MSAC_C1 exchange.
+fn table_transact(m: &mut Master, table: &mut DriveTable, pdu: &[u8]) -> Vec<u8> {
+    assert_eq!(m.c1(M1, pdu), Ans::Sc, "request acknowledged with SC");
+    m.node.process_acyclic(Instant::from_micros(m.now), table);
+    match m.c1(M1, &[]) {
+        Ans::Pdu(p) => p,
+        other => panic!("poll after processing: {other:?}"),
+    }
+}
+
+/// DS_Write `req` to record 47 (checking the write response), DS_Read 240 bytes; returns the
+/// parameter response (after the DP-V1 header, whose length byte is checked).
+fn param_request(m: &mut Master, table: &mut DriveTable, req: &[u8]) -> Vec<u8> {
+    let n = req.len() as u8;
+    assert_eq!(table_transact(m, table, &[&[0x5F, 0, 47, n][..], req].concat()), [0x5F, 0, 47, n]);
+    let r = table_transact(m, table, &[0x5E, 0, 47, 240]);
+    assert_eq!((&r[..3], r[3] as usize), (&[0x5E, 0, 47][..], r.len() - 4), "read response header");
+    r[4..].to_vec()
+}
+
+fn table_master() -> (Master, DriveTable) {
+    let mut m = Master::new();
+    m.bring_up(0x80);
+    (m, params::sim_drive_table())
+}
+
+/// P100 "Accel. Time" (WEG P0100, 0.1 s, 0..9999, default 50): the whole 46-byte description
+/// element (VACON §6.4.3.7, Table 49) and the name field alone.
+#[test]
+fn sim_table_description_of_p100() {
+    let (mut m, mut t) = table_master();
+    let r = param_request(&mut m, &mut t, &[1, 1, 1, 1, 0x20, 1, 0, 100, 0, 0]);
+    let mut expected = vec![1, 1, 1, 1, 0x0A, 46];
+    expected.extend_from_slice(&[0x00, 0x06]); // identifier: Unsigned16, scaled, writeable, unchanged
+    expected.extend_from_slice(&[0x00, 0x00]); // no array
+    expected.extend_from_slice(&[0x3D, 0xCC, 0xCC, 0xCD]); // standardisation factor 0.1
+    expected.extend_from_slice(&[0x04, 0x00]); // variable index 4 (time), conversion index 0 (s)
+    expected.extend_from_slice(&[0; 4]); // reserved
+    expected.extend_from_slice(b"Accel. Time     "); // name
+    expected.extend_from_slice(&[0, 0, 0, 0, 0, 0, 0x27, 0x0F]); // low limit 0, high limit 9999
+    expected.extend_from_slice(&[0; 8]); // reserved, ID extension, normalisation reference, field
+    assert_eq!(r, expected);
+    // Subindex 6: the name, VisibleString 16.
+    let r = param_request(&mut m, &mut t, &[2, 1, 1, 1, 0x20, 1, 0, 100, 0, 6]);
+    assert_eq!(r, [&[2, 1, 1, 1, 0x09, 16][..], b"Accel. Time     "].concat());
+    // After a change, identifier bit 12 (changed from the factory setting) is set.
+    assert_eq!(param_request(&mut m, &mut t, &[3, 2, 1, 1, 0x10, 1, 0, 100, 0, 0, 0x42, 1, 0, 85]), [3, 2, 1, 1]);
+    assert_eq!(param_request(&mut m, &mut t, &[4, 1, 1, 1, 0x20, 1, 0, 100, 0, 1]), [4, 1, 1, 1, 0x06, 1, 0x10, 0x06]);
+    assert_eq!(params::acceleration_time(&t).as_millis(), 8500);
+}
+
+/// VACON's test array PNU 9901 (UINT[8]): write elements 2..4, read them back with subindex 2
+/// and 3 elements, read the whole array; past the end is 0x03.
+#[test]
+fn sim_table_array_p9901() {
+    let (mut m, mut t) = table_master();
+    // 10 03 26AD 0002 | 42 03 0064 00C8 012C
+    let w = [5, 2, 1, 1, 0x10, 3, 0x26, 0xAD, 0, 2, 0x42, 3, 0, 100, 0, 200, 0x01, 0x2C];
+    assert_eq!(param_request(&mut m, &mut t, &w), [5, 2, 1, 1]);
+    let r = param_request(&mut m, &mut t, &[6, 1, 1, 1, 0x10, 3, 0x26, 0xAD, 0, 2]);
+    assert_eq!(r, [6, 1, 1, 1, 0x42, 3, 0, 100, 0, 200, 0x01, 0x2C]);
+    let r = param_request(&mut m, &mut t, &[7, 1, 1, 1, 0x10, 8, 0x26, 0xAD, 0, 0]);
+    assert_eq!(r, [7, 1, 1, 1, 0x42, 8, 0, 0, 0, 0, 0, 100, 0, 200, 0x01, 0x2C, 0, 0, 0, 0, 0, 0]);
+    let r = param_request(&mut m, &mut t, &[8, 1, 1, 1, 0x10, 2, 0x26, 0xAD, 0, 7]);
+    assert_eq!(r, [8, 0x81, 1, 1, 0x44, 1, 0, 0x03]);
+    // The dummy single parameter 9900 is no array: subindex 1 is 0x04.
+    let r = param_request(&mut m, &mut t, &[9, 1, 1, 1, 0x10, 1, 0x26, 0xAC, 0, 1]);
+    assert_eq!(r, [9, 0x81, 1, 1, 0x44, 1, 0, 0x04]);
+}
+
+/// Change errors: P100 = 10000 beyond 9999 (0x02, CFW-11 §4.2.5 Exemplo 2 negative), the
+/// read-only status word P680 (0x01); neither value changes.
+#[test]
+fn sim_table_change_errors() {
+    let (mut m, mut t) = table_master();
+    let r = param_request(&mut m, &mut t, &[10, 2, 1, 1, 0x10, 1, 0, 100, 0, 0, 0x42, 1, 0x27, 0x10]);
+    assert_eq!(r, [10, 0x82, 1, 1, 0x44, 1, 0, 0x02]);
+    let r = param_request(&mut m, &mut t, &[11, 2, 1, 1, 0x10, 1, 0x02, 0xA8, 0, 0, 0x42, 1, 0, 1]);
+    assert_eq!(r, [11, 0x82, 1, 1, 0x44, 1, 0, 0x01]);
+    assert_eq!((t.get(100, 0), t.get(680, 0)), (Some(50), Some(0)));
+    // Both in one request, with a good one between: 44 / 40 00 / 44.
+    let r = param_request(
+        &mut m,
+        &mut t,
+        &[
+            12, 2, 1, 3, 0x10, 1, 0, 100, 0, 0, 0x10, 1, 0, 101, 0, 0, 0x10, 1, 0x02, 0xA8, 0, 0, //
+            0x42, 1, 0x27, 0x10, 0x42, 1, 0, 20, 0x42, 1, 0, 1,
+        ],
+    );
+    assert_eq!(r, [12, 0x82, 1, 3, 0x44, 1, 0, 0x02, 0x40, 0, 0x44, 1, 0, 0x01]);
+    assert_eq!(params::deceleration_time(&t).as_millis(), 2000);
+}
+
+/// Texts are not supported (VACON Table 41): 0x0F.
+#[test]
+fn sim_table_text_request() {
+    let (mut m, mut t) = table_master();
+    let r = param_request(&mut m, &mut t, &[13, 1, 1, 1, 0x30, 1, 0, 100, 0, 0]);
+    assert_eq!(r, [13, 0x81, 1, 1, 0x44, 1, 0, 0x0F]);
+}
+
+/// One request, three parameters: P100 = 50, P134 = 1800 rpm, P10111 = 1800 rpm; and card-owned
+/// PNU 918 mixed with the drive's P681 (set by the drive to −2000h, full reverse).
+#[test]
+fn sim_table_multi_parameter_read() {
+    let (mut m, mut t) = table_master();
+    let req = [14, 1, 1, 3, 0x10, 1, 0, 100, 0, 0, 0x10, 1, 0, 134, 0, 0, 0x10, 1, 0x27, 0x7F, 0, 0];
+    let r = param_request(&mut m, &mut t, &req);
+    assert_eq!(r, [14, 1, 1, 3, 0x42, 1, 0, 50, 0x42, 1, 0x07, 0x08, 0x42, 1, 0x07, 0x08]);
+    t.set(params::P_SPEED_13BIT, 0, -params::SPEED_13BIT_100).unwrap();
+    let r = param_request(&mut m, &mut t, &[15, 1, 1, 2, 0x10, 1, 0x03, 0x96, 0, 0, 0x10, 1, 0x02, 0xA9, 0, 0]);
+    assert_eq!(r, [15, 1, 1, 2, 0x42, 1, 0, 3, 0x42, 1, 0xE0, 0x00]);
+}
+
+/// Seven reads of all 16 elements of P10109 need 4 + 7 × 34 = 242 bytes: the seventh is
+/// answered 0x15 "response too long" and the response stays within 240 bytes.
+#[test]
+fn sim_table_response_too_long() {
+    let (mut m, mut t) = table_master();
+    for k in 0..16 {
+        t.set(params::P_PD_IN, k, 0x100 + i64::from(k)).unwrap();
+    }
+    let mut req = vec![16, 1, 1, 7];
+    for _ in 0..7 {
+        req.extend_from_slice(&[0x10, 16, 0x27, 0x7D, 0, 0]);
+    }
+    let r = param_request(&mut m, &mut t, &req);
+    assert_eq!(r.len(), 4 + 6 * 34 + 4);
+    assert_eq!(&r[..4], &[16, 0x81, 1, 7]);
+    let words: Vec<u8> = (0..16u16).flat_map(|k| (0x100 + k).to_be_bytes()).collect();
+    for p in 0..6 {
+        assert_eq!(&r[4 + 34 * p..4 + 34 * (p + 1)], &[&[0x42, 16][..], &words].concat()[..]);
+    }
+    assert_eq!(&r[4 + 6 * 34..], &[0x44, 1, 0, 0x15]);
+}

@@ -10,6 +10,9 @@
 //!   the one-shot response of record 47, the error codes of the routing.
 //! * [`pnu`] — the PROFIdrive parameters the card owns (918, 922, 930, 944, 947, 963, 964, 965,
 //!   975, 980) in front of the drive's table.
+//! * [`table`] — a generic, allocation-free drive parameter table ([`table::ParamDef`],
+//!   [`table::Table`]) implementing [`param::ParameterAccess`]: values, arrays, limits,
+//!   read-only, and the 46-byte parameter description (VACON OPTE3/E5 §6.4.3.7–6.4.3.16).
 //!
 //! `param` and `weg48` are codecs: which slot answers, the "write request, then poll with reads until the
 //! response exists (0xB5)" sequence and the one-shot response buffer belong to the DP-V1
@@ -18,4 +21,5 @@
 pub mod param;
 pub mod pnu;
 pub mod records;
+pub mod table;
 pub mod weg48;

@@ -1,0 +1,175 @@
+//! The simulated drive's parameter set: a [`Table`] over [`DRIVE_PARAMS`], the table behind
+//! record 47 / 48 for every PNU the card does not own itself.
+//!
+//! | PNU | name | type | range | default | unit | access | source |
+//! |---|---|---|---|---|---|---|---|
+//! | 100 | acceleration time | U16 | 0..9999 | 50 | 0.1 s | rw | WEG P0100 (CFW-11 §4.2.5 Exemplo 2: 8.5 s is sent as 85; CFW500 P0750: 5.0 s as 50) |
+//! | 101 | deceleration time | U16 | 0..9999 | 50 | 0.1 s | rw | WEG P0101 (CFW500 P0680 bit 5: the first ramp is P0100/P0101) |
+//! | 133 | minimum speed | U16 | 0..18000 | 90 | rpm | rw | WEG P0133 |
+//! | 134 | maximum speed | U16 | 0..18000 | 1800 | rpm | rw | WEG P0134 (CFW-11 §3: 0x4000 = P0134 in the PROFIdrive profile; the manual's example 1800 rpm) |
+//! | 680 | status word | U16 | 0..FFFFh | 0 | bits | ro | WEG P0680 (CFW500 Table 4.2: "Range 0000h to FFFFh … Properties: RO") |
+//! | 681 | motor speed in 13 bits | I16 | −32768..32767 | 0 | 8192 = synchronous speed | ro | WEG P0681 (CFW500, CFW-11: 2000h = rated / synchronous speed, 1800 rpm for 4 poles at 60 Hz) |
+//! | 684 | control word | U16 | 0..FFFFh | 0 | bits | rw | WEG P0684 (CFW500 Table 4.3) |
+//! | 685 | speed reference | I16 | −32768..32767 | 0 | 8192 = synchronous speed | rw | WEG P0685 |
+//! | 9900 | dummy writeable single parameter | U16 | full | 0 | – | rw | VACON OPTE3/E5 §6.4.5 Table 108 (test parameter) |
+//! | 9901 | dummy writeable array parameter | U16\[8\] | full | 0 | – | rw | VACON Table 108 (test array parameter) |
+//! | 10109 | process data in words | U16\[16\] | full | 0 | – | ro | VACON Table 108 ("Process Data In word UINT\[16\]", §6.9) |
+//! | 10111 | speed physical reference value | U16 | 1..18000 | 1800 | rpm | ro | VACON Table 108 / §6.3.7: the rpm worth 0x4000 = 100.00 % |
+//!
+//! The WEG ranges of P0100/P0101 (0.0–999.9 s) and P0133/P0134 (0–18000 rpm) are those of the
+//! CFW-11 programming manual, which is not among the seeds; the communication manuals only give
+//! the units. P0681 and P0685 are ratios (variable index 24) normalised at bit 13 to the
+//! reference speed P10111 (VACON §6.4.3.15–6.4.3.16), which the simulated drive takes as the
+//! synchronous speed; P10111 is read-only for the master as on the VACON board (it follows the
+//! motor's nominal speed), the drive sets it with [`Table::set`].
+//!
+//! The drive updates the read-only values (status word, speed, process data) with
+//! [`Table::set`] and reads its ramp from [`acceleration_time`] / [`deceleration_time`].
+
+use crate::profile::table::{slots, ParamDef, Table, Type, CONV_BASE, CONV_PER_MINUTE, VAR_RATIO, VAR_SPEED, VAR_TIME};
+use crate::time::Duration;
+
+/// P0100 acceleration time, 0.1 s.
+pub const P_ACCELERATION_TIME: u16 = 100;
+/// P0101 deceleration time, 0.1 s.
+pub const P_DECELERATION_TIME: u16 = 101;
+/// P0133 minimum speed, rpm.
+pub const P_MIN_SPEED: u16 = 133;
+/// P0134 maximum speed, rpm.
+pub const P_MAX_SPEED: u16 = 134;
+/// P0680 status word (read-only).
+pub const P_STATUS_WORD: u16 = 680;
+/// P0681 motor speed, 13 bits (read-only).
+pub const P_SPEED_13BIT: u16 = 681;
+/// P0684 control word.
+pub const P_CONTROL_WORD: u16 = 684;
+/// P0685 speed reference, 13 bits.
+pub const P_SPEED_REFERENCE: u16 = 685;
+/// PNU 9900: VACON's dummy writeable single parameter.
+pub const P_DUMMY: u16 = 9900;
+/// PNU 9901: VACON's dummy writeable array parameter, 8 elements.
+pub const P_DUMMY_ARRAY: u16 = 9901;
+/// PNU 10109: process data in words, 16 elements (read-only).
+pub const P_PD_IN: u16 = 10109;
+/// PNU 10111: speed physical reference value, rpm (0x4000 = 100.00 %).
+pub const P_REFERENCE_SPEED: u16 = 10111;
+
+/// 2000h: the 13-bit speed scale's 100 % (WEG P0681 / P0685).
+pub const SPEED_13BIT_100: i64 = 0x2000;
+
+/// Percent per count of a 13-bit speed (8192 = 100 %), exact in f32.
+const PERCENT_PER_13BIT: f32 = 100.0 / 8192.0;
+
+/// The simulated drive's parameters, ascending by PNU.
+pub const DRIVE_PARAMS: &[ParamDef] = &[
+    ParamDef::new(P_ACCELERATION_TIME, "Accel. Time", Type::U16)
+        .limits(0, 9999)
+        .with_default(50)
+        .scaled(0.1, VAR_TIME, CONV_BASE),
+    ParamDef::new(P_DECELERATION_TIME, "Decel. Time", Type::U16)
+        .limits(0, 9999)
+        .with_default(50)
+        .scaled(0.1, VAR_TIME, CONV_BASE),
+    ParamDef::new(P_MIN_SPEED, "Minimum Speed", Type::U16).limits(0, 18000).with_default(90).scaled(
+        1.0,
+        VAR_SPEED,
+        CONV_PER_MINUTE,
+    ),
+    ParamDef::new(P_MAX_SPEED, "Maximum Speed", Type::U16).limits(0, 18000).with_default(1800).scaled(
+        1.0,
+        VAR_SPEED,
+        CONV_PER_MINUTE,
+    ),
+    ParamDef::new(P_STATUS_WORD, "Status Word", Type::U16).read_only(),
+    ParamDef::new(P_SPEED_13BIT, "Speed 13 bits", Type::I16)
+        .read_only()
+        .scaled(PERCENT_PER_13BIT, VAR_RATIO, CONV_BASE)
+        .normalised(P_REFERENCE_SPEED, 13),
+    ParamDef::new(P_CONTROL_WORD, "Control Word", Type::U16),
+    ParamDef::new(P_SPEED_REFERENCE, "Speed Reference", Type::I16)
+        .scaled(PERCENT_PER_13BIT, VAR_RATIO, CONV_BASE)
+        .normalised(P_REFERENCE_SPEED, 13),
+    ParamDef::new(P_DUMMY, "Dummy Single", Type::U16),
+    ParamDef::new(P_DUMMY_ARRAY, "Dummy Array", Type::U16).array(8),
+    ParamDef::new(P_PD_IN, "PD In Words", Type::U16).array(16).read_only(),
+    ParamDef::new(P_REFERENCE_SPEED, "Reference Speed", Type::U16)
+        .limits(1, 18000)
+        .with_default(1800)
+        .read_only()
+        .scaled(1.0, VAR_SPEED, CONV_PER_MINUTE),
+];
+
+/// Value slots of [`DRIVE_PARAMS`].
+pub const DRIVE_SLOTS: usize = slots(DRIVE_PARAMS);
+
+/// The simulated drive's parameter table.
+pub type DriveTable = Table<DRIVE_SLOTS>;
+
+/// The table at its factory settings (checked at compile time).
+pub const SIM_DRIVE_TABLE: DriveTable = Table::new(DRIVE_PARAMS);
+
+/// The simulated drive's table at its factory settings.
+pub const fn sim_drive_table() -> DriveTable {
+    SIM_DRIVE_TABLE
+}
+
+/// A time in 0.1 s from the table.
+fn tenths(t: &DriveTable, pnu: u16) -> Duration {
+    Duration::from_millis(t.get(pnu, 0).map_or(0, |v| v.max(0) as u64 * 100))
+}
+
+/// P0100: the ramp time from 0 to the maximum speed.
+pub fn acceleration_time(t: &DriveTable) -> Duration {
+    tenths(t, P_ACCELERATION_TIME)
+}
+
+/// P0101: the ramp time from the maximum speed to 0.
+pub fn deceleration_time(t: &DriveTable) -> Duration {
+    tenths(t, P_DECELERATION_TIME)
+}
+
+/// PNU 10111: the rpm that 0x4000 (100.00 %) stands for.
+pub fn reference_speed_rpm(t: &DriveTable) -> u16 {
+    t.get(P_REFERENCE_SPEED, 0).map_or(0, |v| v as u16)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::profile::param::{ParamAddress, ParameterAccess, ValueWriter};
+    use crate::profile::table::FormatStyle;
+
+    #[test]
+    fn factory_settings() {
+        let t = sim_drive_table();
+        assert_eq!(DRIVE_SLOTS, 10 + 8 + 16, "ten single values, 9901 [8], 10109 [16]");
+        assert_eq!(acceleration_time(&t), Duration::from_millis(5000));
+        assert_eq!(deceleration_time(&t), Duration::from_millis(5000));
+        assert_eq!(reference_speed_rpm(&t), 1800);
+        assert_eq!((t.get(P_MIN_SPEED, 0), t.get(P_MAX_SPEED, 0)), (Some(90), Some(1800)));
+        assert!(t.defs().iter().all(|d| d.name.len() <= 16));
+        // Every PNU is outside the card's own (918..=980).
+        assert!(t.defs().iter().all(|d| !(918..=980).contains(&d.pnu)));
+    }
+
+    #[test]
+    fn the_drive_sets_what_the_master_only_reads() {
+        let mut t = sim_drive_table().with_formats(FormatStyle::Untyped);
+        t.set(P_STATUS_WORD, 0, 0x0302).unwrap();
+        t.set(P_SPEED_13BIT, 0, -SPEED_13BIT_100).unwrap();
+        t.set(P_ACCELERATION_TIME, 0, 85).unwrap();
+        assert_eq!(acceleration_time(&t), Duration::from_millis(8500));
+        let mut buf = [0u8; 8];
+        let mut w = ValueWriter::new(&mut buf);
+        let a = ParamAddress {
+            attribute: crate::profile::param::Attribute::Value,
+            elements: 1,
+            pnu: P_SPEED_13BIT,
+            subindex: 0,
+        };
+        t.read_value(1, &a, &mut w).unwrap();
+        assert_eq!(w.bytes(), [0xE0, 0x00]);
+        // The 13-bit percent factor is exact.
+        assert_eq!(PERCENT_PER_13BIT * 8192.0, 100.0);
+    }
+}
