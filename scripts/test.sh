@@ -30,6 +30,9 @@ echo "== host-tests: profirust master on a simulated bus, GSD cross-check, scrip
 echo "   and end to end: the firmware in QEMU brought to data exchange by profirust over a socket"
 PBCARD_QEMU_REQUIRED=1 cargo test -p host-tests --target "$HOST"
 
+echo "== pyprofibus (PyPI) as a second independent master: soft slave #9 (PPO 4, PPO 2) and QEMU firmware #33 (ST1)"
+bash scripts/pyprofibus.sh
+
 echo "== soft slave: clippy and its own tests (the pty end-to-end run is in host-tests)"
 cargo clippy -p pbcard-softslave --all-targets --target "$HOST" -- -D warnings
 cargo test -p pbcard-softslave --target "$HOST"

@@ -61,10 +61,35 @@ use {defmt_rtt as _, panic_probe as _};
 #[cfg(target_os = "none")]
 const LINE_RATE: pbcard::time::Baudrate = pbcard::time::Baudrate::B1500k;
 
-/// The station address until the address store exists (126 = the factory default of DP
-/// slaves, changeable by Set_Slave_Add).
+/// The station address until the address store is wired (126 = the factory default of DP
+/// slaves, changeable at run time by Set_Slave_Add). A build can choose another one:
+/// `PBCARD_STATION_ADDRESS=5 bash scripts/qemu.sh build` (0..=125; anything else → 126).
 #[cfg(target_os = "none")]
-const STATION_ADDRESS: u8 = 126;
+const STATION_ADDRESS: u8 = station_address(option_env!("PBCARD_STATION_ADDRESS"));
+
+/// Parse a decimal station address at compile time; 126 when absent or invalid.
+#[cfg(target_os = "none")]
+const fn station_address(s: Option<&str>) -> u8 {
+    let Some(s) = s else { return pbcard::card::DEFAULT_ADDRESS };
+    let b = s.as_bytes();
+    if b.is_empty() || b.len() > 3 {
+        return pbcard::card::DEFAULT_ADDRESS;
+    }
+    let mut v: u32 = 0;
+    let mut i = 0;
+    while i < b.len() {
+        if !b[i].is_ascii_digit() {
+            return pbcard::card::DEFAULT_ADDRESS;
+        }
+        v = v * 10 + (b[i] - b'0') as u32;
+        i += 1;
+    }
+    if v > 125 {
+        pbcard::card::DEFAULT_ADDRESS
+    } else {
+        v as u8
+    }
+}
 
 #[cfg(target_os = "none")]
 #[cfg_attr(feature = "board-f411", rtic::app(device = stm32f4xx_hal::pac, dispatchers = [SPI4, SPI5]))]
