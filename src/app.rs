@@ -213,6 +213,7 @@ mod tests {
         assert_eq!(b.app.drive().actual_speed(), 0);
     }
 
+    #[cfg(not(feature = "bench"))] // the bench-only modules are no GSD telegram
     #[test]
     fn ppo_types_answer_after_the_pkw() {
         for m in card::MODULES.iter().filter(|m| m.reference > 100) {

@@ -75,9 +75,17 @@ pub const MAX_DIAG_DATA_LEN: usize = 64;
 pub const MAX_EXT_DIAG_LEN: usize = MAX_DIAG_DATA_LEN - 6;
 
 /// GSD `Max_Input_Len` / `Max_Output_Len`: the largest cyclic images of any module.
+#[cfg(not(feature = "bench"))]
 pub const MAX_INPUT_LEN: usize = 28;
 /// See [`MAX_INPUT_LEN`].
+#[cfg(not(feature = "bench"))]
 pub const MAX_OUTPUT_LEN: usize = 28;
+/// The benchmark build (feature `bench`, not in the GSD): room for [`BENCH_244`].
+#[cfg(feature = "bench")]
+pub const MAX_INPUT_LEN: usize = 244;
+/// See [`MAX_INPUT_LEN`].
+#[cfg(feature = "bench")]
+pub const MAX_OUTPUT_LEN: usize = 244;
 /// GSD `Max_Module`: one drive module per configuration.
 pub const MAX_MODULE: u8 = 1;
 
@@ -116,7 +124,34 @@ pub const MODULES: &[Module] = &[
     Module { name: "PPO 4, PZD-6/6", reference: 104, cfg: &[0xF5], inputs: 12, outputs: 12 },
     Module { name: "PPO 5, PKW + PZD-10/10", reference: 105, cfg: &[0xF3, 0xF9], inputs: 28, outputs: 28 },
     Module { name: "PPO 6, PZD-10/10", reference: 106, cfg: &[0xF9], inputs: 20, outputs: 20 },
+    #[cfg(feature = "bench")]
+    BENCH_32,
+    #[cfg(feature = "bench")]
+    BENCH_244,
 ];
+
+/// Benchmark build only (feature `bench`; not in the GSD, no DPM telegram): 16 words in and
+/// out, consistent (`FF`) — Data_Exchange with 32 bytes each way (README "Benchmark").
+#[cfg(feature = "bench")]
+pub const BENCH_32: Module = Module { name: "Bench 32/32", reference: 9032, cfg: &[0xFF], inputs: 32, outputs: 32 };
+
+/// Benchmark build only (feature `bench`; not in the GSD, no DPM telegram): the longest
+/// cyclic images, 244 bytes each way — special format `C0 FF FF` (out 64 words, in 64 words,
+/// consistent) then `C0 F9 F9` (out 58 words, in 58 words).
+///
+/// The DPM's process-data blocks hold [`crate::dpm::layout::PD_CAPACITY`] bytes, and the DPM
+/// has no telegram code for these modules: OUTPUTS carries the first 64 output bytes with
+/// telegram 0, the simulated drive does not answer a layout it does not know, and the master
+/// reads zeros as inputs. The protocol path (framer, DP slave, staged 244-byte response) is
+/// the full length.
+#[cfg(feature = "bench")]
+pub const BENCH_244: Module = Module {
+    name: "Bench 244/244",
+    reference: 9244,
+    cfg: &[0xC0, 0xFF, 0xFF, 0xC0, 0xF9, 0xF9],
+    inputs: 244,
+    outputs: 244,
+};
 
 /// Find the module whose configuration bytes are exactly `cfg`.
 pub fn module_for_cfg(cfg: &[u8]) -> Option<&'static Module> {
@@ -161,3 +196,92 @@ pub const USER_PRM_LEN: usize = 5;
 /// The default User_Prm_Data (GSD `Ext_User_Prm_Data_Const(0)` with every default applied).
 pub const USER_PRM_DEFAULTS: [u8; USER_PRM_LEN] =
     [0x00, 0x00, 0x00, PRM_OPERATE_MODE.default, PRM_COMM_LOSS_REACTION.default];
+
+/// The benchmark modules through the whole card (DP slave, node, DPM, simulated drive):
+/// `cargo test --lib --features bench card::` (the other tests assume the GSD's modules).
+#[cfg(all(test, feature = "bench"))]
+mod bench_tests {
+    use super::*;
+    use crate::app::Application;
+    use crate::dp::{cfg, DpSlave, DpState};
+    use crate::dpm::Telegram;
+    use crate::drive::DriveConfig;
+    use crate::fdl::telegram::{self, FunctionCode, Header};
+    use crate::node::Node;
+    use crate::time::{Duration, Instant};
+
+    const MASTER: u8 = 2;
+    const SLAVE: u8 = 5;
+
+    fn send(node: &mut Node, now: Instant, fcb: bool, dsap: Option<u8>, pdu: &[u8], srd: bool) -> Option<Vec<u8>> {
+        let fc = if srd { FunctionCode::request(0xD, fcb, true) } else { FunctionCode::request(0x06, false, false) };
+        let da = if srd { SLAVE } else { telegram::BROADCAST };
+        let hdr = Header { da, sa: MASTER, fc, dsap, ssap: dsap.map(|_| 62) };
+        let mut buf = [0u8; telegram::MAX_FRAME_LEN];
+        let n = telegram::emit(&mut buf, &hdr, pdu).unwrap();
+        let mut resp = None;
+        for &b in &buf[..n] {
+            if let Some(r) = node.on_byte(now, b) {
+                resp = Some(r.to_vec());
+            }
+        }
+        resp
+    }
+
+    #[test]
+    fn bench_modules_run_through_the_card() {
+        assert_eq!((MAX_INPUT_LEN, MAX_OUTPUT_LEN), (244, 244));
+        for m in [BENCH_32, BENCH_244] {
+            let io = cfg::io_lengths(m.cfg).unwrap();
+            assert_eq!((io.inputs, io.outputs), (m.inputs as usize, m.outputs as usize), "{}", m.name);
+            assert_eq!(module_for_cfg(m.cfg), Some(&m));
+            assert_eq!(Telegram::of_module(&m), None);
+
+            let mut node = Node::new(DpSlave::new(SLAVE));
+            let mut app = Application::new(DriveConfig::DEFAULT);
+            let mut now = Instant::from_millis(0);
+            let mut fcb = false;
+            let mut srd = |node: &mut Node, now: Instant, dsap: Option<u8>, pdu: &[u8]| {
+                fcb = !fcb;
+                send(node, now, fcb, dsap, pdu, true).expect("answer")
+            };
+            // Set_Prm with Sync_Req and Freeze_Req, then Chk_Cfg.
+            let mut prm = Vec::from([0xB8, 1, 100, 11, (IDENT_NUMBER >> 8) as u8, IDENT_NUMBER as u8, 0]);
+            prm.extend_from_slice(&USER_PRM_DEFAULTS);
+            assert_eq!(srd(&mut node, now, Some(61), &prm), [telegram::SC]);
+            app.step(now, &mut node);
+            assert_eq!(srd(&mut node, now, Some(62), m.cfg), [telegram::SC]);
+            app.step(now, &mut node);
+            assert_eq!(node.slave().state(), DpState::DataExch, "{}", m.name);
+            let n = m.outputs as usize;
+            for k in 0..5u8 {
+                let out: Vec<u8> = (0..n).map(|i| (i as u8).wrapping_mul(7).wrapping_add(k) | 0x04).collect();
+                let r = srd(&mut node, now, None, &out);
+                assert_eq!(r.len(), m.inputs as usize + 9, "{}", m.name);
+                assert_eq!(node.slave().outputs(), &out[..]);
+                now = now + Duration::from_millis(2);
+                app.step(now, &mut node);
+                let dpm_out = app.dpm().outputs().unwrap();
+                assert_eq!(dpm_out.bytes(), &out[..n.min(crate::dpm::layout::PD_CAPACITY)]);
+                // Rd_Inp / Rd_Outp answer the whole images.
+                let r = srd(&mut node, now, Some(57), &[]);
+                assert_eq!(&r[telegram::pdu_range(r.len(), n)], &out[..], "{}", m.name);
+                let r = srd(&mut node, now, Some(56), &[]);
+                assert_eq!(r.len(), m.inputs as usize + 11, "{}", m.name);
+            }
+            // Sync, Freeze, Clear_Data, zero-length outputs, wrong length.
+            for gc in [[0x20, 0], [0x08, 0], [0x02, 0], [0x14, 0], [0x00, 0]] {
+                assert_eq!(send(&mut node, now, false, Some(58), &gc, false), None);
+                let out: Vec<u8> = (0..n).map(|i| i as u8).collect();
+                srd(&mut node, now, None, &out);
+                now = now + Duration::from_millis(2);
+                app.step(now, &mut node);
+            }
+            srd(&mut node, now, None, &[]);
+            app.step(now, &mut node);
+            srd(&mut node, now, None, &[1; 13]);
+            assert!(node.slave().stats().wrong_output_len > 0);
+            assert_eq!(node.slave().state(), DpState::DataExch, "{}", m.name);
+        }
+    }
+}

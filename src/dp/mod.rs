@@ -392,7 +392,7 @@ impl DpSlave {
     /// Leave data exchange / parameterization: outputs cleared (fail-safe), modes reset;
     /// to Wait_Prm also releases the lock and stops the watchdog.
     fn leave(&mut self, to: DpState) {
-        let had_outputs = self.outputs.iter().any(|&b| b != 0);
+        let had_outputs = self.outputs[..self.output_len()].iter().any(|&b| b != 0);
         self.outputs.fill(0);
         self.has_pending_outputs = false;
         if had_outputs {
@@ -647,8 +647,8 @@ impl DpSlave {
                 let changed = self.module != Some(m);
                 self.cfg_fault = false;
                 if changed {
-                    self.module = Some(m);
                     self.leave(self.state);
+                    self.module = Some(m);
                     self.restage_dx();
                 }
                 self.events |= Events::CFG_ACCEPTED;

@@ -3,8 +3,10 @@
 //! executed instruction. For every request it answers, the USART1 handler logs the TIM2
 //! difference between its entry for the byte that completed the request and the write of the
 //! first response byte into DR (`BENCH req <n> resp <m> instr <i>`). This program sends the
-//! requests one at a time over the socket — DP-V0 bring-up and Data_Exchange for four modules,
-//! then an MSAC_C2 connection reading PNU 918 through record 47 — collects those lines from the
+//! requests one at a time over the socket — DP-V0 bring-up and Data_Exchange for four GSD
+//! modules (4, 12, 20, 28 bytes each way) and the bench build's two extra modules (32 and 244
+//! bytes each way, [`BENCH_MODULES`]), then an MSAC_C2 connection reading PNU 918 through
+//! record 47 — collects those lines from the
 //! decoded defmt log and prints a Markdown table (the README's "Benchmark" section).
 //!
 //! Measured path: RTIC handler entry → SR/DR read → `Node::on_byte` (framer, telegram decode
@@ -35,6 +37,13 @@ const SRD_HIGH: u8 = 0x0D;
 const SAMPLES: usize = 10;
 /// The class-2 master of the DP-V1 requests.
 const C2_MASTER: u8 = 10;
+/// The `bench` build's modules (`card::BENCH_32`, `card::BENCH_244`; not in the GSD, and not
+/// compiled into the `pbcard` this program links, which has no `bench` feature): name, cfg,
+/// input and output bytes. Checked against `dp::cfg::io_lengths` before use.
+const BENCH_MODULES: [(&str, &[u8], u8, u8); 2] = [
+    ("Bench 32/32, bench build only", &[0xFF], 32, 32),
+    ("Bench 244/244, bench build only", &[0xC0, 0xFF, 0xFF, 0xC0, 0xF9, 0xF9], 244, 244),
+];
 
 struct Script<S: std::io::Read + std::io::Write> {
     phy: StreamPhy<S>,
@@ -109,32 +118,39 @@ fn main() {
         s.raw("FDL_Status", &qemu::fdl_status_request(SLAVE, MASTER));
     }
     let by_ref = |r: u16| card::MODULES.iter().find(|m| m.reference == r).expect("module");
-    // Standard telegram 1, PPO 1, PPO 2, PPO 5: 4, 12, 20, 28 bytes each way.
-    for (i, module) in [by_ref(1), by_ref(101), by_ref(102), by_ref(105)].into_iter().enumerate() {
+    // Standard telegram 1, PPO 1, PPO 2, PPO 5: 4, 12, 20, 28 bytes each way (GSD modules).
+    let gsd = [by_ref(1), by_ref(101), by_ref(102), by_ref(105)].map(|m| (m.name, m.cfg, m.inputs, m.outputs));
+    for (i, &(name, cfg, inputs, outputs)) in gsd.iter().chain(&BENCH_MODULES).enumerate() {
+        let io = pbcard::dp::cfg::io_lengths(cfg).unwrap_or_else(|e| fail(&format!("{name}: {e:?}")));
+        if (io.inputs, io.outputs) != (inputs.into(), outputs.into()) {
+            fail(&format!("{name}: cfg {} means {io:?}", host_tests::hex(cfg)));
+        }
         let id = card::IDENT_NUMBER.to_be_bytes();
         // Lock_Req, WD off, min_TSDR 11, ident, no groups; default user parameters.
         let mut prm = vec![0x80, 0x01, 0x01, 11, id[0], id[1], 0x00];
         prm.extend_from_slice(&card::USER_PRM_DEFAULTS);
         let label = if i == 0 { "Set_Prm (Wait_Prm)" } else { "Set_Prm (new parameters in Data_Exch)" };
         s.srd(label, Some(61), &prm);
-        s.srd(&format!("Chk_Cfg {} ({})", host_tests::hex(module.cfg), module.name), Some(62), module.cfg);
+        s.srd(&format!("Chk_Cfg {} ({name})", host_tests::hex(cfg)), Some(62), cfg);
         s.srd("Slave_Diag", Some(60), &[]);
-        let n: usize = module.outputs.into();
+        let n: usize = outputs.into();
         for k in 0..SAMPLES {
             let out: Vec<u8> = (0..n).map(|i| (i * 7 + k * 13) as u8).collect();
-            let resp = s.srd(&format!("Data_Exchange {n} out / {} in", module.inputs), None, &out);
+            let resp = s.srd(&format!("Data_Exchange {n} out / {inputs} in"), None, &out);
             let pdu = host_tests::pdu_of(&resp).unwrap_or_else(|| fail("Data_Exchange answer without data"));
-            if pdu.len() != module.inputs as usize {
-                fail(&format!("Data_Exchange answered {} bytes, module has {}", pdu.len(), module.inputs));
+            if pdu.len() != inputs as usize {
+                fail(&format!("Data_Exchange answered {} bytes, module has {inputs}", pdu.len()));
             }
         }
-    }
-    // No module has 32 or 244 bytes: a Data_Exchange of that length is answered RS (the
-    // request path up to the decision, with the checksum over the long frame).
-    for n in [32usize, 244] {
-        for k in 0..SAMPLES {
-            let out: Vec<u8> = (0..n).map(|i| (i * 3 + k) as u8).collect();
-            s.srd(&format!("Data_Exchange {n} out (no such module: RS)"), None, &out);
+        if i == gsd.len() - 1 {
+            // A Data_Exchange of the wrong length (32 or 244 bytes to PPO 5) is answered RS:
+            // the request path up to the decision, with the checksum over the long frame.
+            for n in [32usize, 244] {
+                for k in 0..SAMPLES {
+                    let out: Vec<u8> = (0..n).map(|i| (i * 3 + k) as u8).collect();
+                    s.srd(&format!("Data_Exchange {n} out to PPO 5 (wrong length: RS)"), None, &out);
+                }
+            }
         }
     }
     for _ in 0..SAMPLES - 1 {
