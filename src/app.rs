@@ -7,25 +7,64 @@
 //!
 //! The board firmware of a real card does the same without the drive: [`Link::publish`],
 //! the transport to the drive's control board, [`Link::collect`].
+//!
+//! PROFIdrive parameters not owned by the card go to the drive through the DPM parameter
+//! mailbox: [`Application::parameters`] is the table for
+//! [`Node::process_acyclic`]; in [`Application::step`] the simulated drive serves the
+//! mailbox from its own parameter table ([`crate::drive::params`]) like a real drive's
+//! control board would.
 
 use crate::dp::Events;
-use crate::dpm::{Dpm, Link};
+use crate::dpm::{Dpm, Link, MailboxParams, MailboxServer, ParamCache};
+use crate::drive::params::{sim_drive_table, DriveTable};
 use crate::drive::{DriveConfig, SimDrive};
 use crate::node::Node;
 use crate::time::{Baudrate, Instant};
 
-/// DPM image + card-side link + simulated drive.
+/// DPM image + card-side link and parameter cache + simulated drive with its parameters.
 #[derive(Debug, Clone)]
 pub struct Application {
     dpm: Dpm,
     link: Link,
+    params: ParamCache,
     drive: SimDrive,
+    /// Host side: the drive's parameter table and its mailbox server.
+    drive_params: DriveTable,
+    server: MailboxServer,
+    serve_parameters: bool,
 }
 
 impl Application {
     /// A fresh image (P0740 "inactive" until the first step) and a drive in S1.
     pub fn new(drive: DriveConfig) -> Self {
-        Application { dpm: Dpm::new(), link: Link::new(), drive: SimDrive::new(drive) }
+        Application {
+            dpm: Dpm::new(),
+            link: Link::new(),
+            params: ParamCache::new(),
+            drive: SimDrive::new(drive),
+            drive_params: sim_drive_table(),
+            server: MailboxServer::new(),
+            serve_parameters: true,
+        }
+    }
+
+    /// The drive's parameters (behind the card's own PNUs) through the DPM parameter mailbox
+    /// at `now`, for [`Node::process_acyclic`]: never waits; a value not there yet makes the
+    /// job pending, a drive that does not answer makes it fail with 0x11 after the mailbox
+    /// timeout.
+    pub fn parameters(&mut self, now: Instant) -> MailboxParams<'_> {
+        MailboxParams::new(now, &mut self.link, &mut self.dpm, &mut self.params)
+    }
+
+    /// Whether the simulated drive answers the parameter mailbox (default yes; off: a drive
+    /// whose control board does not answer — fault injection).
+    pub fn set_serve_parameters(&mut self, on: bool) {
+        self.serve_parameters = on;
+    }
+
+    /// The simulated drive's parameter table.
+    pub fn drive_params(&self) -> &DriveTable {
+        &self.drive_params
     }
 
     /// The rate the platform listens at (`None` while searching); shown as P0963.
@@ -34,7 +73,8 @@ impl Application {
     }
 
     /// Run the node's timers, move the master's outputs through the DPM to the drive, run
-    /// the drive, and stage its answer for the next Data_Exchange. Returns the node's
+    /// the drive (which also answers a parameter mailbox request), and stage its answer for
+    /// the next Data_Exchange. Returns the node's
     /// events (for logs and LEDs). Call it often (every few ms, and after each received
     /// telegram if the platform can): the answer to Data_Exchange *n* carries the drive's
     /// reaction to the outputs of an earlier cycle.
@@ -42,6 +82,9 @@ impl Application {
         let events = node.poll(now);
         self.link.publish(node, events, &mut self.dpm);
         self.drive.step(now, &mut self.dpm.host());
+        if self.serve_parameters {
+            self.server.serve(&mut self.dpm.host(), &mut self.drive_params);
+        }
         self.link.collect(now, node, &self.dpm);
         events
     }
@@ -102,14 +145,12 @@ mod tests {
 
         /// Send one SRD request; returns the response bytes.
         fn srd(&mut self, dsap: Option<u8>, pdu: &[u8]) -> Vec<u8> {
+            self.send(dsap, dsap.map(|_| 62), pdu)
+        }
+
+        fn send(&mut self, dsap: Option<u8>, ssap: Option<u8>, pdu: &[u8]) -> Vec<u8> {
             self.fcb = !self.fcb;
-            let hdr = Header {
-                da: SLAVE,
-                sa: MASTER,
-                fc: FunctionCode::request(0xD, self.fcb, true),
-                dsap,
-                ssap: dsap.map(|_| 62),
-            };
+            let hdr = Header { da: SLAVE, sa: MASTER, fc: FunctionCode::request(0xD, self.fcb, true), dsap, ssap };
             let mut buf = [0u8; telegram::MAX_FRAME_LEN];
             let n = telegram::emit(&mut buf, &hdr, pdu).unwrap();
             let mut resp = None;
@@ -127,13 +168,55 @@ mod tests {
         }
 
         fn bring_up(&mut self, module: &card::Module) {
+            self.bring_up_with(module, card::USER_PRM_DEFAULTS[0]);
+        }
+
+        fn bring_up_with(&mut self, module: &card::Module, dpv1_status_1: u8) {
             let mut prm = vec![0x88, 1, 100, 11, (card::IDENT_NUMBER >> 8) as u8, card::IDENT_NUMBER as u8, 0];
             prm.extend_from_slice(&card::USER_PRM_DEFAULTS);
+            prm[7] = dpv1_status_1;
             assert_eq!(self.srd(Some(61), &prm), [telegram::SC]);
             self.step(1);
             assert_eq!(self.srd(Some(62), module.cfg), [telegram::SC]);
             self.step(1);
             assert_eq!(self.node.slave().state(), DpState::DataExch);
+        }
+
+        /// One MSAC_C1 request, one run of the DP-V1 task over the mailbox-backed parameters,
+        /// one poll; returns the DP-V1 response PDU.
+        fn c1(&mut self, pdu: &[u8]) -> Vec<u8> {
+            assert_eq!(self.send(Some(51), Some(51), pdu), [telegram::SC], "request acknowledged");
+            self.acyclic();
+            let r = self.send(Some(51), Some(51), &[]);
+            assert_eq!(r[0], 0x68, "a response PDU: {r:02X?}");
+            r[9..r.len() - 2].to_vec()
+        }
+
+        /// The DP-V1 task: process_acyclic with the mailbox-backed parameters.
+        fn acyclic(&mut self) {
+            let now = self.now;
+            self.node.process_acyclic(now, &mut self.app.parameters(now));
+        }
+
+        /// DS_Write `req` to record 47 (checking the write response).
+        fn write47(&mut self, req: &[u8]) {
+            let n = req.len() as u8;
+            assert_eq!(self.c1(&[&[0x5F, 0, 47, n][..], req].concat()), [0x5F, 0, 47, n]);
+        }
+
+        /// DS_Read record 47: the parameter response, or the DP-V1 error PDU.
+        fn read47(&mut self) -> Vec<u8> {
+            let r = self.c1(&[0x5E, 0, 47, 240]);
+            if r[0] == 0x5E {
+                assert_eq!(r[3] as usize, r.len() - 4);
+                r[4..].to_vec()
+            } else {
+                r
+            }
+        }
+
+        fn requests(&self) -> u32 {
+            self.app.link().mailbox().stats().requests
         }
 
         /// One Data_Exchange with `outputs`, then a step of `ms`; returns the inputs received.
@@ -151,9 +234,10 @@ mod tests {
     #[test]
     fn size_stays_small() {
         // DPM image 624 B (layout 2), last status, outputs, drive report and a mailbox answer
-        // in the link, last outputs and inputs in the drive: a static in the firmware.
+        // in the link, last outputs and inputs in the drive, the parameter cache (8 mailbox
+        // answers, ≈ 1.1 KiB) and the drive's parameter table: a static in the firmware.
         let n = core::mem::size_of::<Application>();
-        assert!(n <= 1536, "Application is {n} bytes");
+        assert!(n <= 2816, "Application is {n} bytes");
     }
 
     #[test]
@@ -257,5 +341,84 @@ mod tests {
         assert_eq!(b.app.drive().state(), DriveState::Fault);
         assert_eq!(b.app.dpm().status().unwrap().comm, CommState::Offline);
         assert_eq!(b.app.dpm().status().unwrap().watchdog_expiries, 1);
+    }
+
+    const STATE_CONFLICT: [u8; 4] = [0xDE, 0x80, 0xB5, 0x00];
+
+    #[test]
+    fn drive_parameter_is_read_through_the_mailbox() {
+        let mut b = Bench::new();
+        b.bring_up_with(&card::MODULES[0], 0x80);
+        // Read P100 (the drive's, default 50): sent through the mailbox, pending meanwhile.
+        b.write47(&[1, 1, 1, 1, 0x10, 1, 0, 100, 0, 0]);
+        assert!(b.node.has_acyclic_work(), "the job waits for the drive");
+        assert_eq!(b.read47(), STATE_CONFLICT);
+        assert_eq!(b.requests(), 1);
+        // The drive serves the mailbox in the step; the next DP-V1 pass completes the job.
+        b.step(1);
+        assert_eq!(b.read47(), [1, 1, 1, 1, 0x42, 1, 0, 50]);
+        assert!(!b.node.has_acyclic_work());
+        // A card PNU (918, station address) with a drive PNU in one request.
+        b.write47(&[2, 1, 1, 2, 0x10, 1, 0x03, 0x96, 0, 0, 0x10, 1, 0, 101, 0, 0]);
+        assert_eq!(b.read47(), STATE_CONFLICT);
+        b.step(1);
+        assert_eq!(b.read47(), [2, 1, 1, 2, 0x42, 1, 0, SLAVE, 0x42, 1, 0, 50]);
+        // The drive's own errors come back as they are: unknown PNU 0x00.
+        b.write47(&[3, 1, 1, 1, 0x10, 1, 0x27, 0x0F, 0, 0]);
+        b.step(1);
+        assert_eq!(b.read47(), [3, 0x81, 1, 1, 0x44, 1, 0, 0x00]);
+    }
+
+    #[test]
+    fn a_drive_that_never_answers_gives_error_0x11_after_the_timeout() {
+        let mut b = Bench::new();
+        b.bring_up_with(&card::MODULES[0], 0x80);
+        b.app.set_serve_parameters(false);
+        b.write47(&[4, 1, 1, 1, 0x10, 1, 0, 100, 0, 0]);
+        for _ in 0..4 {
+            b.step(100);
+            assert_eq!(b.read47(), STATE_CONFLICT, "still within the mailbox timeout");
+        }
+        b.step(150);
+        assert_eq!(b.read47(), [4, 0x81, 1, 1, 0x44, 2, 0, 0x11, 0xDD, 0x01]);
+        assert!(!b.node.has_acyclic_work(), "never a hang");
+        // The drive comes back and answers late: ignored; the next job gets its own answer.
+        b.app.set_serve_parameters(true);
+        b.step(1);
+        assert_eq!(b.app.link().mailbox().stats().late_responses, 1);
+        b.write47(&[5, 1, 1, 1, 0x10, 1, 0, 101, 0, 0]);
+        assert_eq!(b.read47(), STATE_CONFLICT);
+        b.step(1);
+        assert_eq!(b.read47(), [5, 1, 1, 1, 0x42, 1, 0, 50]);
+    }
+
+    #[test]
+    fn a_write_reaches_the_drive_once_per_job() {
+        let mut b = Bench::new();
+        b.bring_up_with(&card::MODULES[0], 0x80);
+        // Change P100 = 85 and P101 = 70: two mailbox requests, one after the other.
+        b.write47(&[6, 2, 1, 2, 0x10, 1, 0, 100, 0, 0, 0x10, 1, 0, 101, 0, 0, 0x42, 1, 0, 85, 0x42, 1, 0, 70]);
+        for _ in 0..3 {
+            b.acyclic();
+            assert_eq!(b.requests(), 1, "retries do not send the write again");
+        }
+        b.step(1);
+        assert_eq!(b.app.drive_params().get(100, 0), Some(85));
+        assert_eq!(b.read47(), STATE_CONFLICT, "P101 is on its way");
+        assert_eq!(b.requests(), 2);
+        b.acyclic();
+        b.step(1);
+        assert_eq!(b.read47(), [6, 2, 1, 2]);
+        assert_eq!(b.app.drive_params().get(101, 0), Some(70));
+        for _ in 0..3 {
+            b.acyclic();
+            b.step(1);
+        }
+        assert_eq!(b.requests(), 2, "each write executed once");
+        // A new job with the same write sends it again.
+        b.write47(&[7, 2, 1, 1, 0x10, 1, 0, 100, 0, 0, 0x42, 1, 0, 85]);
+        b.step(1);
+        assert_eq!(b.read47(), [7, 2, 1, 1]);
+        assert_eq!(b.requests(), 3);
     }
 }

@@ -13,7 +13,7 @@
 //! | priority | task | does |
 //! |---|---|---|
 //! | 16 (highest) | `usart1` (USART1 interrupt) | per character: `Node::on_byte` → response; after a Data_Exchange spawns `app_step`, after a DP-V1 request `acyclic` |
-//! | 8 | `acyclic` (software task) | `Node::process_acyclic`: DP-V1 records at slot 0, PROFIdrive parameter access (card PNUs, then `pbcard::drive::params`) |
+//! | 8 | `acyclic` (software task) | `Node::process_acyclic`: DP-V1 records at slot 0, PROFIdrive parameter access (card PNUs, then the drive's through the DPM parameter mailbox, `Application::parameters`; a job waiting for the drive is retried on the next spawn) |
 //! | 1 | `housekeeping` (async, every 1 ms) | `Application::step` (node timers, DPM status/outputs, drive, inputs), events, logs |
 //! | 1 | `app_step` (software task) | one `Application::step` right after a Data_Exchange (the drive sees new outputs at once) |
 //! | – | `idle` | WFI |
@@ -99,7 +99,6 @@ mod app {
     use crate::bsp::clock::{Mono, SysTickClock};
     use crate::bsp::{BusPort, Clock, LineError, LineEvent, TxError};
     use crate::{LINE_RATE, STATION_ADDRESS};
-    use pbcard::drive::params::{sim_drive_table, DriveTable};
 
     use pbcard::app::Application;
     use pbcard::dp::{DpSlave, DpState, Events};
@@ -260,9 +259,6 @@ mod app {
     #[local]
     struct Local {
         port: Port,
-        /// The simulated drive's parameters behind the card's own PNUs (`Node::process_acyclic`
-        /// answers 918 … 980 itself). On a real card the DPM parameter mailbox takes its place.
-        params: DriveTable,
         acyclic_clock: SysTickClock,
     }
 
@@ -279,10 +275,7 @@ mod app {
         let mut node = Node::new(DpSlave::new(STATION_ADDRESS));
         node.set_baudrate(Some(LINE_RATE));
         housekeeping::spawn().ok();
-        (
-            Shared { node, line: LineCounters::default(), drive: Drive::new(clock) },
-            Local { port, params: sim_drive_table(), acyclic_clock: clock },
-        )
+        (Shared { node, line: LineCounters::default(), drive: Drive::new(clock) }, Local { port, acyclic_clock: clock })
     }
 
     #[idle]
@@ -362,22 +355,29 @@ mod app {
     }
 
     /// DP-V1: data records at slot 0 (PROFIdrive parameter access, WEG record 48) for MSAC_C1
-    /// and MSAC_C2. The master polls until the response is there ("not ready" meanwhile).
-    #[task(priority = 8, shared = [node], local = [params, acyclic_clock])]
-    async fn acyclic(mut cx: acyclic::Context) {
+    /// and MSAC_C2. The master polls until the response is there ("not ready" meanwhile). The
+    /// drive's parameters go through the DPM parameter mailbox (`Application::parameters`);
+    /// a job still waiting for the drive keeps `Node::has_acyclic_work` true, so the
+    /// housekeeping step spawns this task again.
+    #[task(priority = 8, shared = [node, drive], local = [acyclic_clock])]
+    async fn acyclic(cx: acyclic::Context) {
         let now = cx.local.acyclic_clock.now();
-        let params = cx.local.params;
+        let acyclic::SharedResources { mut node, mut drive, .. } = cx.shared;
         #[cfg(feature = "bench")]
         let mut instr = 0u32;
-        // Masks the USART1 interrupt for one pass over the waiting requests.
-        cx.shared.node.lock(|n| {
-            #[cfg(feature = "bench")]
-            let t0 = board::bench::count();
-            n.process_acyclic(now, params);
-            #[cfg(feature = "bench")]
-            {
-                instr = board::bench::count().wrapping_sub(t0);
-            }
+        // The application (priority ceiling 8) for the DPM mailbox, the node (masks the
+        // USART1 interrupt) for one pass over the waiting requests.
+        drive.lock(|d| {
+            let mut params = d.app.parameters(now);
+            node.lock(|n| {
+                #[cfg(feature = "bench")]
+                let t0 = board::bench::count();
+                n.process_acyclic(now, &mut params);
+                #[cfg(feature = "bench")]
+                {
+                    instr = board::bench::count().wrapping_sub(t0);
+                }
+            });
         });
         #[cfg(feature = "bench")]
         defmt::info!("LOCK process_acyclic {=u32} instructions", instr);

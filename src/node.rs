@@ -140,14 +140,17 @@ impl Node {
         self.baudrate = rate;
     }
 
-    /// Whether a DP-V1 request waits for [`process_acyclic`](Self::process_acyclic).
+    /// Whether a DP-V1 request waits for [`process_acyclic`](Self::process_acyclic), or a
+    /// record-47 job for the drive's values (call it again then).
     pub fn has_acyclic_work(&self) -> bool {
-        self.c1.has_pending() || self.c2.has_pending()
+        self.c1.has_pending() || self.c2.has_pending() || self.records.is_busy()
     }
 
     /// Work on waiting DP-V1 requests: data records at slot 0 (PROFIdrive record 47, WEG
     /// record 48) over the card's own PNUs in front of the drive's `parameters`. The
-    /// response is handed out at the master's next poll.
+    /// response is handed out at the master's next poll. A record-47 job whose values an
+    /// asynchronous `parameters` table has not delivered yet
+    /// ([`ParameterAccess::pending`]) is built again on every call until it is complete.
     pub fn process_acyclic(&mut self, now: Instant, parameters: &mut impl ParameterAccess) {
         if !self.has_acyclic_work() {
             return;
@@ -160,6 +163,7 @@ impl Node {
             faults: [0; FAULT_BUFFER_LEN],
         };
         let mut table = CardTable { info, drive: parameters };
+        self.records.retry(&mut table);
         let mut records = self.records.with(&mut table);
         self.c1.process(now, &self.slave, &mut records);
         self.c2.process(now, &mut records);

@@ -96,7 +96,6 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
     emit("waiting for a DP master (Ctrl-C stops)".into());
 
     let mut node = Node::new(DpSlave::new(opts.address));
-    let mut params = pbcard::drive::params::sim_drive_table();
     let mut app = Application::new(DriveConfig {
         ramp_time: pbcard::time::Duration::from_micros(opts.ramp.as_micros() as u64),
         ..DriveConfig::DEFAULT
@@ -186,9 +185,10 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
             last_step = now;
             let events = app.step(now_pb(now), &mut node);
             // DP-V1: data records at slot 0 over the card's PNUs and the simulated drive's
-            // parameter table; the master's next poll fetches the response.
+            // parameters through the DPM mailbox (a job waiting for the drive is retried
+            // here every step); the master's next poll fetches the response.
             if node.has_acyclic_work() {
-                node.process_acyclic(now_pb(now), &mut params);
+                node.process_acyclic(now_pb(now), &mut app.parameters(now_pb(now)));
             }
             monitor.on_step(events, &node, &app, &mut emit);
         }

@@ -169,6 +169,12 @@ impl Link {
         self.mailbox.submit(now, req, self.drive_lost, &mut dpm.card())
     }
 
+    /// Look for the answer to the outstanding parameter request, or time it out (also done by
+    /// [`Link::collect`]).
+    pub fn poll_parameter(&mut self, now: Instant, dpm: &Dpm) {
+        self.mailbox.poll(now, dpm);
+    }
+
     /// The answer to the last parameter request, once.
     pub fn take_parameter_response(&mut self) -> Option<(u16, Result<ParamValues, ParamError>)> {
         self.mailbox.take()

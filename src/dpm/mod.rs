@@ -36,7 +36,8 @@
 //! IDENT (card type, firmware, ident number, serial), CARD (card heartbeat, configuration
 //! acknowledge, card → drive event counters), DRIVE (drive heartbeat, fault / warning reports,
 //! extended diagnosis), CONFIG (taken over only outside data exchange) and the parameter
-//! mailbox ([`mailbox`]: request id, timeout, late answers ignored). [`Link`] supervises the
+//! mailbox ([`mailbox`]: request id, timeout, late answers ignored; [`params`]: the drive's
+//! parameters through it as a table). [`Link`] supervises the
 //! drive's heartbeat; [`HeartbeatMonitor`] is what the drive uses on the card's.
 //!
 //! ## Codings shown to the drive
@@ -49,6 +50,7 @@ mod blocks;
 pub mod layout;
 mod link;
 pub mod mailbox;
+pub mod params;
 
 pub use blocks::{
     CardEvent, CardFlags, CardReport, ConfigResult, DriveReport, HeartbeatMonitor, HostConfig, Identity, Liveness,
@@ -56,6 +58,7 @@ pub use blocks::{
 };
 pub use link::{Link, LinkStats, ZSW1_FAULT};
 pub use mailbox::{Mailbox, MailboxBusy, MailboxServer, MailboxStats};
+pub use params::{MailboxParams, ParamCache};
 
 use crate::card::Module;
 use crate::dp::diag::Status1;

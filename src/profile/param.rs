@@ -701,6 +701,18 @@ pub trait ParameterAccess {
         let _ = (axis, addr, out);
         Err(ErrorValue::NO_TEXT_ARRAY.into())
     }
+
+    /// Whether some value asked for was not available yet (an asynchronous table, e.g. the
+    /// drive behind the DPM parameter mailbox, has sent for it): the response built now is
+    /// incomplete and must not be sent; build it again later. Default: never (a synchronous
+    /// table).
+    fn pending(&self) -> bool {
+        false
+    }
+
+    /// A new parameter request (job) begins: an asynchronous table forgets the answers it kept
+    /// for the previous one. Default: nothing to forget.
+    fn start_job(&mut self) {}
 }
 
 /// Execute a valid parameter request against `table` and write the parameter response into

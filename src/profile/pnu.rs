@@ -164,4 +164,12 @@ impl<D: ParameterAccess> ParameterAccess for CardTable<'_, D> {
         }
         self.drive.read_text(axis, addr, out)
     }
+
+    fn pending(&self) -> bool {
+        self.drive.pending()
+    }
+
+    fn start_job(&mut self) {
+        self.drive.start_job();
+    }
 }

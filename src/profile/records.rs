@@ -10,6 +10,12 @@
 //! CFW500 §5.2.4); DS_Read of record 47 without a response waiting → 0xB5 state conflict
 //! (reference §5.1: "not ready"; also after the response was fetched — it is readable once);
 //! a DS_Read shorter than the response → 0xB1 (the response stays for a read with room).
+//!
+//! Asynchronous tables: a DS_Write(47) keeps the request (the job). When the table reports
+//! [`ParameterAccess::pending`] after building the response, the job stays busy (DS_Read →
+//! 0xB5 meanwhile) and [`DriveRecords::retry`] builds it again until it is complete; a new
+//! DS_Write replaces the job. Record 48 answers 0xC2 "resource busy" while a value is pending
+//! (the master repeats the access).
 
 use super::param::{respond, ParamRequest, ParameterAccess, MAX_LEN};
 use super::weg48::SimpleAccess;
@@ -27,6 +33,10 @@ const WEG_AXIS: u8 = 0;
 /// Records 47 and 48 over one parameter table.
 #[derive(Debug, Clone)]
 pub struct DriveRecords {
+    request: [u8; MAX_LEN],
+    request_len: usize,
+    /// The job in `request` waits for values of an asynchronous table.
+    busy: bool,
     response: [u8; MAX_LEN],
     response_len: usize,
     weg: SimpleAccess,
@@ -41,12 +51,57 @@ impl Default for DriveRecords {
 impl DriveRecords {
     /// No response waiting, nothing selected.
     pub const fn new() -> Self {
-        DriveRecords { response: [0; MAX_LEN], response_len: 0, weg: SimpleAccess::new() }
+        DriveRecords {
+            request: [0; MAX_LEN],
+            request_len: 0,
+            busy: false,
+            response: [0; MAX_LEN],
+            response_len: 0,
+            weg: SimpleAccess::new(),
+        }
     }
 
-    /// Forget a waiting response (the relation that carried the request ended).
+    /// Forget a waiting response or job (the relation that carried the request ended).
     pub fn reset(&mut self) {
         self.response_len = 0;
+        self.busy = false;
+    }
+
+    /// Whether a record-47 job waits for values of an asynchronous table.
+    pub fn is_busy(&self) -> bool {
+        self.busy
+    }
+
+    /// Build the busy job's response again (its values may have arrived); it becomes readable
+    /// once the table has every value. Nothing to do without a busy job.
+    pub fn retry(&mut self, table: &mut impl ParameterAccess) {
+        if self.busy {
+            self.build(table);
+        }
+    }
+
+    /// Start a job: keep the (validated) request and try to answer it.
+    fn start(&mut self, data: &[u8], table: &mut impl ParameterAccess) {
+        let n = data.len().min(MAX_LEN);
+        self.request[..n].copy_from_slice(&data[..n]);
+        self.request_len = n;
+        self.response_len = 0;
+        self.busy = true;
+        table.start_job();
+        self.build(table);
+    }
+
+    fn build(&mut self, table: &mut impl ParameterAccess) {
+        let Ok(req) = ParamRequest::parse(&self.request[..self.request_len]) else {
+            // Unreachable: the request was validated when it was written.
+            self.busy = false;
+            return;
+        };
+        let n = respond(&req, table, &mut self.response);
+        if !table.pending() {
+            self.response_len = n;
+            self.busy = false;
+        }
     }
 
     /// This handler bound to a parameter table for one access.
@@ -80,7 +135,10 @@ impl<T: ParameterAccess> RecordHandler for Bound<'_, T> {
                 r.response_len = 0;
                 Ok(n)
             }
-            INDEX_WEG_SIMPLE => r.weg.on_read(WEG_AXIS, self.table, out).map_err(|e| e.error_code1()),
+            INDEX_WEG_SIMPLE => {
+                let result = r.weg.on_read(WEG_AXIS, self.table, out).map_err(|e| e.error_code1());
+                weg_done(r, self.table, result)
+            }
             _ => Err(ErrorCode1::INVALID_INDEX),
         }
     }
@@ -92,12 +150,33 @@ impl<T: ParameterAccess> RecordHandler for Bound<'_, T> {
         let r = &mut *self.records;
         match index {
             INDEX_PROFIDRIVE => {
-                let req = ParamRequest::parse(data).map_err(|e| e.error_code1())?;
-                r.response_len = respond(&req, self.table, &mut r.response);
+                // Validated here (≤ 240 bytes), kept for the job.
+                ParamRequest::parse(data).map_err(|e| e.error_code1())?;
+                r.start(data, self.table);
                 Ok(())
             }
-            INDEX_WEG_SIMPLE => r.weg.on_write(data, WEG_AXIS, self.table).map_err(|e| e.error_code1()),
+            INDEX_WEG_SIMPLE => {
+                let result = r.weg.on_write(data, WEG_AXIS, self.table).map_err(|e| e.error_code1());
+                weg_done(r, self.table, result)
+            }
             _ => Err(ErrorCode1::INVALID_INDEX),
         }
     }
+}
+
+/// The end of a record-48 access: 0xC2 "resource busy" while the table waits for a value (the
+/// master repeats the access, which then finds the value); otherwise the result, and the
+/// table forgets its answers unless a record-47 job still needs them.
+fn weg_done<R>(
+    r: &DriveRecords,
+    table: &mut impl ParameterAccess,
+    result: Result<R, ErrorCode1>,
+) -> Result<R, ErrorCode1> {
+    if table.pending() {
+        return Err(ErrorCode1::RESOURCE_BUSY);
+    }
+    if !r.busy {
+        table.start_job();
+    }
+    result
 }
