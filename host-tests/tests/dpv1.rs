@@ -441,3 +441,12 @@ fn sim_table_response_too_long() {
     }
     assert_eq!(&r[4 + 6 * 34..], &[0x44, 1, 0, 0x15]);
 }
+
+#[test]
+fn axis_other_than_0_or_1_is_refused() {
+    let mut m = Master::new();
+    m.bring_up(0x80);
+    // Read PNU 918 on axis 2: every parameter answered 0x19 "axis/DO nonexistent".
+    m.transact(&[0x5F, 0, 47, 10, 5, 1, 2, 1, 0x10, 1, 0x03, 0x96, 0, 0]);
+    assert_eq!(m.transact(&[0x5E, 0, 47, 240]), [0x5E, 0, 47, 8, 5, 0x81, 2, 1, 0x44, 1, 0x00, 0x19]);
+}

@@ -115,8 +115,10 @@ fn elements<'v, T: Copy>(all: &'v [T], addr: &ParamAddress) -> Result<&'v [T], P
 }
 
 impl<D: ParameterAccess> ParameterAccess for CardTable<'_, D> {
+    /// A single-axis drive: DO-ID / axis 0 (WEG) or 1 (VACON); anything else is answered
+    /// 0x19 for every parameter, whatever the drive's table would say.
     fn has_axis(&self, axis: u8) -> bool {
-        self.drive.has_axis(axis)
+        axis <= 1 && self.drive.has_axis(axis)
     }
 
     fn read_value(&mut self, axis: u8, addr: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
