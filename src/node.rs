@@ -18,7 +18,7 @@ use crate::dpv1::c2::{C2Answer, C2};
 use crate::dpv1::channel::Answer;
 use crate::fdl::framer::{Framer, Push};
 use crate::fdl::station::{FdlApplication, Reply, Station, Tx};
-use crate::fdl::telegram::{DataTelegram, ResponseStatus};
+use crate::fdl::telegram::{DataTelegram, RequestFunction, ResponseStatus};
 use crate::profile::param::ParameterAccess;
 use crate::profile::pnu::{CardInfo, CardTable, FAULT_BUFFER_LEN};
 use crate::profile::records::DriveRecords;
@@ -55,6 +55,11 @@ impl FdlApplication for Router<'_> {
 
     fn on_request(&mut self, now: Instant, req: &DataTelegram<'_>) -> Reply {
         match req.dsap {
+            // MSAC_C1 is SRD only: an SDN (or a broadcast) on SAP 51 is no request and must not
+            // replace or consume one.
+            Some(c1::SAP) if !matches!(req.fc.function(), RequestFunction::SrdLow | RequestFunction::SrdHigh) => {
+                Reply::Silent
+            }
             Some(c1::SAP) => {
                 // Any request of the locking master keeps the DP watchdog running.
                 self.dp.on_retry(now, req);
@@ -69,7 +74,12 @@ impl FdlApplication for Router<'_> {
                 C2Answer::Frame { id, len } => Reply::Frame { id: C2_FRAMES + id, len },
                 other => other.into(),
             },
-            _ => self.dp.on_request(now, req),
+            _ => {
+                let reply = self.dp.on_request(now, req);
+                // A DP service may have ended the MSAC_C1 session (Set_Prm, Chk_Cfg).
+                self.c1.track(self.dp);
+                reply
+            }
         }
     }
 
@@ -184,6 +194,7 @@ impl Node {
     /// changed (Set_Slave_Add), the FCB memory is reset here.
     pub fn poll(&mut self, now: Instant) -> Events {
         self.slave.poll(now);
+        self.c1.track(&self.slave);
         self.c2.poll(now);
         let ev = self.slave.take_events();
         if ev.contains(Events::ADDRESS_CHANGED) {

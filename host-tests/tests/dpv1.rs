@@ -450,3 +450,28 @@ fn axis_other_than_0_or_1_is_refused() {
     m.transact(&[0x5F, 0, 47, 10, 5, 1, 2, 1, 0x10, 1, 0x03, 0x96, 0, 0]);
     assert_eq!(m.transact(&[0x5E, 0, 47, 240]), [0x5E, 0, 47, 8, 5, 0x81, 2, 1, 0x44, 1, 0x00, 0x19]);
 }
+
+/// Found by the `node_dpv1` fuzz target: an SDN on SAP 51 (broadcast or addressed) is no
+/// MSAC_C1 request and must neither replace nor consume the one in flight; a request in
+/// flight does not survive a re-parameterization.
+#[test]
+fn c1_ignores_sdn_and_drops_requests_across_sessions() {
+    let mut m = Master::new();
+    m.bring_up(0x80);
+    assert_eq!(m.c1(M1, &[0x5F, 0, 47, 10, 1, 1, 1, 1, 0x10, 1, 0x03, 0x96, 0, 0]), Ans::Sc);
+    // SDN high from the locking master on SAP 51 with an Alarm_Ack PDU: ignored.
+    let hdr = Header { da: 127, sa: M1, fc: FunctionCode::request(0x06, false, false), dsap: Some(51), ssap: Some(51) };
+    let mut f = [0u8; 32];
+    let n = telegram::emit(&mut f, &hdr, &[0x5C, 0, 1, 2]).unwrap();
+    let now = Instant::from_micros(m.now);
+    for &b in &f[..n] {
+        assert!(m.node.on_byte(now, b).is_none());
+    }
+    m.process();
+    assert_eq!(m.c1(M1, &[]), Ans::Pdu(vec![0x5F, 0, 47, 10]), "the write's answer, not an Alarm_Ack error");
+    // A request acknowledged, then Set_Prm + Chk_Cfg: the old request is gone.
+    assert_eq!(m.c1(M1, &[0x5E, 0, 47, 240]), Ans::Sc);
+    m.bring_up(0x80);
+    m.process();
+    assert_eq!(m.c1(M1, &[]), Ans::Sc, "nothing from the previous session");
+}

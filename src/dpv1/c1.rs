@@ -76,8 +76,9 @@ impl C1 {
         self.stats
     }
 
-    /// Open / close with the DP state.
-    fn track(&mut self, dp: &DpSlave) {
+    /// Open / close with the DP state. The node calls it after every DP request and every
+    /// timer run, so a request in flight never survives a new parameterization.
+    pub fn track(&mut self, dp: &DpSlave) {
         let open = Self::is_open(dp);
         if self.open && !open {
             if self.channel.state() != super::channel::ChannelState::Idle {

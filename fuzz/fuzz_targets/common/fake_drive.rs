@@ -1,0 +1,222 @@
+//! A small fake drive parameter table for the fuzz targets `profidrive` and `node_dpv1`
+//! (included with `#[path]`; not a target of its own).
+//!
+//! | PNU | type | access |
+//! |---|---|---|
+//! | 1 | U16 (Word / Unsigned16), 0..=1000, text array of 3 | read/write |
+//! | 2 | U16 = 0x1234 | read-only |
+//! | 3 | U16\[10\], each ≤ 50000 (the failing element is named in the additional info) | read/write |
+//! | 4 | U32\[4\] (Double word / Unsigned32 / Integer32) | read/write |
+//! | 5 | VisibleString\[16\] | read-only |
+//! | 6 | Byte\[200\] (Byte / Unsigned8 / OctetString): long reads overflow the response | read/write |
+//! | 7 | FloatingPoint, finite, -1000..=1000 | read/write |
+//! | 8 | a table bug: a read mixes a byte and a word (respond must answer 0x05); writes 0x0B | — |
+//! | 9 | U16\[234\] (the most elements; a whole read does not fit: 0x15) | read-only |
+//! | 10 | Integer16, -500..=500 | read/write |
+//!
+//! Axes 0 (WEG) and 1 (VACON) exist. Descriptions: element 0 (46 bytes), 1 (identifier) and
+//! 6 (name) for PNUs 1..=10 except 8.
+#![allow(dead_code)]
+
+use pbcard::profile::param::{ErrorValue, Format, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
+
+pub struct FakeDrive {
+    pub p1: u16,
+    pub p3: [u16; 10],
+    pub p4: [u32; 4],
+    pub p6: [u8; 200],
+    pub p7: f32,
+    pub p10: i16,
+    /// Successful writes.
+    pub writes: u32,
+}
+
+const P5: &[u8; 16] = b"pbcard fuzz drv ";
+const P1_TEXTS: [&[u8]; 3] = [b"Off", b"On", b"Auto"];
+pub const LAST_PNU: u16 = 10;
+
+impl Default for FakeDrive {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl FakeDrive {
+    pub fn new() -> Self {
+        FakeDrive { p1: 50, p3: [7; 10], p4: [0x0102_0304; 4], p6: [0xA5; 200], p7: 1.5, p10: -3, writes: 0 }
+    }
+}
+
+fn not_found() -> ParamError {
+    ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into()
+}
+
+/// The elements `addr` addresses in an array of `len`.
+fn range(len: usize, a: &ParamAddress) -> Result<core::ops::Range<usize>, ParamError> {
+    let first = a.subindex as usize;
+    let end = first + a.count() as usize;
+    if end > len {
+        return Err(ParamError { value: ErrorValue::INVALID_SUBINDEX, additional_info: Some(a.subindex) });
+    }
+    Ok(first..end)
+}
+
+fn scalar(a: &ParamAddress) -> Result<(), ParamError> {
+    if a.subindex != 0 || a.count() != 1 {
+        return Err(ErrorValue::NO_ARRAY.into());
+    }
+    Ok(())
+}
+
+fn format_in(v: &ValueBlock<'_>, ok: &[Format]) -> Result<(), ParamError> {
+    if ok.contains(&v.format) {
+        Ok(())
+    } else {
+        Err(ErrorValue::INCORRECT_DATA_TYPE.into())
+    }
+}
+
+fn bad_type() -> ParamError {
+    ErrorValue::INCORRECT_DATA_TYPE.into()
+}
+
+/// Element `i` of a write failed with `value`: name the subindex.
+fn at(a: &ParamAddress, i: usize, value: ErrorValue) -> ParamError {
+    ParamError { value, additional_info: Some(a.subindex.wrapping_add(i as u16)) }
+}
+
+impl ParameterAccess for FakeDrive {
+    fn has_axis(&self, axis: u8) -> bool {
+        axis <= 1
+    }
+
+    fn read_value(&mut self, _axis: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        match a.pnu {
+            1 => {
+                scalar(a)?;
+                out.push_u16(self.p1)
+            }
+            2 => {
+                scalar(a)?;
+                out.set_format(Format::UNSIGNED16);
+                out.push_u16(0x1234)
+            }
+            3 => {
+                out.set_format(Format::UNSIGNED16);
+                self.p3[range(10, a)?].iter().try_for_each(|&v| out.push_u16(v))
+            }
+            4 => self.p4[range(4, a)?].iter().try_for_each(|&v| out.push_u32(v)),
+            5 => out.push_str(&P5[range(16, a)?]),
+            6 => self.p6[range(200, a)?].iter().try_for_each(|&v| out.push_u8(v)),
+            7 => {
+                scalar(a)?;
+                out.push_f32(self.p7)
+            }
+            8 => {
+                // Deliberately inconsistent: two value sizes under one format.
+                out.push_u8(1)?;
+                out.push_u16(2)
+            }
+            9 => range(234, a)?.try_for_each(|i| out.push_u16(i as u16)),
+            10 => {
+                scalar(a)?;
+                out.push_i16(self.p10)
+            }
+            _ => Err(not_found()),
+        }
+    }
+
+    fn write_value(&mut self, _axis: u8, a: &ParamAddress, v: &ValueBlock<'_>) -> Result<(), ParamError> {
+        match a.pnu {
+            1 => {
+                scalar(a)?;
+                format_in(v, &[Format::WORD, Format::UNSIGNED16])?;
+                let x = v.u16(0).ok_or_else(bad_type)?;
+                if x > 1000 {
+                    return Err(ErrorValue::LIMIT_EXCEEDED.into());
+                }
+                self.p1 = x;
+            }
+            2 | 5 | 9 => return Err(ErrorValue::VALUE_CANNOT_BE_CHANGED.into()),
+            3 => {
+                format_in(v, &[Format::WORD, Format::UNSIGNED16])?;
+                for (i, e) in range(10, a)?.enumerate() {
+                    let x = v.u16(i).ok_or_else(|| at(a, i, ErrorValue::INCORRECT_DATA_TYPE))?;
+                    if x > 50_000 {
+                        return Err(at(a, i, ErrorValue::LIMIT_EXCEEDED));
+                    }
+                    self.p3[e] = x;
+                }
+            }
+            4 => {
+                format_in(v, &[Format::DOUBLE_WORD, Format::UNSIGNED32, Format::INTEGER32])?;
+                for (i, e) in range(4, a)?.enumerate() {
+                    self.p4[e] = v.u32(i).ok_or_else(|| at(a, i, ErrorValue::INCORRECT_DATA_TYPE))?;
+                }
+            }
+            6 => {
+                format_in(v, &[Format::BYTE, Format::UNSIGNED8, Format::OCTET_STRING])?;
+                for (i, e) in range(200, a)?.enumerate() {
+                    self.p6[e] = v.u8(i).ok_or_else(|| at(a, i, ErrorValue::INCORRECT_DATA_TYPE))?;
+                }
+            }
+            7 => {
+                scalar(a)?;
+                format_in(v, &[Format::FLOATING_POINT])?;
+                let x = v.f32(0).ok_or_else(bad_type)?;
+                if !x.is_finite() || !(-1000.0..=1000.0).contains(&x) {
+                    return Err(ErrorValue::VALUE_IMPERMISSIBLE.into());
+                }
+                self.p7 = x;
+            }
+            8 => return Err(ErrorValue::NO_OPERATION_PRIORITY.into()),
+            10 => {
+                scalar(a)?;
+                format_in(v, &[Format::INTEGER16])?;
+                let x = v.i16(0).ok_or_else(bad_type)?;
+                if !(-500..=500).contains(&x) {
+                    return Err(ErrorValue::LIMIT_EXCEEDED.into());
+                }
+                self.p10 = x;
+            }
+            _ => return Err(not_found()),
+        }
+        self.writes += 1;
+        Ok(())
+    }
+
+    fn read_description(&mut self, _axis: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        if a.pnu == 0 || a.pnu > LAST_PNU {
+            return Err(not_found());
+        }
+        if a.pnu == 8 {
+            return Err(ErrorValue::NO_DESCRIPTION.into());
+        }
+        if a.count() != 1 {
+            return Err(ErrorValue::INVALID_SUBINDEX.into());
+        }
+        match a.subindex {
+            0 => {
+                out.set_format(Format::OCTET_STRING);
+                (0..46u8).try_for_each(|i| out.push_u8(i ^ a.pnu as u8))
+            }
+            1 => {
+                out.set_format(Format::UNSIGNED16);
+                out.push_u16(0x0006 | if matches!(a.pnu, 2 | 5 | 9) { 0x0200 } else { 0 })
+            }
+            6 => {
+                out.set_format(Format::VISIBLE_STRING);
+                out.push_str(P5)
+            }
+            _ => Err(ErrorValue::INVALID_SUBINDEX.into()),
+        }
+    }
+
+    fn read_text(&mut self, _axis: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        if a.pnu != 1 {
+            return Err(ErrorValue::NO_TEXT_ARRAY.into());
+        }
+        let t = P1_TEXTS.get(a.subindex as usize).ok_or(ErrorValue::INVALID_SUBINDEX)?;
+        out.push_str(t)
+    }
+}
