@@ -254,7 +254,7 @@ impl<S: std::io::Read + std::io::Write> Dpv1Master<S> {
 }
 
 #[test]
-fn dpv1_card_pnus_through_msac_c1_and_c2() {
+fn dpv1_card_and_drive_parameters_through_msac_c1_and_c2() {
     let Some(q) = boot() else { return };
     let mut phy = match q.connect() {
         Ok(p) => p,
@@ -296,6 +296,30 @@ fn dpv1_card_pnus_through_msac_c1_and_c2() {
         let c1 = m.read_918_963(qemu::MASTER, 51, 51, 0x22)?;
         if c1 != (u16::from(SLAVE), baud) {
             return Err(format!("MSAC_C1: PNU 918/963 = {c1:?}, expected ({SLAVE}, {baud})"));
+        }
+        // A drive parameter end to end through the DPM parameter mailbox: change P100
+        // (acceleration time, 0.1 s) to 123 over MSAC_C1, read it back over MSAC_C2; a value
+        // above its limit (9999) is refused by the drive with error 0x02.
+        let change = [0x5F, 0, 47, 14, 0x23, 0x02, 1, 1, 0x10, 1, 0, 100, 0, 0, 0x42, 1, 0, 123];
+        let w = m.transact(qemu::MASTER, 51, 51, &change)?;
+        if w != [0x5F, 0, 47, 14] {
+            return Err(format!("P100 change: DS_Write response {}", host_tests::hex(&w)));
+        }
+        let r = m.transact(qemu::MASTER, 51, 51, &[0x5E, 0, 47, 240])?;
+        if r != [0x5E, 0, 47, 4, 0x23, 0x02, 1, 1] {
+            return Err(format!("P100 change: response {}", host_tests::hex(&r)));
+        }
+        let read = [0x5F, 0, 47, 10, 0x24, 0x01, 1, 1, 0x10, 1, 0, 100, 0, 0];
+        m.transact(10, sap, 50, &read)?;
+        let r = m.transact(10, sap, 50, &[0x5E, 0, 47, 240])?;
+        if r != [0x5E, 0, 47, 8, 0x24, 0x01, 1, 1, 0x42, 1, 0, 123] {
+            return Err(format!("P100 read over MSAC_C2: {}", host_tests::hex(&r)));
+        }
+        let too_big = [0x5F, 0, 47, 14, 0x25, 0x02, 1, 1, 0x10, 1, 0, 100, 0, 0, 0x42, 1, 0x27, 0x10];
+        m.transact(qemu::MASTER, 51, 51, &too_big)?;
+        let r = m.transact(qemu::MASTER, 51, 51, &[0x5E, 0, 47, 240])?;
+        if r != [0x5E, 0, 47, 8, 0x25, 0x82, 1, 1, 0x44, 1, 0, 0x02] {
+            return Err(format!("P100 = 10000: response {}", host_tests::hex(&r)));
         }
         Ok(())
     };
