@@ -58,7 +58,10 @@ impl C1 {
     /// Work on a pending request (the middle-priority task; host: every poll).
     pub fn process(&mut self, now: Instant, dp: &DpSlave, records: &mut impl RecordHandler) {
         self.track(dp);
-        self.channel.respond(|req, out| serve_records(now, req, out, records, false));
+        if self.channel.pending().is_some() {
+            records.set_relation(super::records::RELATION_C1);
+            self.channel.respond(|req, out| serve_records(now, req, out, records, false));
+        }
     }
 
     /// Whether a request waits for [`process`](Self::process).

@@ -366,8 +366,9 @@ impl<const N: usize> C2<N> {
     /// Run the pending Read / Write / Data_Transport requests on `records`; their responses
     /// go out on the masters' next polls.
     pub fn process(&mut self, now: Instant, records: &mut impl RecordHandler) {
-        for c in self.conns.iter_mut() {
+        for (i, c) in self.conns.iter_mut().enumerate() {
             if c.state == ConnectionState::Open && c.channel.pending().is_some() {
+                records.set_relation(super::records::relation_c2(i));
                 c.channel.respond(|req, out| serve_records(now, req, out, records, true));
             }
         }

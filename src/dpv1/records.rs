@@ -15,6 +15,21 @@ pub trait RecordHandler {
     fn read(&mut self, now: Instant, slot: u8, index: u8, out: &mut [u8]) -> Result<usize, ErrorCode1>;
     /// DS_Write of `data` to record `slot`/`index`.
     fn write(&mut self, now: Instant, slot: u8, index: u8, data: &[u8]) -> Result<(), ErrorCode1>;
+
+    /// The application relation the next accesses come from: 0 = MSAC_C1, 1 + n = MSAC_C2
+    /// connection n. Records with a per-relation state (PROFIdrive record 47: each master
+    /// fetches its own response) keep them apart by it.
+    fn set_relation(&mut self, relation: u8) {
+        let _ = relation;
+    }
+}
+
+/// The relation number of MSAC_C1.
+pub const RELATION_C1: u8 = 0;
+
+/// The relation number of MSAC_C2 connection `n`.
+pub const fn relation_c2(n: usize) -> u8 {
+    1 + n as u8
 }
 
 /// A handler without records: every access is "invalid slot" (0xB2).

@@ -14,11 +14,16 @@
 //! Asynchronous tables: a DS_Write(47) keeps the request (the job). When the table reports
 //! [`ParameterAccess::pending`] after building the response, the job stays busy (DS_Read →
 //! 0xB5 meanwhile) and [`DriveRecords::retry`] builds it again until it is complete; a new
-//! DS_Write replaces the job. Record 48 answers 0xC2 "resource busy" while a value is pending
+//! DS_Write of the same relation replaces the job.
+//!
+//! Relations (MSAC_C1 and each MSAC_C2 connection) are kept apart: each fetches only its own
+//! response, and one job runs at a time — a DS_Write(47) of another relation while a job is
+//! busy is answered 0xC2 "resource busy" (the master repeats it). Record 48 answers 0xC2 "resource busy" while a value is pending
 //! (the master repeats the access).
 
 use super::param::{respond, ParamRequest, ParameterAccess, MAX_LEN};
 use super::weg48::SimpleAccess;
+use crate::card;
 use crate::dpv1::pdu::ErrorCode1;
 use crate::dpv1::records::RecordHandler;
 use crate::time::Instant;
@@ -30,6 +35,9 @@ pub const INDEX_WEG_SIMPLE: u8 = 48;
 /// The axis WEG's simple access addresses (DO-ID 0).
 const WEG_AXIS: u8 = 0;
 
+/// Relations with a record-47 response of their own: MSAC_C1 and every MSAC_C2 connection.
+pub const RELATIONS: usize = 1 + card::C2_MAX_COUNT_CHANNELS;
+
 /// Records 47 and 48 over one parameter table.
 #[derive(Debug, Clone)]
 pub struct DriveRecords {
@@ -37,8 +45,13 @@ pub struct DriveRecords {
     request_len: usize,
     /// The job in `request` waits for values of an asynchronous table.
     busy: bool,
-    response: [u8; MAX_LEN],
-    response_len: usize,
+    /// The relation whose job `request` is.
+    owner: u8,
+    /// The relation of the current access ([`RecordHandler::set_relation`]).
+    relation: u8,
+    building: [u8; MAX_LEN],
+    responses: [[u8; MAX_LEN]; RELATIONS],
+    response_lens: [usize; RELATIONS],
     weg: SimpleAccess,
 }
 
@@ -55,15 +68,18 @@ impl DriveRecords {
             request: [0; MAX_LEN],
             request_len: 0,
             busy: false,
-            response: [0; MAX_LEN],
-            response_len: 0,
+            owner: 0,
+            relation: 0,
+            building: [0; MAX_LEN],
+            responses: [[0; MAX_LEN]; RELATIONS],
+            response_lens: [0; RELATIONS],
             weg: SimpleAccess::new(),
         }
     }
 
     /// Forget a waiting response or job (the relation that carried the request ended).
     pub fn reset(&mut self) {
-        self.response_len = 0;
+        self.response_lens = [0; RELATIONS];
         self.busy = false;
     }
 
@@ -85,7 +101,10 @@ impl DriveRecords {
         let n = data.len().min(MAX_LEN);
         self.request[..n].copy_from_slice(&data[..n]);
         self.request_len = n;
-        self.response_len = 0;
+        self.owner = self.relation;
+        if let Some(len) = self.response_lens.get_mut(self.owner as usize) {
+            *len = 0;
+        }
         self.busy = true;
         table.start_job();
         self.build(table);
@@ -97,9 +116,11 @@ impl DriveRecords {
             self.busy = false;
             return;
         };
-        let n = respond(&req, table, &mut self.response);
+        let n = respond(&req, table, &mut self.building);
         if !table.pending() {
-            self.response_len = n;
+            let o = (self.owner as usize).min(RELATIONS - 1);
+            self.responses[o][..n].copy_from_slice(&self.building[..n]);
+            self.response_lens[o] = n;
             self.busy = false;
         }
     }
@@ -117,6 +138,10 @@ pub struct Bound<'a, T> {
 }
 
 impl<T: ParameterAccess> RecordHandler for Bound<'_, T> {
+    fn set_relation(&mut self, relation: u8) {
+        self.records.relation = relation;
+    }
+
     fn read(&mut self, _now: Instant, slot: u8, index: u8, out: &mut [u8]) -> Result<usize, ErrorCode1> {
         if slot != 0 {
             return Err(ErrorCode1::INVALID_SLOT);
@@ -124,15 +149,16 @@ impl<T: ParameterAccess> RecordHandler for Bound<'_, T> {
         let r = &mut *self.records;
         match index {
             INDEX_PROFIDRIVE => {
-                let n = r.response_len;
+                let rel = r.relation as usize;
+                let n = r.response_lens.get(rel).copied().unwrap_or(0);
                 if n == 0 {
                     return Err(ErrorCode1::STATE_CONFLICT);
                 }
                 if out.len() < n {
                     return Err(ErrorCode1::WRITE_LENGTH_ERROR);
                 }
-                out[..n].copy_from_slice(&r.response[..n]);
-                r.response_len = 0;
+                out[..n].copy_from_slice(&r.responses[rel][..n]);
+                r.response_lens[rel] = 0;
                 Ok(n)
             }
             INDEX_WEG_SIMPLE => {
@@ -152,6 +178,10 @@ impl<T: ParameterAccess> RecordHandler for Bound<'_, T> {
             INDEX_PROFIDRIVE => {
                 // Validated here (≤ 240 bytes), kept for the job.
                 ParamRequest::parse(data).map_err(|e| e.error_code1())?;
+                if r.busy && r.owner != r.relation {
+                    // Another relation's job is waiting for the drive.
+                    return Err(ErrorCode1::RESOURCE_BUSY);
+                }
                 r.start(data, self.table);
                 Ok(())
             }
