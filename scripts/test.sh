@@ -5,6 +5,9 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 HOST=$(bash scripts/host-triple)
 export CARGO_TERM_COLOR=never
+# Everything below is also kept in a log, for the closing count of tests run.
+LOG=$(mktemp)
+exec > >(tee "$LOG") 2>&1
 
 echo "== format"
 cargo fmt --all -- --check
@@ -42,3 +45,7 @@ cargo run -q -p host-tests --bin qemu_bench --target "$HOST"
 
 echo "== fuzz smoke: every parser and the whole slave under libFuzzer (stable, --sanitizer none)"
 FUZZ_SECONDS=${FUZZ_SECONDS:-15} bash scripts/fuzz-smoke.sh
+
+# Closing line: the Rust tests that ran (every suite above passed, or this line is not reached).
+total=$(grep -ao 'test result: ok\. [0-9]* passed' "$LOG" | awk '{s += $4} END {print s + 0}')
+echo "tests: $total passed, 0 failed"
