@@ -475,3 +475,21 @@ fn c1_ignores_sdn_and_drops_requests_across_sessions() {
     m.process();
     assert_eq!(m.c1(M1, &[]), Ans::Sc, "nothing from the previous session");
 }
+
+#[test]
+fn card_pnu_descriptions() {
+    let mut m = Master::new();
+    m.bring_up(0x80);
+    // Description element 6 (name, VisibleString16) of PNU 918; of PNU 964 the number of array
+    // elements (element 2); PNU 965 (OctetString2) has none: 0x09.
+    m.transact(&[0x5F, 0, 47, 10, 0x30, 1, 1, 1, 0x20, 1, 0x03, 0x96, 0, 6]);
+    let r = m.transact(&[0x5E, 0, 47, 240]);
+    assert_eq!(&r[..10], &[0x5E, 0, 47, 22, 0x30, 1, 1, 1, r[8], 16]);
+    assert_eq!(&r[10..], b"Station address ");
+    m.transact(&[0x5F, 0, 47, 10, 0x31, 1, 1, 1, 0x20, 1, 0x03, 0xC4, 0, 2]);
+    let r = m.transact(&[0x5E, 0, 47, 240]);
+    assert_eq!(&r[4..8], &[0x31, 1, 1, 1]);
+    assert_eq!(&r[r.len() - 2..], &[0, 6], "PNU 964 has 6 elements: {r:02X?}");
+    m.transact(&[0x5F, 0, 47, 10, 0x32, 1, 1, 1, 0x20, 1, 0x03, 0xC5, 0, 0]);
+    assert_eq!(m.transact(&[0x5E, 0, 47, 240]), [0x5E, 0, 47, 8, 0x32, 0x81, 1, 1, 0x44, 1, 0, 0x09]);
+}

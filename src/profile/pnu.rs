@@ -4,6 +4,7 @@
 
 use super::param::Attribute;
 use super::param::{ErrorValue, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
+use super::table::{slots, ParamDef, Table, Type};
 use crate::card;
 
 /// PNU 918: station address (read-only here; set by Set_Slave_Add or the drive).
@@ -41,6 +42,23 @@ pub const CARD_PNUS: [u16; 10] = [
     PNU_DO_ID,
     PNU_PARAMETER_LIST,
 ];
+
+/// The card's PNUs as description entries (attribute 0x20): names, types, array sizes,
+/// read-only. Values are not kept here ([`CardTable`] reads them from [`CardInfo`]).
+const CARD_DEFS: &[ParamDef] = &[
+    ParamDef::new(PNU_STATION_ADDRESS, "Station address", Type::U16).limits(0, 126).read_only(),
+    ParamDef::new(PNU_TELEGRAM, "Telegram select", Type::U16).read_only(),
+    ParamDef::new(PNU_OPERATING_MODE, "Operating mode", Type::U16).read_only(),
+    ParamDef::new(PNU_FAULT_COUNTER, "Fault msg count", Type::U16).read_only(),
+    ParamDef::new(PNU_FAULT_NUMBERS, "Fault numbers", Type::U16).array(FAULT_BUFFER_LEN as u16).read_only(),
+    ParamDef::new(PNU_BAUD_RATE, "Baud rate", Type::U16).limits(0, 11).read_only(),
+    ParamDef::new(PNU_DEVICE_ID, "Drive unit ident", Type::U16).array(6).read_only(),
+    ParamDef::new(PNU_DO_ID, "DO ident", Type::U16).array(7).read_only(),
+    ParamDef::new(PNU_PARAMETER_LIST, "Parameter list", Type::U16).array(PARAMETER_LIST.len() as u16).read_only(),
+];
+
+/// [`CARD_DEFS`] as a table, for its descriptions.
+const CARD_DESCRIPTIONS: Table<{ slots(CARD_DEFS) }> = Table::new(CARD_DEFS);
 
 /// Elements of PNU 947 (4 fault situations × 8 messages).
 pub const FAULT_BUFFER_LEN: usize = 32;
@@ -155,7 +173,14 @@ impl<D: ParameterAccess> ParameterAccess for CardTable<'_, D> {
     fn read_description(&mut self, axis: u8, addr: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
         debug_assert_eq!(addr.attribute, Attribute::Description);
         if addr.pnu == PNU_FAULT_NUMBERS || self.lookup(addr.pnu).is_some() {
-            return Err(ErrorValue::NO_DESCRIPTION.into());
+            // The 46-byte description of the card's own PNUs (965 is an OctetString2, which
+            // the description table does not model: 0x09 no description data).
+            let mut t = CARD_DESCRIPTIONS;
+            return if t.def(addr.pnu).is_some() {
+                t.read_description(axis, addr, out)
+            } else {
+                Err(ErrorValue::NO_DESCRIPTION.into())
+            };
         }
         self.drive.read_description(axis, addr, out)
     }
