@@ -28,6 +28,7 @@
 //!   sequenced tear-free blocks, P0740 / P0963 status) and the card-side [`dpm::Link`].
 //! * [`drive`] — a simulated drive behind the DPM (PROFIdrive STW1/ZSW1 state machine, ramp).
 //! * [`app`] — node + DPM + simulated drive in one step, for QEMU, the soft slave and tests.
+//! * [`led`] — the PS / BS / FS LED patterns (OPTE3/E5 §4.3) from the card's state.
 //! * [`time`] — instants, durations and bit times.
 //! * [`phy`] — USART divisors per rate and the autobaud search / Baud_Control supervision (reference §1.2, §1.6).
 //! * [`store`] — the station address and No_Add_Chg as a power-loss-safe journal in two flash sectors.
@@ -42,6 +43,7 @@ pub mod dpm;
 pub mod dpv1;
 pub mod drive;
 pub mod fdl;
+pub mod led;
 pub mod node;
 pub mod phy;
 pub mod profile;

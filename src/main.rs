@@ -105,6 +105,7 @@ mod app {
     use pbcard::dpm::CommState;
     use pbcard::drive::profidrive::DriveState;
     use pbcard::drive::DriveConfig;
+    use pbcard::led::{LedInputs, Leds};
     use pbcard::node::Node;
     use rtic::Mutex;
     use rtic_monotonics::systick::prelude::*;
@@ -140,6 +141,9 @@ mod app {
         master: Option<u8>,
         address: u8,
         acyclic_work: bool,
+        /// Requests addressed to us so far (FDL station counter).
+        requests: u32,
+        watchdog: Option<pbcard::time::Duration>,
     }
 
     /// The application behind the DPM (image, link, simulated drive) and what the log has
@@ -149,6 +153,10 @@ mod app {
         clock: SysTickClock,
         comm: Option<CommState>,
         state: DriveState,
+        led_requests: u32,
+        led_last_frame: Option<pbcard::time::Instant>,
+        led_was_dx: bool,
+        led_shown: Option<Leds>,
         /// Largest instruction count of one `Application::step` under the Node lock.
         #[cfg(feature = "bench")]
         max_step: u32,
@@ -164,6 +172,10 @@ mod app {
                 clock,
                 comm: None,
                 state,
+                led_requests: 0,
+                led_last_frame: None,
+                led_was_dx: false,
+                led_shown: None,
                 #[cfg(feature = "bench")]
                 max_step: 0,
             }
@@ -192,6 +204,8 @@ mod app {
                     master: s.master_address(),
                     address: s.address(),
                     acyclic_work: n.has_acyclic_work(),
+                    requests: n.station().stats().requests,
+                    watchdog: s.watchdog_time(),
                 }
             });
             #[cfg(feature = "bench")]
@@ -205,6 +219,34 @@ mod app {
                 acyclic::spawn().ok();
             }
             self.log(&v);
+            self.leds(now, &v);
+        }
+
+        /// The PS / BS / FS LED pattern (OPTE3/E5 §4.3, `pbcard::led`); logged when it
+        /// changes. Driving the board's LED pins is the board-support issue's.
+        fn leds(&mut self, now: pbcard::time::Instant, v: &NodeView) {
+            if v.requests != self.led_requests {
+                self.led_requests = v.requests;
+                self.led_last_frame = Some(now);
+            }
+            let dx = v.state == DpState::DataExch;
+            if dx {
+                self.led_was_dx = true;
+            }
+            let inputs = LedInputs {
+                data_exchange: dx,
+                // The simulated drive is part of the firmware: always there.
+                drive_active: true,
+                card_fault: false,
+                last_frame_for_us: self.led_last_frame,
+                watchdog: v.watchdog,
+                lost_after_data_exchange: self.led_was_dx && !dx,
+            };
+            let leds = pbcard::led::indicate(now, &inputs);
+            if self.led_shown != Some(leds) {
+                defmt::info!("LEDs: PS {} BS {} FS {}", leds.ps, leds.bs, leds.fs);
+                self.led_shown = Some(leds);
+            }
         }
 
         fn log(&mut self, v: &NodeView) {
