@@ -1,5 +1,7 @@
 //! Drive profiles carried in DP-V1 data records (reference §5).
 //!
+//! * [`drive_if`] — the drive-neutral command / status the profile exchanges with the drive
+//!   through the DPM (OPTE3/E5 §11 FBFixedControlWord / FBFixedStatusWord model).
 //! * [`param`] — PROFIdrive base-mode parameter access, data record 47: request parser, the
 //!   [`param::ParameterAccess`] trait a drive parameter table implements, and [`param::respond`],
 //!   which builds the parameter response (VACON OPTE3/E5 manual §6.4, WEG CFW-11 §4.2.4,
@@ -18,6 +20,7 @@
 //! response exists (0xB5)" sequence and the one-shot response buffer belong to the DP-V1
 //! record routing above them.
 
+pub mod drive_if;
 pub mod param;
 pub mod pnu;
 pub mod records;
