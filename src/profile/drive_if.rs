@@ -153,3 +153,26 @@ impl DriveStatus {
         !self.flags.contains(StatusFlags::RUNNING) || self.flags.contains(StatusFlags::ZERO_SPEED)
     }
 }
+
+/// A control profile: how one family of telegrams turns the PLC's control word and main
+/// setpoint into a [`DriveCommand`], and the drive's [`DriveStatus`] into the status word and
+/// main actual value the PLC reads (PROFIdrive 4.1 for ST1 / ST20 / vendor telegrams,
+/// PROFIdrive 2.0 for the PPO types — OPTE3/E5 §5.1 note; the WEG manufacturer profile,
+/// CFW500 §5.1; the INVT control word, INVT §2.6).
+///
+/// The cyclic engine calls [`Self::command`] for every new output image and on every
+/// housekeeping step with the last one (so transitions that wait for the drive — standstill,
+/// fault cleared — happen without new bus traffic), and [`Self::comm_lost`] while the
+/// communication is lost (watchdog expired, master in Clear, master gone).
+pub trait ControlProfile {
+    /// The command for the control word `cw` and main setpoint `setpoint` (raw 16-bit words
+    /// as on the wire, in the profile's own scale), given the drive's latest status.
+    fn command(&mut self, cw: u16, setpoint: u16, drive: &DriveStatus) -> DriveCommand;
+    /// The command while the communication is lost (the profile keeps its state; the drive
+    /// applies its communication-error action, [`CommandFlags::COMM_LOSS`]).
+    fn comm_lost(&mut self, drive: &DriveStatus) -> DriveCommand;
+    /// The status word for the PLC.
+    fn status_word(&self, drive: &DriveStatus) -> u16;
+    /// The main actual value (speed) for the PLC, in the profile's scale, as a raw word.
+    fn actual_value(&self, drive: &DriveStatus) -> u16;
+}
