@@ -22,6 +22,7 @@
 //! b8 |NIST − target| ≤ [`DriveConfig::setpoint_tolerance`] in S4, b9 always (the drive wants
 //! PLC control), b10 |NIST| ≥ [`DriveConfig::compare_speed`].
 
+pub mod model;
 pub mod params;
 pub mod profidrive;
 
