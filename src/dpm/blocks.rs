@@ -1,11 +1,13 @@
-//! The blocks of layout version 2: identification, the card's and the drive's reports, the
-//! configuration from the drive and the parameter mailbox, with their codecs (offsets from
-//! [`super::layout`]).
+//! The blocks of layout versions 2 and 3: identification, the card's and the drive's reports,
+//! the configuration from the drive, the parameter mailbox (v2) and the drive-neutral command /
+//! status (v3), with their codecs (offsets from [`super::layout`]).
 
 use super::layout::{
-    self, card, config, drive, ident, mbx_req, mbx_rsp, EXT_DIAG_CAPACITY, MBX_CAPACITY, PZD_MAP_WORDS,
+    self, card, config, drive, drive_cmd, drive_state, ident, mbx_req, mbx_rsp, EXTRA_WORDS, EXT_DIAG_CAPACITY,
+    MBX_CAPACITY, PZD_MAP_WORDS,
 };
 use super::{get16, put16, Telegram};
+use crate::profile::drive_if::{CommandFlags, DriveCommand, DriveStatus, StatusFlags as DriveStatusFlags};
 use crate::profile::param::{ErrorValue, Format, ParamError};
 use crate::time::{Duration, Instant};
 
@@ -602,4 +604,166 @@ impl HeartbeatMonitor {
 
 fn get32(b: &[u8], at: usize) -> u32 {
     u32::from_be_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]])
+}
+
+/// Up to [`layout::EXTRA_WORDS`] raw PZD words with their count: the words of a telegram the
+/// drive-neutral command / status does not carry (programmable words in the manner of WEG
+/// P0742–P0757 / CONFIG.PZD_*_MAP, VACON telegrams' process data words).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct PzdWords {
+    count: u8,
+    words: [u16; EXTRA_WORDS],
+}
+
+impl PzdWords {
+    /// No words.
+    pub const EMPTY: PzdWords = PzdWords { count: 0, words: [0; EXTRA_WORDS] };
+
+    /// `words`; `None` if there are more than [`layout::EXTRA_WORDS`].
+    pub fn new(words: &[u16]) -> Option<PzdWords> {
+        if words.len() > EXTRA_WORDS {
+            return None;
+        }
+        let mut w = PzdWords::EMPTY;
+        w.words[..words.len()].copy_from_slice(words);
+        w.count = words.len() as u8;
+        Some(w)
+    }
+
+    /// The valid words.
+    pub fn words(&self) -> &[u16] {
+        &self.words[..self.count as usize]
+    }
+
+    /// Word `i` (0 beyond the valid words).
+    pub fn word(&self, i: usize) -> u16 {
+        self.words().get(i).copied().unwrap_or(0)
+    }
+
+    fn encode(&self, b: &mut [u8], count_at: usize, words_at: usize) {
+        b[count_at] = self.count;
+        for (i, w) in self.words.iter().enumerate() {
+            put16(b, words_at + 2 * i, *w);
+        }
+    }
+
+    fn decode(b: &[u8], count_at: usize, words_at: usize) -> PzdWords {
+        let count = b[count_at].min(EXTRA_WORDS as u8);
+        let mut w = PzdWords { count, words: [0; EXTRA_WORDS] };
+        for i in 0..count as usize {
+            w.words[i] = get16(b, words_at + 2 * i);
+        }
+        w
+    }
+}
+
+/// The DRIVE_CMD block (layout version 3, card → host): the drive-neutral command of
+/// [`crate::profile::drive_if`] (issue 6 item 2, OPTE3/E5 §11.1 model) with the context the
+/// drive needs to apply it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DriveCommandImage {
+    /// The command: flags, N2 setpoint, fault-reset counter, communication-loss reaction.
+    pub command: DriveCommand,
+    /// Active operate mode ([`layout::operate_mode`]: 1 PROFIdrive, 2 Bypass, 3 Echo).
+    pub operate_mode: u8,
+    /// Active telegram.
+    pub telegram: Telegram,
+    /// The OUTPUTS sequence counter this command was made from (0 = none).
+    pub outputs_seq: u16,
+    /// Extra raw PZD output words (programmable words).
+    pub extra: PzdWords,
+}
+
+impl Default for DriveCommandImage {
+    fn default() -> Self {
+        Self::EMPTY
+    }
+}
+
+impl DriveCommandImage {
+    /// No command (all flags clear: stop), no telegram, no extra words.
+    pub const EMPTY: DriveCommandImage = DriveCommandImage {
+        command: DriveCommand {
+            flags: CommandFlags::empty(),
+            speed_setpoint: 0,
+            fault_resets: 0,
+            comm_loss_reaction: 0,
+        },
+        operate_mode: layout::operate_mode::UNKNOWN,
+        telegram: Telegram::None,
+        outputs_seq: 0,
+        extra: PzdWords::EMPTY,
+    };
+
+    pub(super) fn encode(&self, b: &mut [u8]) {
+        let c = &self.command;
+        put16(b, drive_cmd::FLAGS, c.flags.bits());
+        put16(b, drive_cmd::SPEED_SETPOINT, c.speed_setpoint as u16);
+        b[drive_cmd::FAULT_RESETS] = c.fault_resets;
+        b[drive_cmd::COMM_LOSS_REACTION] = c.comm_loss_reaction;
+        b[drive_cmd::OPERATE_MODE] = self.operate_mode;
+        put16(b, drive_cmd::TELEGRAM, self.telegram.code());
+        put16(b, drive_cmd::OUTPUTS_SEQ, self.outputs_seq);
+        self.extra.encode(b, drive_cmd::EXTRA_COUNT, drive_cmd::EXTRA);
+    }
+
+    pub(super) fn decode(b: &[u8]) -> DriveCommandImage {
+        DriveCommandImage {
+            command: DriveCommand {
+                flags: CommandFlags::from_bits_retain(get16(b, drive_cmd::FLAGS)),
+                speed_setpoint: get16(b, drive_cmd::SPEED_SETPOINT) as i16,
+                fault_resets: b[drive_cmd::FAULT_RESETS],
+                comm_loss_reaction: b[drive_cmd::COMM_LOSS_REACTION],
+            },
+            operate_mode: b[drive_cmd::OPERATE_MODE],
+            telegram: Telegram::from_code(get16(b, drive_cmd::TELEGRAM)),
+            outputs_seq: get16(b, drive_cmd::OUTPUTS_SEQ),
+            extra: PzdWords::decode(b, drive_cmd::EXTRA_COUNT, drive_cmd::EXTRA),
+        }
+    }
+}
+
+/// The DRIVE_STATE block (layout version 3, host → card): the drive-neutral status of
+/// [`crate::profile::drive_if`] (OPTE3/E5 §11.3 model) and the extra raw input words.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct DriveStateImage {
+    /// The status: flags, N2 speed / current / torque / power, fault, warning, NAMUR bits.
+    pub status: DriveStatus,
+    /// The INPUTS sequence counter written with this state (0 = none).
+    pub inputs_seq: u16,
+    /// Extra raw PZD input words (programmable words).
+    pub extra: PzdWords,
+}
+
+impl DriveStateImage {
+    pub(super) fn encode(&self, b: &mut [u8]) {
+        let s = &self.status;
+        put16(b, drive_state::FLAGS, s.flags.bits());
+        put16(b, drive_state::SPEED, s.speed as u16);
+        put16(b, drive_state::CURRENT, s.current as u16);
+        put16(b, drive_state::TORQUE, s.torque as u16);
+        put16(b, drive_state::POWER, s.power as u16);
+        put16(b, drive_state::FAULT_CODE, s.fault_code);
+        put16(b, drive_state::WARNING_CODE, s.warning_code);
+        put16(b, drive_state::NAMUR, s.namur);
+        put16(b, drive_state::INPUTS_SEQ, self.inputs_seq);
+        self.extra.encode(b, drive_state::EXTRA_COUNT, drive_state::EXTRA);
+    }
+
+    pub(super) fn decode(b: &[u8]) -> DriveStateImage {
+        DriveStateImage {
+            status: DriveStatus {
+                flags: DriveStatusFlags::from_bits_retain(get16(b, drive_state::FLAGS)),
+                speed: get16(b, drive_state::SPEED) as i16,
+                current: get16(b, drive_state::CURRENT) as i16,
+                torque: get16(b, drive_state::TORQUE) as i16,
+                power: get16(b, drive_state::POWER) as i16,
+                fault_code: get16(b, drive_state::FAULT_CODE),
+                warning_code: get16(b, drive_state::WARNING_CODE),
+                namur: get16(b, drive_state::NAMUR),
+            },
+            inputs_seq: get16(b, drive_state::INPUTS_SEQ),
+            extra: PzdWords::decode(b, drive_state::EXTRA_COUNT, drive_state::EXTRA),
+        }
+    }
 }

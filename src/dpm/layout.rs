@@ -1,4 +1,4 @@
-//! The DPM memory map, layout version 2: every offset the card and the host use, in one place.
+//! The DPM memory map, layout version 3: every offset the card and the host use, in one place.
 //! [`FIELDS`] lists every byte of the image (reserved bytes included) and is what
 //! `docs/DPM.md` is generated from ([`write_markdown`]); a test fails when the two differ.
 //!
@@ -34,7 +34,7 @@
 /// `HEADER.MAGIC` value: ASCII "PBDM".
 pub const MAGIC: [u8; 4] = *b"PBDM";
 /// `HEADER.LAYOUT_VERSION` value of this map.
-pub const LAYOUT_VERSION: u16 = 2;
+pub const LAYOUT_VERSION: u16 = 3;
 
 /// Bits of `HEADER.CAPABILITIES`: which optional blocks this card serves. The host reads the
 /// header (magic, version, size, capabilities) before anything else.
@@ -49,8 +49,12 @@ pub mod cap {
     pub const CONFIG: u32 = 1 << 3;
     /// MBX_REQ / MBX_RSP: the parameter mailbox.
     pub const MAILBOX: u32 = 1 << 4;
+    /// DRIVE_CMD: the card writes the drive-neutral command (layout version 3).
+    pub const DRIVE_CMD: u32 = 1 << 5;
+    /// DRIVE_STATE: the card takes the drive-neutral status (layout version 3).
+    pub const DRIVE_STATE: u32 = 1 << 6;
     /// Everything this card implements.
-    pub const ALL: u32 = IDENT | CARD_EVENTS | DRIVE_REPORTS | CONFIG | MAILBOX;
+    pub const ALL: u32 = IDENT | CARD_EVENTS | DRIVE_REPORTS | CONFIG | MAILBOX | DRIVE_CMD | DRIVE_STATE;
 }
 
 /// Header: written once by the card when the image is created.
@@ -319,14 +323,105 @@ pub mod mbx_rsp {
     pub const LEN: usize = SEQ_TAIL + 2;
 }
 
+/// Raw PZD words DRIVE_CMD and DRIVE_STATE carry beside the drive-neutral values (the
+/// programmable words, P0742–P0757 style, and vendor telegrams' extra words).
+pub const EXTRA_WORDS: usize = 16;
+
+/// `DRIVE_CMD.OPERATE_MODE` codes: the OPTE3/E5 panel parameter's coding (OPTE3/E5 §5.1
+/// Table 9, P5.x.3.2 "Operate mode").
+pub mod operate_mode {
+    /// 0: not known yet (no module configured).
+    pub const UNKNOWN: u8 = 0;
+    /// 1: PROFIdrive (the card's profile drives the command).
+    pub const PROFIDRIVE: u8 = 1;
+    /// 2: Bypass (the PLC's words pass to the drive unchanged, manufacturer control word).
+    pub const BYPASS: u8 = 2;
+    /// 3: Echo (the card returns the outputs as inputs; the drive is not commanded).
+    pub const ECHO: u8 = 3;
+}
+
+/// Drive command block (card → host), layout version 3: the drive-neutral command of
+/// `crate::profile::drive_if` (issue 6 item 2) plus the raw words the profile does not interpret.
+pub mod drive_cmd {
+    /// Block start.
+    pub const START: usize = super::mbx_rsp::START + super::mbx_rsp::LEN;
+    /// Block length.
+    pub const LEN: usize = 48;
+    /// u16 sequence counter, written last by the card.
+    pub const SEQ_HEAD: usize = 0x00;
+    /// u16 `CommandFlags` (`crate::profile::drive_if`).
+    pub const FLAGS: usize = 0x02;
+    /// i16 speed setpoint, N2 (0x4000 = 100 % of the reference speed).
+    pub const SPEED_SETPOINT: usize = 0x04;
+    /// u8 fault acknowledges requested so far (wraps).
+    pub const FAULT_RESETS: usize = 0x06;
+    /// u8 communication-loss reaction while `COMM_LOSS` is set (0 drive's own … 4 keep last).
+    pub const COMM_LOSS_REACTION: usize = 0x07;
+    /// u8 active operate mode ([`super::operate_mode`]).
+    pub const OPERATE_MODE: usize = 0x08;
+    /// u8 valid words in `EXTRA` (larger values read as [`super::EXTRA_WORDS`]).
+    pub const EXTRA_COUNT: usize = 0x09;
+    /// u16 active telegram (`crate::dpm::Telegram` code).
+    pub const TELEGRAM: usize = 0x0A;
+    /// u16 the OUTPUTS sequence counter this command was made from (0 = none).
+    pub const OUTPUTS_SEQ: usize = 0x0C;
+    /// u16 × 16 extra raw PZD output words.
+    pub const EXTRA: usize = 0x0E;
+    /// u16 sequence counter, written first by the card.
+    pub const SEQ_TAIL: usize = LEN - 2;
+}
+
+/// Drive state block (host → card), layout version 3: the drive-neutral status of
+/// `crate::profile::drive_if` plus raw words.
+pub mod drive_state {
+    /// Block start.
+    pub const START: usize = super::drive_cmd::START + super::drive_cmd::LEN;
+    /// Block length.
+    pub const LEN: usize = 56;
+    /// u16 sequence counter: the head.
+    pub const SEQ_HEAD: usize = 0x00;
+    /// u16 `StatusFlags` (`crate::profile::drive_if`).
+    pub const FLAGS: usize = 0x02;
+    /// i16 actual speed, N2.
+    pub const SPEED: usize = 0x04;
+    /// i16 output current, N2 (0x4000 = rated current).
+    pub const CURRENT: usize = 0x06;
+    /// i16 torque, N2 (0x4000 = rated torque).
+    pub const TORQUE: usize = 0x08;
+    /// i16 active power, N2 (0x4000 = rated power).
+    pub const POWER: usize = 0x0A;
+    /// u16 active fault code (0 = none).
+    pub const FAULT_CODE: usize = 0x0C;
+    /// u16 active warning code (0 = none).
+    pub const WARNING_CODE: usize = 0x0E;
+    /// u16 MELD_NAMUR bits.
+    pub const NAMUR: usize = 0x10;
+    /// u16 the INPUTS sequence counter written with this state (0 = none).
+    pub const INPUTS_SEQ: usize = 0x12;
+    /// u8 valid words in `EXTRA` (larger values read as [`super::EXTRA_WORDS`]).
+    pub const EXTRA_COUNT: usize = 0x14;
+    /// u16 × 16 extra raw PZD input words.
+    pub const EXTRA: usize = 0x16;
+    /// u16 sequence counter: the tail.
+    pub const SEQ_TAIL: usize = LEN - 2;
+}
+
 /// Size of the whole image.
-pub const IMAGE_SIZE: usize = mbx_rsp::START + mbx_rsp::LEN;
+pub const IMAGE_SIZE: usize = drive_state::START + drive_state::LEN;
+
+/// The image size of each layout version (index = version; newer versions only append).
+pub const IMAGE_SIZE_OF_VERSION: [usize; 4] = [0, inputs::START + inputs::LEN, drive_cmd::START, IMAGE_SIZE];
 
 const _: () = {
     assert!(header::START + header::LEN == status::START);
     assert!(status::START + status::LEN == outputs::START);
     assert!(outputs::START == 0x30 && inputs::START == 0x78 && ident::START == 0xC0);
-    assert!(IMAGE_SIZE == 0x270 && IMAGE_SIZE <= u16::MAX as usize);
+    assert!(drive_cmd::START == 0x270 && drive_state::START == 0x2A0);
+    assert!(IMAGE_SIZE == 0x2D8 && IMAGE_SIZE <= u16::MAX as usize);
+    assert!(IMAGE_SIZE_OF_VERSION[LAYOUT_VERSION as usize] == IMAGE_SIZE);
+    assert!(drive_cmd::EXTRA + 2 * EXTRA_WORDS == drive_cmd::SEQ_TAIL);
+    assert!(drive_state::EXTRA + 2 * EXTRA_WORDS == drive_state::SEQ_TAIL);
+    assert!(EXTRA_WORDS <= u8::MAX as usize);
     assert!(card::MAILBOX_TIMEOUTS + 2 <= card::SEQ_TAIL);
     assert!(drive::EXT_DIAG + EXT_DIAG_CAPACITY <= drive::SEQ_TAIL);
     assert!(config::PZD_IN_MAP + 2 * PZD_MAP_WORDS <= config::SEQ_TAIL);
@@ -469,6 +564,24 @@ pub const BLOCKS: &[Block] = &[
         since: 2,
         text: "Parameter mailbox response. Taken only when REQ_ID names the outstanding request.",
     },
+    Block {
+        name: "DRIVE_CMD",
+        start: drive_cmd::START,
+        len: drive_cmd::LEN,
+        writer: Writer::Card,
+        sequenced: true,
+        since: 3,
+        text: "Drive-neutral command (run / stop kinds, setpoint, fault resets, …), operate mode, telegram, extra PZD output words. Written after OUTPUTS in the same card cycle.",
+    },
+    Block {
+        name: "DRIVE_STATE",
+        start: drive_state::START,
+        len: drive_state::LEN,
+        writer: Writer::Host,
+        sequenced: true,
+        since: 3,
+        text: "Drive-neutral status (state bits, speed, current, torque, power, fault, warning, NAMUR), extra PZD input words. Written after INPUTS every drive cycle.",
+    },
 ];
 
 /// One field of the map.
@@ -480,7 +593,7 @@ pub struct Field {
     pub offset: usize,
     /// Size in bytes.
     pub size: usize,
-    /// Type: `u8`, `u16`, `u32`, `u8[n]`, `u16[n]` or `reserved`.
+    /// Type: `u8`, `u16`, `i16`, `u32`, `u8[n]`, `u16[n]` or `reserved`.
     pub ty: &'static str,
     /// Who writes it.
     pub writer: Writer,
@@ -491,7 +604,7 @@ pub struct Field {
 impl Field {
     /// Byte order: big-endian for multi-byte integers, none for bytes.
     pub fn byte_order(&self) -> &'static str {
-        if self.ty.starts_with("u16") || self.ty.starts_with("u32") {
+        if self.ty.starts_with("u16") || self.ty.starts_with("i16") || self.ty.starts_with("u32") {
             "big-endian"
         } else {
             "-"
@@ -518,9 +631,9 @@ const PD: usize = PD_CAPACITY;
 /// generated from this table and the tests check it covers the image exactly.
 pub const FIELDS: &[Field] = &[
     f!("HEADER.MAGIC", header::MAGIC, 4, "u8[4]", C, "always: ASCII \"PBDM\""),
-    f!("HEADER.LAYOUT_VERSION", header::LAYOUT_VERSION, 2, "u16", C, "always: 2 (read first, with the magic)"),
-    f!("HEADER.IMAGE_SIZE", header::IMAGE_SIZE, 2, "u16", C, "always: bytes in the image (624)"),
-    f!("HEADER.CAPABILITIES", header::CAPABILITIES, 4, "u32", C, "always (version >= 2): bit 0 IDENT, 1 CARD events, 2 DRIVE reports, 3 CONFIG, 4 MAILBOX"),
+    f!("HEADER.LAYOUT_VERSION", header::LAYOUT_VERSION, 2, "u16", C, "always: 3 (read first, with the magic; 1 and 2 are prefixes of 3)"),
+    f!("HEADER.IMAGE_SIZE", header::IMAGE_SIZE, 2, "u16", C, "always: bytes in the image (728; version 1: 192, version 2: 624)"),
+    f!("HEADER.CAPABILITIES", header::CAPABILITIES, 4, "u32", C, "always (version >= 2): bit 0 IDENT, 1 CARD events, 2 DRIVE reports, 3 CONFIG, 4 MAILBOX, 5 DRIVE_CMD, 6 DRIVE_STATE"),
     f!("HEADER.reserved", @ header::START + 0x0C, 4, "reserved", C, "0"),
     f!("STATUS.SEQ_HEAD", status::SEQ_HEAD, 2, "u16", C, SEQ_VALID),
     f!("STATUS.COMM_STATE", status::COMM_STATE, 1, "u8", C, "consistent block: P0740 coding 0 inactive, 1 init error, 2 offline, 3 cfg error, 4 prm error, 5 clear, 6 online"),
@@ -615,6 +728,31 @@ pub const FIELDS: &[Field] = &[
     f!("MBX_RSP.reserved", @ mbx_rsp::START + 0x0D, 1, "reserved", H, "0"),
     f!("MBX_RSP.VALUES", mbx_rsp::VALUES, MBX_CAPACITY, "u8[128]", H, "consistent block, RESULT = 0, first VALUES_LEN bytes: the values, big-endian"),
     f!("MBX_RSP.SEQ_TAIL", mbx_rsp::SEQ_TAIL, 2, "u16", H, SEQ_VALID),
+    f!("DRIVE_CMD.SEQ_HEAD", drive_cmd::SEQ_HEAD, 2, "u16", C, SEQ_VALID),
+    f!("DRIVE_CMD.FLAGS", drive_cmd::FLAGS, 2, "u16", C, "consistent block, SEQ != 0: command bits: 0 run, 1 reverse, 2 coast, 3 quick stop, 4 ramp hold, 5 setpoint zero, 6 ramp reset, 7 fieldbus control, 8 jog 1, 9 jog 2, 10 ramp set 2, 11 pre-excite, 12 communication lost, 13 fieldbus fault"),
+    f!("DRIVE_CMD.SPEED_SETPOINT", drive_cmd::SPEED_SETPOINT, 2, "i16", C, "consistent block, SEQ != 0: speed setpoint N2, 0x4000 = 100 % of the reference speed, negative = reverse"),
+    f!("DRIVE_CMD.FAULT_RESETS", drive_cmd::FAULT_RESETS, 1, "u8", C, "consistent block, SEQ != 0: fault acknowledges so far (wraps), a change = acknowledge"),
+    f!("DRIVE_CMD.COMM_LOSS_REACTION", drive_cmd::COMM_LOSS_REACTION, 1, "u8", C, "consistent block, FLAGS bit 12: 0 drive's own setting, 1 ramp stop, 2 coast, 3 quick stop, 4 keep last setpoint"),
+    f!("DRIVE_CMD.OPERATE_MODE", drive_cmd::OPERATE_MODE, 1, "u8", C, "consistent block, SEQ != 0: 0 unknown, 1 PROFIdrive, 2 Bypass, 3 Echo (OPTE3/E5 Table 9)"),
+    f!("DRIVE_CMD.EXTRA_COUNT", drive_cmd::EXTRA_COUNT, 1, "u8", C, "consistent block, SEQ != 0: valid words of EXTRA (<= 16)"),
+    f!("DRIVE_CMD.TELEGRAM", drive_cmd::TELEGRAM, 2, "u16", C, "consistent block, SEQ != 0: active telegram (STATUS.TELEGRAM coding)"),
+    f!("DRIVE_CMD.OUTPUTS_SEQ", drive_cmd::OUTPUTS_SEQ, 2, "u16", C, "consistent block, SEQ != 0: OUTPUTS.SEQ_HEAD this command was made from, 0 = none (pair check)"),
+    f!("DRIVE_CMD.EXTRA", drive_cmd::EXTRA, 32, "u16[16]", C, "consistent block, first EXTRA_COUNT words: raw PZD output words (programmable words)"),
+    f!("DRIVE_CMD.SEQ_TAIL", drive_cmd::SEQ_TAIL, 2, "u16", C, SEQ_VALID),
+    f!("DRIVE_STATE.SEQ_HEAD", drive_state::SEQ_HEAD, 2, "u16", H, SEQ_VALID),
+    f!("DRIVE_STATE.FLAGS", drive_state::FLAGS, 2, "u16", H, "consistent block, SEQ != 0: status bits: 0 ready, 1 running, 2 reverse, 3 fault, 4 warning, 5 at reference, 6 zero speed, 7 flux ready, 8 fieldbus control, 9 speed reached, 10 limit, 11 motor overload, 12 jogging, 13 undervoltage, 14 ramp set 2"),
+    f!("DRIVE_STATE.SPEED", drive_state::SPEED, 2, "i16", H, "consistent block, SEQ != 0: actual speed N2, 0x4000 = 100 % of the reference speed"),
+    f!("DRIVE_STATE.CURRENT", drive_state::CURRENT, 2, "i16", H, "consistent block, SEQ != 0: output current N2, 0x4000 = rated current"),
+    f!("DRIVE_STATE.TORQUE", drive_state::TORQUE, 2, "i16", H, "consistent block, SEQ != 0: torque N2, 0x4000 = rated torque"),
+    f!("DRIVE_STATE.POWER", drive_state::POWER, 2, "i16", H, "consistent block, SEQ != 0: active power N2, 0x4000 = rated power"),
+    f!("DRIVE_STATE.FAULT_CODE", drive_state::FAULT_CODE, 2, "u16", H, "consistent block, SEQ != 0: active fault, 0 = none"),
+    f!("DRIVE_STATE.WARNING_CODE", drive_state::WARNING_CODE, 2, "u16", H, "consistent block, SEQ != 0: active warning, 0 = none"),
+    f!("DRIVE_STATE.NAMUR", drive_state::NAMUR, 2, "u16", H, "consistent block, SEQ != 0: MELD_NAMUR bits of the active fault"),
+    f!("DRIVE_STATE.INPUTS_SEQ", drive_state::INPUTS_SEQ, 2, "u16", H, "consistent block, SEQ != 0: INPUTS.SEQ_HEAD written with this state, 0 = none (pair check)"),
+    f!("DRIVE_STATE.EXTRA_COUNT", drive_state::EXTRA_COUNT, 1, "u8", H, "consistent block, SEQ != 0: valid words of EXTRA (<= 16)"),
+    f!("DRIVE_STATE.reserved", @ drive_state::START + drive_state::EXTRA_COUNT + 1, 1, "reserved", H, "0"),
+    f!("DRIVE_STATE.EXTRA", drive_state::EXTRA, 32, "u16[16]", H, "consistent block, first EXTRA_COUNT words: raw PZD input words (programmable words)"),
+    f!("DRIVE_STATE.SEQ_TAIL", drive_state::SEQ_TAIL, 2, "u16", H, SEQ_VALID),
 ];
 
 /// Write the map as Markdown (the content of `docs/DPM.md`).
@@ -656,6 +794,19 @@ pub fn write_markdown(out: &mut impl core::fmt::Write) -> core::fmt::Result {
         "timeout the card answers the request itself with PROFIdrive error 0x11 and additional info 0xDD01;"
     )?;
     writeln!(out, "while the drive heartbeat is lost, with 0x11 / 0xDD02.")?;
+    writeln!(out)?;
+    writeln!(out, "**Command and state (v3).** The card writes OUTPUTS, then DRIVE_CMD with `OUTPUTS_SEQ` = the")?;
+    writeln!(out, "OUTPUTS counter it was made from; the host accepts a DRIVE_CMD / OUTPUTS pair as one bus cycle")?;
+    writeln!(out, "when `DRIVE_CMD.OUTPUTS_SEQ` equals `OUTPUTS.SEQ_HEAD` (or is 0), else reads both again. The")?;
+    writeln!(out, "host writes INPUTS, then DRIVE_STATE with `INPUTS_SEQ` = the INPUTS counter it just wrote.")?;
+    writeln!(out)?;
+    writeln!(
+        out,
+        "**Heartbeats.** The host writes DRIVE every drive cycle with a changed `HEARTBEAT`; the card writes"
+    )?;
+    writeln!(out, "CARD every card cycle with a changed `HEARTBEAT`. Each side counts the other lost when the value")?;
+    writeln!(out, "stays unchanged for longer than its timeout (the drive: the A140 situation). `dpm-host/` is the")?;
+    writeln!(out, "host-side reference implementation of all of this.")?;
     writeln!(out)?;
     writeln!(out, "## Blocks")?;
     writeln!(out)?;

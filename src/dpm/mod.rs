@@ -1,8 +1,9 @@
 //! The dual-port memory (DPM) image: what the card and the drive's control board share
-//! (ARCHITECTURE §5). Layout version 2 — process data both ways, a status block, and (appended
+//! (ARCHITECTURE §5). Layout version 3 — process data both ways, a status block, and (appended
 //! to version 1) identification, heartbeats and events both ways, configuration from the
-//! drive and the parameter mailbox ([`layout`] is the one source of truth for every offset;
-//! `docs/DPM.md` is generated from it).
+//! drive and the parameter mailbox, and (appended in version 3) the drive-neutral command and
+//! status ([`layout`] is the one source of truth for every offset; `docs/DPM.md` is generated
+//! from it; [`codec`] gives the block codecs on raw bytes to a host behind a transport).
 //!
 //! [`Dpm`] is a plain byte array. The card side ([`CardSide`], via [`Dpm::card`]) writes the
 //! status and the master's outputs and reads the drive's inputs; the host side
@@ -40,6 +41,15 @@
 //! parameters through it as a table). [`Link`] supervises the
 //! drive's heartbeat; [`HeartbeatMonitor`] is what the drive uses on the card's.
 //!
+//! ## Layout version 3
+//!
+//! DRIVE_CMD (card → host): the drive-neutral [`DriveCommand`](crate::profile::drive_if::DriveCommand)
+//! of the profile layer with the operate mode, the active telegram, the OUTPUTS counter it was
+//! made from and up to 16 raw PZD output words ([`DriveCommandImage`]); DRIVE_STATE (host →
+//! card): the drive-neutral [`DriveStatus`](crate::profile::drive_if::DriveStatus) and up to 16 raw
+//! PZD input words ([`DriveStateImage`]). Capability bits [`layout::cap::DRIVE_CMD`] and
+//! [`layout::cap::DRIVE_STATE`].
+//!
 //! ## Codings shown to the drive
 //!
 //! * Communication state: [`CommState`], the CFW500 manual's P0740 values.
@@ -47,14 +57,15 @@
 //! * Active telegram: [`Telegram`] — PROFIdrive telegram number (P922) or PPO type.
 
 mod blocks;
+pub mod codec;
 pub mod layout;
 mod link;
 pub mod mailbox;
 pub mod params;
 
 pub use blocks::{
-    CardEvent, CardFlags, CardReport, ConfigResult, DriveReport, HeartbeatMonitor, HostConfig, Identity, Liveness,
-    MailboxRequest, MailboxResponse, ParamValues, RequestKind, CARD_TYPE,
+    CardEvent, CardFlags, CardReport, ConfigResult, DriveCommandImage, DriveReport, DriveStateImage, HeartbeatMonitor,
+    HostConfig, Identity, Liveness, MailboxRequest, MailboxResponse, ParamValues, PzdWords, RequestKind, CARD_TYPE,
 };
 pub use link::{Link, LinkStats, ZSW1_FAULT};
 pub use mailbox::{Mailbox, MailboxBusy, MailboxServer, MailboxStats};
@@ -492,6 +503,16 @@ impl Dpm {
         read_response(&self.image)
     }
 
+    /// DRIVE_CMD as the host reads it, with its sequence counter (0 = never written).
+    pub fn drive_command(&self) -> Result<(u16, DriveCommandImage), Torn> {
+        read_drive_command(&self.image)
+    }
+
+    /// DRIVE_STATE as the card reads it, with its sequence counter (0 = never written).
+    pub fn drive_state(&self) -> Result<(u16, DriveStateImage), Torn> {
+        read_drive_state(&self.image)
+    }
+
     /// The raw image (for a transport, a dump, a test).
     pub fn as_bytes(&self) -> &[u8; IMAGE_SIZE] {
         &self.image
@@ -528,7 +549,8 @@ impl Dpm {
     }
 }
 
-/// The card's access to the image: writes STATUS and OUTPUTS, reads INPUTS.
+/// The card's access to the image: writes STATUS, OUTPUTS, CARD, MBX_REQ and DRIVE_CMD;
+/// reads INPUTS, DRIVE, CONFIG, MBX_RSP and DRIVE_STATE.
 #[derive(Debug)]
 pub struct CardSide<'a> {
     image: &'a mut [u8; IMAGE_SIZE],
@@ -574,9 +596,21 @@ impl CardSide<'_> {
     pub fn read_response(&self) -> Result<(u16, MailboxResponse), Torn> {
         read_response(self.image)
     }
+
+    /// Write DRIVE_CMD (after OUTPUTS in the same card cycle, `outputs_seq` = the OUTPUTS
+    /// counter the command was made from); returns its new sequence counter.
+    pub fn write_drive_command(&mut self, c: &DriveCommandImage) -> u16 {
+        card_write(self.image, layout::drive_cmd::START, layout::drive_cmd::LEN, |b| c.encode(b))
+    }
+
+    /// Read DRIVE_STATE with its sequence counter (0 = never written).
+    pub fn read_drive_state(&self) -> Result<(u16, DriveStateImage), Torn> {
+        read_drive_state(self.image)
+    }
 }
 
-/// The host's (drive control board's) access: reads STATUS and OUTPUTS, writes INPUTS.
+/// The host's (drive control board's) access: reads STATUS, OUTPUTS, IDENT, CARD, MBX_REQ and
+/// DRIVE_CMD; writes INPUTS, DRIVE, CONFIG, MBX_RSP and DRIVE_STATE.
 #[derive(Debug)]
 pub struct HostSide<'a> {
     image: &'a mut [u8; IMAGE_SIZE],
@@ -627,6 +661,17 @@ impl HostSide<'_> {
     /// Write the mailbox response (see [`MailboxServer`]).
     pub fn write_response(&mut self, r: &MailboxResponse) -> u16 {
         host_write(self.image, layout::mbx_rsp::START, layout::mbx_rsp::LEN, |b| r.encode(b))
+    }
+
+    /// Read DRIVE_CMD with its sequence counter (0 = never written).
+    pub fn read_drive_command(&self) -> Result<(u16, DriveCommandImage), Torn> {
+        read_drive_command(self.image)
+    }
+
+    /// Write DRIVE_STATE (after INPUTS, `inputs_seq` = the INPUTS counter just written);
+    /// returns its new sequence counter.
+    pub fn write_drive_state(&mut self, s: &DriveStateImage) -> u16 {
+        host_write(self.image, layout::drive_state::START, layout::drive_state::LEN, |b| s.encode(b))
     }
 }
 
@@ -687,6 +732,16 @@ fn read_card_report(image: &[u8; IMAGE_SIZE]) -> Result<CardReport, Torn> {
 fn read_request(image: &[u8; IMAGE_SIZE]) -> Result<Option<MailboxRequest>, Torn> {
     let (s, n) = (layout::mbx_req::START, layout::mbx_req::LEN);
     host_read(image, s, n).map(|b| MailboxRequest::decode(&b[..n]))
+}
+
+fn read_drive_command(image: &[u8; IMAGE_SIZE]) -> Result<(u16, DriveCommandImage), Torn> {
+    let (s, n) = (layout::drive_cmd::START, layout::drive_cmd::LEN);
+    host_read(image, s, n).map(|b| (get16(&b, 0), DriveCommandImage::decode(&b[..n])))
+}
+
+fn read_drive_state(image: &[u8; IMAGE_SIZE]) -> Result<(u16, DriveStateImage), Torn> {
+    let (s, n) = (layout::drive_state::START, layout::drive_state::LEN);
+    card_read(image, s, n).map(|b| (get16(&b, 0), DriveStateImage::decode(&b[..n])))
 }
 
 fn read_drive_report(image: &[u8; IMAGE_SIZE]) -> Result<DriveReport, Torn> {

@@ -35,7 +35,7 @@ fn fields_cover_the_image_exactly_once() {
         assert_eq!(f.writer, block.writer, "{}", f.name);
         let expect = match f.ty {
             "u8" => 1,
-            "u16" => 2,
+            "u16" | "i16" => 2,
             "u32" => 4,
             "reserved" => f.size,
             t => {
@@ -96,6 +96,8 @@ fn roundtrip(name: &str, image: &[u8; IMAGE_SIZE]) -> [u8; IMAGE_SIZE] {
         "MBX_REQ" => MailboxRequest::decode(src).unwrap().encode(dst),
         "MBX_RSP" => MailboxResponse::decode(src).encode(dst),
         "STATUS" => Status::decode(src).encode(dst),
+        "DRIVE_CMD" => DriveCommandImage::decode(src).encode(dst),
+        "DRIVE_STATE" => DriveStateImage::decode(src).encode(dst),
         _ => unreachable!(),
     }
     out
@@ -107,7 +109,8 @@ fn roundtrip(name: &str, image: &[u8; IMAGE_SIZE]) -> [u8; IMAGE_SIZE] {
 fn every_field_read_back() {
     let skip = |n: &str| n.ends_with("SEQ_HEAD") || n.ends_with("SEQ_TAIL") || n.ends_with(".reserved");
     for b in BLOCKS.iter().filter(|b| !matches!(b.name, "HEADER" | "OUTPUTS" | "INPUTS")) {
-        for f in FIELDS.iter().filter(|f| f.name.starts_with(b.name) && !skip(f.name)) {
+        let prefix = format!("{}.", b.name);
+        for f in FIELDS.iter().filter(|f| f.name.starts_with(&prefix) && !skip(f.name)) {
             let mut img = [0u8; IMAGE_SIZE];
             // A base that makes every field meaningful.
             let set = |img: &mut [u8; IMAGE_SIZE], n: &str, v: &[u8]| {
@@ -134,6 +137,8 @@ fn every_field_read_back() {
                     }
                 }
                 "STATUS" => set(&mut img, "STATUS.MASTER_ADDRESS", &[0xFF]),
+                "DRIVE_CMD" => set(&mut img, "DRIVE_CMD.EXTRA_COUNT", &[16]),
+                "DRIVE_STATE" => set(&mut img, "DRIVE_STATE.EXTRA_COUNT", &[16]),
                 _ => {}
             }
             let pattern: Vec<u8> = match (f.name, f.size) {
@@ -708,4 +713,173 @@ fn card_events_count_clear_and_init_error() {
     let r = b.dpm.card_report().unwrap();
     assert_eq!(r.event(CardEvent::CardFault), 1);
     assert!(r.flags.contains(CardFlags::CARD_FAULT));
+}
+
+// ---------------------------------------------------------------------------------------
+// Layout version 3: DRIVE_CMD / DRIVE_STATE, the codecs on raw bytes
+
+#[test]
+fn header_texts_name_this_version_and_size() {
+    let v = field("HEADER.LAYOUT_VERSION").valid;
+    assert!(v.starts_with(&format!("always: {} ", layout::LAYOUT_VERSION)), "{v}");
+    let n = field("HEADER.IMAGE_SIZE").valid;
+    assert!(n.contains(&format!("({}; ", IMAGE_SIZE)), "{n}");
+    for (ver, size) in layout::IMAGE_SIZE_OF_VERSION.iter().enumerate().skip(1).take(2) {
+        assert!(n.contains(&format!("version {ver}: {size}")), "{n}");
+        // Every block of that version ends within its size, every later one after it.
+        for b in BLOCKS {
+            assert_eq!(b.start + b.len <= *size, b.since as usize <= ver, "{} in version {ver}", b.name);
+        }
+    }
+    let caps = field("HEADER.CAPABILITIES").valid;
+    assert!(caps.contains("5 DRIVE_CMD, 6 DRIVE_STATE"));
+    assert_eq!(layout::cap::ALL, 0x7F);
+}
+
+fn sample_command() -> DriveCommandImage {
+    use crate::profile::drive_if::{CommandFlags, DriveCommand};
+    DriveCommandImage {
+        command: DriveCommand {
+            flags: CommandFlags::RUN | CommandFlags::FIELDBUS_CONTROL | CommandFlags::REVERSE,
+            speed_setpoint: -0x2000,
+            fault_resets: 3,
+            comm_loss_reaction: 2,
+        },
+        operate_mode: layout::operate_mode::PROFIDRIVE,
+        telegram: Telegram::Ppo(2),
+        outputs_seq: 77,
+        extra: PzdWords::new(&[1, 2, 0xFFFF, 0x8000]).unwrap(),
+    }
+}
+
+fn sample_state() -> DriveStateImage {
+    use crate::profile::drive_if::{DriveStatus, StatusFlags as S};
+    DriveStateImage {
+        status: DriveStatus {
+            flags: S::READY | S::RUNNING | S::REVERSE | S::WARNING,
+            speed: -0x1FF0,
+            current: 0x3000,
+            torque: -5,
+            power: 0x4000,
+            fault_code: 0,
+            warning_code: 0x0102,
+            namur: 0x0004,
+        },
+        inputs_seq: 9,
+        extra: PzdWords::new(&[0xAAAA; 16]).unwrap(),
+    }
+}
+
+#[test]
+fn drive_command_and_state_round_trip_through_the_sides() {
+    let mut dpm = Dpm::new();
+    assert_eq!(dpm.drive_command(), Ok((0, DriveCommandImage::EMPTY)), "never written");
+    let c = sample_command();
+    assert_eq!(dpm.card().write_drive_command(&c), 1);
+    assert_eq!(dpm.host().read_drive_command(), Ok((1, c)));
+    let b = dpm.as_bytes();
+    let at = field("DRIVE_CMD.SPEED_SETPOINT").offset;
+    assert_eq!(&b[at..at + 2], &[0xE0, 0x00], "i16 big-endian, two's complement");
+    let s = sample_state();
+    assert_eq!(dpm.host().write_drive_state(&s), 1);
+    assert_eq!(dpm.card().read_drive_state(), Ok((1, s)));
+    assert_eq!(dpm.drive_state(), Ok((1, s)));
+    assert_eq!(PzdWords::new(&[0; 17]), None, "at most 16 extra words");
+    assert_eq!(s.extra.word(15), 0xAAAA);
+    assert_eq!(c.extra.word(4), 0, "beyond the count");
+}
+
+#[test]
+fn codec_handles_match_the_map_and_the_sides() {
+    use super::codec;
+    let names = [
+        codec::HEADER.block().name,
+        codec::STATUS.block().name,
+        codec::OUTPUTS.block().name,
+        codec::INPUTS.block().name,
+        codec::IDENT.block().name,
+        codec::CARD.block().name,
+        codec::DRIVE.block().name,
+        codec::CONFIG.block().name,
+        codec::MBX_REQ.block().name,
+        codec::MBX_RSP.block().name,
+        codec::DRIVE_CMD.block().name,
+        codec::DRIVE_STATE.block().name,
+    ];
+    assert_eq!(names.to_vec(), BLOCKS.iter().map(|b| b.name).collect::<Vec<_>>());
+
+    let mut dpm = Dpm::new();
+    let img = |dpm: &Dpm, c: &codec::BlockCodec<_>| dpm.as_bytes()[c.start()..c.start() + c.len()].to_vec();
+    let hdr = codec::HEADER.decode(&img(&dpm, &codec::HEADER)).unwrap();
+    assert_eq!(hdr, (0, codec::Header::THIS_LAYOUT));
+    // A block the card wrote decodes as the host side reads it; the host's encoding is
+    // byte for byte what HostSide writes.
+    let c = sample_command();
+    dpm.card().write_drive_command(&c);
+    dpm.card().write_drive_command(&c);
+    let raw = &dpm.as_bytes()[codec::DRIVE_CMD.start()..][..codec::DRIVE_CMD.len()];
+    assert_eq!(codec::DRIVE_CMD.decode(raw), Ok((2, c)));
+    let s = sample_state();
+    let mut out = vec![0u8; codec::DRIVE_STATE.len()];
+    codec::DRIVE_STATE.encode(&s, 1, &mut out).unwrap();
+    dpm.host().write_drive_state(&s);
+    assert_eq!(out, &dpm.as_bytes()[codec::DRIVE_STATE.start()..][..codec::DRIVE_STATE.len()]);
+    // Wrong length and torn reads give nothing.
+    assert_eq!(
+        codec::DRIVE_STATE.decode(&out[1..]),
+        Err(codec::BlockError::Length { expected: codec::DRIVE_STATE.len(), got: codec::DRIVE_STATE.len() - 1 })
+    );
+    assert!(codec::DRIVE_STATE.encode(&s, 1, &mut [0u8; 3]).is_err());
+    let n = out.len();
+    out[n - 1] = 2;
+    assert_eq!(codec::DRIVE_STATE.decode(&out), Err(codec::BlockError::Torn(Torn { head: 1, tail: 2 })));
+    assert_eq!(codec::DRIVE_STATE.counters(&out), Some((1, 2)));
+    assert_eq!(codec::HEADER.counters(&img(&dpm, &codec::HEADER)), None, "not sequenced");
+    // MBX_REQ: no request = None; a request round-trips.
+    let mut req = vec![0u8; codec::MBX_REQ.len()];
+    assert_eq!(codec::MBX_REQ.decode(&req), Ok((0, None)));
+    let v = ParamValues::new(Format::WORD, 2, &[0, 1, 0, 2]).unwrap();
+    let r = MailboxRequest { id: 4, ..MailboxRequest::write(1, 100, 2, v) };
+    codec::MBX_REQ.encode(&Some(r), 7, &mut req).unwrap();
+    assert_eq!(codec::MBX_REQ.decode(&req), Ok((7, Some(r))));
+}
+
+proptest::proptest! {
+    /// Any bytes of any length: decoding never panics and gives a value only for the block's
+    /// length with equal counters; a decoded value re-encodes to what decodes the same.
+    #[test]
+    fn codecs_take_any_bytes(bytes in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..200), same in proptest::prelude::any::<bool>()) {
+        use super::codec;
+        fn check<T: PartialEq + core::fmt::Debug>(c: &codec::BlockCodec<T>, bytes: &[u8], same: bool) {
+            let mut b = bytes.to_vec();
+            b.resize(c.len(), 0);
+            if same && c.block().sequenced {
+                let n = b.len();
+                let (h0, h1) = (b[0], b[1]);
+                b[n - 2] = h0;
+                b[n - 1] = h1;
+            }
+            let _ = c.decode(bytes);
+            if let Ok((seq, v)) = c.decode(&b) {
+                let mut out = vec![0u8; c.len()];
+                c.encode(&v, seq, &mut out).unwrap();
+                let (seq2, v2) = c.decode(&out).unwrap();
+                assert_eq!((seq2, v2), (seq, v), "{}", c.block().name);
+            } else {
+                assert!(c.block().sequenced && !same);
+            }
+        }
+        check(&codec::HEADER, &bytes, same);
+        check(&codec::STATUS, &bytes, same);
+        check(&codec::OUTPUTS, &bytes, same);
+        check(&codec::INPUTS, &bytes, same);
+        check(&codec::IDENT, &bytes, same);
+        check(&codec::CARD, &bytes, same);
+        check(&codec::DRIVE, &bytes, same);
+        check(&codec::CONFIG, &bytes, same);
+        check(&codec::MBX_REQ, &bytes, same);
+        check(&codec::MBX_RSP, &bytes, same);
+        check(&codec::DRIVE_CMD, &bytes, same);
+        check(&codec::DRIVE_STATE, &bytes, same);
+    }
 }

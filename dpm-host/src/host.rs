@@ -1,0 +1,741 @@
+//! The [`Host`]: what the drive's control board runs against the card's DPM (issue 7 item 5).
+
+use crate::transport::{Transport, TransportError};
+use pbcard::dpm::codec::{self, BlockCodec, BlockError, Header};
+use pbcard::dpm::layout::{self, cap, CARD_EVENT_COUNT, EXT_DIAG_CAPACITY};
+use pbcard::dpm::{
+    mailbox, CardEvent, CardReport, ConfigResult, DriveCommandImage, DriveReport, DriveStateImage, HeartbeatMonitor,
+    HostConfig, Identity, Liveness, MailboxRequest, MailboxResponse, ParamValues, ProcessData, Status, Torn,
+};
+use pbcard::profile::param::{ParamError, ParameterAccess};
+use pbcard::time::{Duration, Instant};
+
+/// The longest block (the reader's buffer).
+const MAX_BLOCK: usize = {
+    let mut i = 0;
+    let mut m = 0;
+    while i < layout::BLOCKS.len() {
+        if layout::BLOCKS[i].len > m {
+            m = layout::BLOCKS[i].len;
+        }
+        i += 1;
+    }
+    m
+};
+
+const fn next_seq(s: u16) -> u16 {
+    if s == u16::MAX {
+        1
+    } else {
+        s + 1
+    }
+}
+
+/// How the [`Host`] works.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Options {
+    /// How long `CARD.HEARTBEAT` may stay unchanged before the card counts as lost (the A140
+    /// situation). Default 200 ms, the card's default for the drive's heartbeat.
+    pub card_timeout: Duration,
+    /// Reads of a block (or of a DRIVE_CMD / OUTPUTS pair) before giving up on a torn one.
+    /// Default 8; at least 1.
+    pub read_attempts: u8,
+    /// Capability bits ([`layout::cap`]) the drive cannot work without; [`Host::open`] refuses a
+    /// card lacking one. Default none.
+    pub required: u32,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options::DEFAULT
+    }
+}
+
+impl Options {
+    /// 200 ms card timeout, 8 read attempts, nothing required.
+    pub const DEFAULT: Options = Options { card_timeout: Duration::from_millis(200), read_attempts: 8, required: 0 };
+}
+
+/// Why [`Host::open`] refused the image.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OpenError {
+    /// The header could not be read.
+    Transport(TransportError),
+    /// `HEADER.MAGIC` is not "PBDM" (no card, or not initialised yet: try again).
+    BadMagic([u8; 4]),
+    /// `HEADER.LAYOUT_VERSION` 0 (not a layout).
+    BadVersion(u16),
+    /// `HEADER.IMAGE_SIZE` is smaller than the layout version promises.
+    BadImageSize {
+        /// The layout version read.
+        version: u16,
+        /// The size read.
+        size: u16,
+    },
+    /// The card lacks capabilities [`Options::required`] names (the missing bits).
+    MissingCapabilities(u32),
+}
+
+impl From<TransportError> for OpenError {
+    fn from(e: TransportError) -> Self {
+        OpenError::Transport(e)
+    }
+}
+
+/// Why a [`Host`] call gave no data.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Error {
+    /// The transport failed.
+    Transport(TransportError),
+    /// Every attempt saw the block being written; nothing was returned (read again later).
+    Torn(Torn),
+    /// The card does not serve this (capability bit(s) missing, or an older layout version).
+    NotSupported(u32),
+    /// DRIVE_CMD and OUTPUTS stayed from different card cycles for every attempt (the
+    /// command's `outputs_seq`, the outputs' counter).
+    Unpaired {
+        /// `DRIVE_CMD.OUTPUTS_SEQ` as read last.
+        command_for: u16,
+        /// `OUTPUTS.SEQ_HEAD` as read last.
+        outputs: u16,
+    },
+    /// [`Host::respond`] to a request that is no longer the card's current one (the card timed
+    /// it out and asked something else): the answer is not written, so it can never be taken
+    /// for the new request.
+    StaleResponse {
+        /// The request answered.
+        id: u16,
+        /// The card's current request (0 = none).
+        current: u16,
+    },
+    /// More bytes than the block holds (extended diagnosis).
+    TooLong,
+}
+
+impl From<TransportError> for Error {
+    fn from(e: TransportError) -> Self {
+        Error::Transport(e)
+    }
+}
+
+impl core::fmt::Display for Error {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Error::Transport(e) => write!(f, "transport: {e}"),
+            Error::Torn(t) => write!(f, "block torn on every attempt (head {}, tail {})", t.head, t.tail),
+            Error::NotSupported(c) => write!(f, "not served by this card (capabilities {c:#x})"),
+            Error::Unpaired { command_for, outputs } => {
+                write!(f, "command for outputs {command_for}, outputs {outputs}: never one cycle")
+            }
+            Error::StaleResponse { id, current } => write!(f, "request {id} is no longer current ({current})"),
+            Error::TooLong => f.write_str("too long for the block"),
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for Error {}
+
+#[cfg(feature = "std")]
+impl std::error::Error for OpenError {}
+
+impl core::fmt::Display for OpenError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            OpenError::Transport(e) => write!(f, "transport: {e}"),
+            OpenError::BadMagic(m) => write!(f, "bad magic {m:02X?}"),
+            OpenError::BadVersion(v) => write!(f, "bad layout version {v}"),
+            OpenError::BadImageSize { version, size } => write!(f, "image size {size} too small for version {version}"),
+            OpenError::MissingCapabilities(c) => write!(f, "missing capabilities {c:#x}"),
+        }
+    }
+}
+
+/// Where the configuration the host wrote last stands (`CARD.CONFIG_ACK` / `CONFIG_RESULT`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ConfigOutcome {
+    /// This host has written no configuration.
+    NotWritten,
+    /// The card has not looked at it yet.
+    Waiting,
+    /// Valid; the card waits until no cyclic exchange runs.
+    Pending,
+    /// Taken over.
+    Accepted,
+    /// Refused as invalid.
+    Refused,
+}
+
+/// New card → drive events since the previous [`Host::poll`]: how often each
+/// [`CardEvent`] happened (from the wrapping counters in `CARD.EVENTS`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct CardEvents {
+    counts: [u8; CARD_EVENT_COUNT],
+}
+
+impl CardEvents {
+    /// How often `e` happened.
+    pub fn count(&self, e: CardEvent) -> u8 {
+        self.counts[e as usize]
+    }
+
+    /// Whether `e` happened.
+    pub fn contains(&self, e: CardEvent) -> bool {
+        self.count(e) > 0
+    }
+
+    /// Whether nothing happened.
+    pub fn is_empty(&self) -> bool {
+        self.counts.iter().all(|&c| c == 0)
+    }
+
+    /// The events that happened.
+    pub fn iter(&self) -> impl Iterator<Item = CardEvent> + '_ {
+        CardEvent::ALL.into_iter().filter(|&e| self.contains(e))
+    }
+}
+
+/// What one [`Host::poll`] saw.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Poll {
+    /// The card's heartbeat: `Lost` = the card stopped (the manuals' A140 situation; the drive
+    /// applies its communication-error action, P0313-style).
+    pub card: Liveness,
+    /// The card was alive (or never seen) and is lost since this poll.
+    pub card_lost: bool,
+    /// The card was lost and beats again since this poll.
+    pub card_returned: bool,
+    /// Card → drive events since the last poll (none on the first read after [`Host::open`]).
+    pub events: CardEvents,
+    /// The CARD block as read now (`None`: not served, torn on every attempt, or the transport
+    /// failed — see `error`).
+    pub report: Option<CardReport>,
+    /// The first failure of this poll (the DRIVE write or the CARD read), if any.
+    pub error: Option<Error>,
+}
+
+/// The drive's answer to a parameter request ([`ParameterServer`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Answer {
+    /// The values read / write done, or the PROFIdrive error.
+    Now(Result<ParamValues, ParamError>),
+    /// The drive answers later with [`Host::respond`] (it must, within the card's mailbox
+    /// timeout, or the card answers the master with 0x11 / 0xDD01 itself).
+    Later,
+}
+
+/// The drive's parameter table as the mailbox sees it: one call per new request.
+pub trait ParameterServer {
+    /// Answer `req` (read, write or read description of `req.pnu`).
+    fn request(&mut self, req: &MailboxRequest) -> Answer;
+}
+
+impl<F: FnMut(&MailboxRequest) -> Answer> ParameterServer for F {
+    fn request(&mut self, req: &MailboxRequest) -> Answer {
+        self(req)
+    }
+}
+
+/// A synchronous parameter table ([`ParameterAccess`], the same trait the card's own
+/// parameters implement) as a [`ParameterServer`]: answered at once by
+/// [`pbcard::dpm::mailbox::execute`] (format and count checks, PROFIdrive error values).
+#[derive(Debug)]
+pub struct Table<'a, P>(pub &'a mut P);
+
+impl<P: ParameterAccess> ParameterServer for Table<'_, P> {
+    fn request(&mut self, req: &MailboxRequest) -> Answer {
+        Answer::Now(mailbox::execute(req, self.0))
+    }
+}
+
+/// The process data of one card cycle: the drive-neutral command and the master's raw outputs
+/// it was made from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ProcessImage {
+    /// DRIVE_CMD's sequence counter (0 = the card has not written a command yet).
+    pub command_seq: u16,
+    /// The command.
+    pub command: DriveCommandImage,
+    /// The outputs (`seq` = OUTPUTS' counter).
+    pub outputs: ProcessData,
+}
+
+/// Counters of the [`Host`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct HostStats {
+    /// Block reads that saw a write in progress and were repeated.
+    pub torn_retries: u32,
+    /// Reads that stayed torn for every attempt ([`Error::Torn`]).
+    pub torn_failures: u32,
+    /// DRIVE_CMD / OUTPUTS pairs from two card cycles, read again.
+    pub unpaired_retries: u32,
+    /// Transport failures.
+    pub transport_errors: u32,
+    /// Parameter requests taken from MBX_REQ.
+    pub requests: u32,
+    /// Responses written to MBX_RSP.
+    pub responses: u32,
+    /// Responses not written because their request was no longer current.
+    pub stale_responses: u32,
+    /// Card heartbeat losses.
+    pub card_losses: u32,
+}
+
+/// The host side of the DPM interface over a [`Transport`]: open and check the image, read
+/// the card's identity, status and events, write configuration and see its acknowledge,
+/// exchange process data through the sequenced blocks, serve the parameter mailbox, report
+/// faults / warnings / extended diagnosis, and keep both heartbeats.
+///
+/// Time is handed in ([`Instant`]); nothing blocks. A typical drive cycle:
+///
+/// ```text
+/// host.poll(now)                      // DRIVE (heartbeat, reports) out, CARD in: events, card lost?
+/// host.read_process_data()            // DRIVE_CMD + OUTPUTS of one card cycle
+/// … the drive applies the command …
+/// host.write_process_data(&inputs, &state)   // INPUTS, then DRIVE_STATE
+/// host.serve_parameters(&mut table)   // a new mailbox request, if any
+/// ```
+#[derive(Debug)]
+pub struct Host<T> {
+    transport: T,
+    header: Header,
+    opts: Options,
+    seq_inputs: u16,
+    seq_drive: u16,
+    seq_config: u16,
+    seq_rsp: u16,
+    seq_state: u16,
+    heartbeat: u16,
+    report: DriveReport,
+    card_monitor: HeartbeatMonitor,
+    card_heartbeat: u16,
+    card_lost: bool,
+    events_seen: Option<[u8; CARD_EVENT_COUNT]>,
+    config_written: Option<u16>,
+    request_seen: u16,
+    request_open: Option<u16>,
+    stats: HostStats,
+}
+
+impl<T: Transport> Host<T> {
+    /// Open the interface: read the header, check the magic, the layout version (any version;
+    /// newer cards only append) and its image size, and the capabilities `opts.required`;
+    /// then take over the sequence counters of the blocks the host writes, so a restarted host
+    /// continues them (the card only takes a block whose counter changed).
+    pub fn open(mut transport: T, opts: Options) -> Result<Self, OpenError> {
+        let mut buf = [0u8; layout::header::LEN];
+        transport.read(codec::HEADER.start() as u16, &mut buf)?;
+        let header = match codec::HEADER.decode(&buf) {
+            Ok((_, h)) => h,
+            Err(_) => return Err(OpenError::BadMagic([0; 4])),
+        };
+        if header.magic != layout::MAGIC {
+            return Err(OpenError::BadMagic(header.magic));
+        }
+        if header.layout_version == 0 {
+            return Err(OpenError::BadVersion(0));
+        }
+        let known = (header.layout_version as usize).min(layout::LAYOUT_VERSION as usize);
+        if (header.image_size as usize) < layout::IMAGE_SIZE_OF_VERSION[known] {
+            return Err(OpenError::BadImageSize { version: header.layout_version, size: header.image_size });
+        }
+        let missing = opts.required & !header.capabilities;
+        if missing != 0 {
+            return Err(OpenError::MissingCapabilities(missing));
+        }
+        let mut host = Host {
+            transport,
+            header,
+            opts,
+            seq_inputs: 0,
+            seq_drive: 0,
+            seq_config: 0,
+            seq_rsp: 0,
+            seq_state: 0,
+            heartbeat: 0,
+            report: DriveReport::EMPTY,
+            card_monitor: HeartbeatMonitor::new(opts.card_timeout),
+            card_heartbeat: 0,
+            card_lost: false,
+            events_seen: None,
+            config_written: None,
+            request_seen: 0,
+            request_open: None,
+            stats: HostStats::default(),
+        };
+        host.seq_inputs = host.read_u16(codec::INPUTS.start())?;
+        if host.has(cap::DRIVE_REPORTS) {
+            host.seq_drive = host.read_u16(codec::DRIVE.start())?;
+            host.heartbeat = host.read_u16(codec::DRIVE.start() + layout::drive::HEARTBEAT)?;
+        }
+        if host.has(cap::CONFIG) {
+            host.seq_config = host.read_u16(codec::CONFIG.start())?;
+        }
+        if host.has(cap::MAILBOX) {
+            host.seq_rsp = host.read_u16(codec::MBX_RSP.start())?;
+            host.request_seen = host.read_u16(codec::MBX_RSP.start() + layout::mbx_rsp::REQ_ID)?;
+        }
+        if host.has(cap::DRIVE_STATE) {
+            host.seq_state = host.read_u16(codec::DRIVE_STATE.start())?;
+        }
+        Ok(host)
+    }
+
+    /// The header read by [`Self::open`].
+    pub fn header(&self) -> &Header {
+        &self.header
+    }
+
+    /// Whether the card serves every bit of `capabilities` ([`layout::cap`]).
+    pub fn has(&self, capabilities: u32) -> bool {
+        self.header.capabilities & capabilities == capabilities && self.header.layout_version >= 2
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> HostStats {
+        self.stats
+    }
+
+    /// The transport.
+    pub fn transport(&self) -> &T {
+        &self.transport
+    }
+
+    /// The transport, writable (an in-process test works on the card side through it).
+    pub fn transport_mut(&mut self) -> &mut T {
+        &mut self.transport
+    }
+
+    /// Close: give the transport back.
+    pub fn into_transport(self) -> T {
+        self.transport
+    }
+
+    // -----------------------------------------------------------------------------------
+    // Identity, status, card report
+
+    /// The identification block (card type, firmware, ident number, serial).
+    pub fn identity(&mut self) -> Result<Identity, Error> {
+        self.require(cap::IDENT)?;
+        self.read(&codec::IDENT).map(|(_, v)| v)
+    }
+
+    /// The status block (P0740 state, P0963 baud, addresses, telegram, DP state, counters).
+    pub fn status(&mut self) -> Result<Status, Error> {
+        self.read(&codec::STATUS).map(|(_, v)| v)
+    }
+
+    /// The card block as it is now (heartbeat, configuration acknowledge, event counters); the
+    /// events and the card's liveness are followed by [`Self::poll`].
+    pub fn card_report(&mut self) -> Result<CardReport, Error> {
+        self.require(cap::CARD_EVENTS)?;
+        self.read(&codec::CARD).map(|(_, v)| v)
+    }
+
+    // -----------------------------------------------------------------------------------
+    // Configuration
+
+    /// Write the configuration (station address, telegram, profile, operate mode, PZD
+    /// mapping, communication-loss reaction and delay); returns its sequence counter. The card
+    /// takes it over only while no cyclic exchange runs ([`Self::config_outcome`]).
+    pub fn write_config(&mut self, cfg: &HostConfig) -> Result<u16, Error> {
+        self.require(cap::CONFIG)?;
+        let mut seq = self.seq_config;
+        let r = self.write(&codec::CONFIG, cfg, &mut seq);
+        self.seq_config = seq;
+        self.config_written = Some(seq);
+        r
+    }
+
+    /// Where the configuration written last stands, from `CARD.CONFIG_ACK` / `CONFIG_RESULT`.
+    pub fn config_outcome(&mut self) -> Result<ConfigOutcome, Error> {
+        let Some(seq) = self.config_written else { return Ok(ConfigOutcome::NotWritten) };
+        let r = self.card_report()?;
+        Ok(Self::outcome(seq, &r))
+    }
+
+    fn outcome(seq: u16, r: &CardReport) -> ConfigOutcome {
+        if r.config_ack != seq {
+            return ConfigOutcome::Waiting;
+        }
+        match r.config_result() {
+            ConfigResult::Accepted => ConfigOutcome::Accepted,
+            ConfigResult::Pending => ConfigOutcome::Pending,
+            ConfigResult::Refused => ConfigOutcome::Refused,
+            ConfigResult::None => ConfigOutcome::Waiting,
+        }
+    }
+
+    // -----------------------------------------------------------------------------------
+    // Process data
+
+    /// The master's outputs (raw telegram words) as the card wrote them last.
+    pub fn read_outputs(&mut self) -> Result<ProcessData, Error> {
+        self.read(&codec::OUTPUTS).map(|(_, v)| v)
+    }
+
+    /// The drive-neutral command as the card wrote it last, with its sequence counter.
+    pub fn read_command(&mut self) -> Result<(u16, DriveCommandImage), Error> {
+        self.require(cap::DRIVE_CMD)?;
+        self.read(&codec::DRIVE_CMD)
+    }
+
+    /// DRIVE_CMD and OUTPUTS of one card cycle: both blocks consistent, and the command made
+    /// from exactly these outputs (`DRIVE_CMD.OUTPUTS_SEQ` = `OUTPUTS.SEQ_HEAD`, or 0 = not
+    /// tied to outputs). A pair from two cycles is read again; nothing torn or unpaired is
+    /// ever returned.
+    pub fn read_process_data(&mut self) -> Result<ProcessImage, Error> {
+        self.require(cap::DRIVE_CMD)?;
+        let mut last = (0, 0);
+        for _ in 0..self.opts.read_attempts.max(1) {
+            let (_, outputs) = self.read(&codec::OUTPUTS)?;
+            let (command_seq, command) = self.read(&codec::DRIVE_CMD)?;
+            if command.outputs_seq == 0 || command.outputs_seq == outputs.seq {
+                return Ok(ProcessImage { command_seq, command, outputs });
+            }
+            last = (command.outputs_seq, outputs.seq);
+            self.stats.unpaired_retries = self.stats.unpaired_retries.wrapping_add(1);
+        }
+        Err(Error::Unpaired { command_for: last.0, outputs: last.1 })
+    }
+
+    /// Write the drive's inputs (raw telegram words for `inputs.telegram`; the card serves
+    /// them only for the active telegram); returns INPUTS' new counter.
+    pub fn write_inputs(&mut self, inputs: &ProcessData) -> Result<u16, Error> {
+        let mut seq = self.seq_inputs;
+        let r = self.write(&codec::INPUTS, inputs, &mut seq);
+        self.seq_inputs = seq;
+        r
+    }
+
+    /// Write the drive-neutral status alone (its `inputs_seq` as given); returns DRIVE_STATE's
+    /// new counter.
+    pub fn write_state(&mut self, state: &DriveStateImage) -> Result<u16, Error> {
+        self.require(cap::DRIVE_STATE)?;
+        let mut seq = self.seq_state;
+        let r = self.write(&codec::DRIVE_STATE, state, &mut seq);
+        self.seq_state = seq;
+        r
+    }
+
+    /// Write INPUTS, then DRIVE_STATE naming it (`inputs_seq`), so the card can tell the two
+    /// belong to one drive cycle. Returns the two counters.
+    pub fn write_process_data(&mut self, inputs: &ProcessData, state: &DriveStateImage) -> Result<(u16, u16), Error> {
+        self.require(cap::DRIVE_STATE)?;
+        let i = self.write_inputs(inputs)?;
+        let s = self.write_state(&DriveStateImage { inputs_seq: i, ..*state })?;
+        Ok((i, s))
+    }
+
+    // -----------------------------------------------------------------------------------
+    // Faults, warnings, extended diagnosis (DRIVE), heartbeats
+
+    /// Report the active fault (0 = none); a new non-zero code counts as a new fault report
+    /// (`DRIVE.FAULT_COUNT`). Written with the next [`Self::poll`].
+    pub fn set_fault(&mut self, code: u16) {
+        if code != 0 && code != self.report.fault_code {
+            self.report.fault_count = self.report.fault_count.wrapping_add(1);
+        }
+        self.report.fault_code = code;
+    }
+
+    /// Report the active warning (0 = none), like [`Self::set_fault`].
+    pub fn set_warning(&mut self, code: u16) {
+        if code != 0 && code != self.report.warning_code {
+            self.report.warning_count = self.report.warning_count.wrapping_add(1);
+        }
+        self.report.warning_code = code;
+    }
+
+    /// Hand over extended diagnosis blocks as DP sends them (device / identifier / channel
+    /// related; empty = none); the card refuses malformed ones (it counts them). Written with
+    /// the next [`Self::poll`].
+    pub fn set_ext_diag(&mut self, blocks: &[u8]) -> Result<(), Error> {
+        if blocks.len() > EXT_DIAG_CAPACITY {
+            return Err(Error::TooLong);
+        }
+        self.report.set_ext_diag(blocks);
+        Ok(())
+    }
+
+    /// What the next [`Self::poll`] writes to DRIVE (heartbeat excepted).
+    pub fn drive_report(&self) -> &DriveReport {
+        &self.report
+    }
+
+    /// The card's heartbeat as last judged.
+    pub fn card_liveness(&self) -> Liveness {
+        self.card_monitor.liveness()
+    }
+
+    /// The drive cycle's supervision step: write DRIVE (a new heartbeat, the fault / warning
+    /// reports, the extended diagnosis), read CARD, judge the card's heartbeat (a CARD that
+    /// cannot be read counts as unchanged, so a dead link is a lost card too) and report the
+    /// card → drive events since the last poll. Call it every drive cycle, well within the
+    /// card's drive timeout.
+    pub fn poll(&mut self, now: Instant) -> Poll {
+        let mut error = None;
+        if self.has(cap::DRIVE_REPORTS) {
+            self.heartbeat = next_seq(self.heartbeat);
+            let mut report = self.report;
+            report.heartbeat = self.heartbeat;
+            let mut seq = self.seq_drive;
+            if let Err(e) = self.write(&codec::DRIVE, &report, &mut seq) {
+                error = Some(e);
+            }
+            self.seq_drive = seq;
+        }
+        let mut events = CardEvents::default();
+        let report = if self.has(cap::CARD_EVENTS) {
+            match self.read(&codec::CARD) {
+                Ok((_, r)) => {
+                    self.card_heartbeat = r.heartbeat;
+                    if let Some(seen) = self.events_seen {
+                        for (i, c) in events.counts.iter_mut().enumerate() {
+                            *c = r.events[i].wrapping_sub(seen[i]);
+                        }
+                    }
+                    self.events_seen = Some(r.events);
+                    Some(r)
+                }
+                Err(e) => {
+                    error = error.or(Some(e));
+                    None
+                }
+            }
+        } else {
+            None
+        };
+        let before = self.card_monitor.liveness();
+        let card = self.card_monitor.observe(now, self.card_heartbeat);
+        let card_lost = card == Liveness::Lost && before != Liveness::Lost;
+        let card_returned = card == Liveness::Alive && self.card_lost;
+        if card_lost {
+            self.card_lost = true;
+            self.stats.card_losses = self.stats.card_losses.wrapping_add(1);
+        }
+        if card_returned {
+            self.card_lost = false;
+        }
+        Poll { card, card_lost, card_returned, events, report, error }
+    }
+
+    // -----------------------------------------------------------------------------------
+    // Parameter mailbox
+
+    /// A new request in MBX_REQ, once (`None`: none, or already taken). The answer goes back
+    /// with [`Self::respond`].
+    pub fn fetch_request(&mut self) -> Result<Option<MailboxRequest>, Error> {
+        self.require(cap::MAILBOX)?;
+        let (_, req) = self.read(&codec::MBX_REQ)?;
+        match req {
+            Some(r) if r.id != self.request_seen => {
+                self.request_seen = r.id;
+                self.request_open = Some(r.id);
+                self.stats.requests = self.stats.requests.wrapping_add(1);
+                Ok(Some(r))
+            }
+            _ => Ok(None),
+        }
+    }
+
+    /// The request taken and not answered yet.
+    pub fn open_request(&self) -> Option<u16> {
+        self.request_open
+    }
+
+    /// Answer request `id`: written only while it is still the card's current request (else
+    /// [`Error::StaleResponse`], and the new request is there to be fetched), so a late answer
+    /// can never overwrite the answer to a newer request; the card, for its part, takes a
+    /// response only when its `REQ_ID` names the outstanding request.
+    pub fn respond(&mut self, id: u16, outcome: Result<ParamValues, ParamError>) -> Result<(), Error> {
+        self.require(cap::MAILBOX)?;
+        let (_, req) = self.read(&codec::MBX_REQ)?;
+        let current = req.map_or(0, |r| r.id);
+        if current != id {
+            self.stats.stale_responses = self.stats.stale_responses.wrapping_add(1);
+            if self.request_open == Some(id) {
+                self.request_open = None;
+            }
+            return Err(Error::StaleResponse { id, current });
+        }
+        let mut seq = self.seq_rsp;
+        let r = self.write(&codec::MBX_RSP, &MailboxResponse { id, outcome }, &mut seq);
+        self.seq_rsp = seq;
+        r?;
+        self.request_open = None;
+        self.stats.responses = self.stats.responses.wrapping_add(1);
+        Ok(())
+    }
+
+    /// Fetch a new request and hand it to `server`; an immediate answer is written at once.
+    /// Returns the id of the request taken (`None`: nothing new).
+    pub fn serve_parameters(&mut self, server: &mut impl ParameterServer) -> Result<Option<u16>, Error> {
+        let Some(req) = self.fetch_request()? else { return Ok(None) };
+        if let Answer::Now(outcome) = server.request(&req) {
+            self.respond(req.id, outcome)?;
+        }
+        Ok(Some(req.id))
+    }
+
+    // -----------------------------------------------------------------------------------
+    // Block access
+
+    fn require(&self, capabilities: u32) -> Result<(), Error> {
+        if self.has(capabilities) {
+            Ok(())
+        } else {
+            Err(Error::NotSupported(capabilities & !self.header.capabilities))
+        }
+    }
+
+    fn transport_error(&mut self, e: TransportError) -> Error {
+        self.stats.transport_errors = self.stats.transport_errors.wrapping_add(1);
+        Error::Transport(e)
+    }
+
+    fn read_u16(&mut self, at: usize) -> Result<u16, TransportError> {
+        let mut b = [0u8; 2];
+        self.transport.read(at as u16, &mut b)?;
+        Ok(u16::from_be_bytes(b))
+    }
+
+    /// Read a block in one ascending pass; a torn read is repeated up to
+    /// `read_attempts` times and never returned.
+    fn read<V>(&mut self, c: &BlockCodec<V>) -> Result<(u16, V), Error> {
+        let mut buf = [0u8; MAX_BLOCK];
+        let b = &mut buf[..c.len()];
+        let mut torn = Torn { head: 0, tail: 0 };
+        for _ in 0..self.opts.read_attempts.max(1) {
+            if let Err(e) = self.transport.read(c.start() as u16, b) {
+                return Err(self.transport_error(e));
+            }
+            match c.decode(b) {
+                Ok(v) => return Ok(v),
+                Err(BlockError::Torn(t)) => {
+                    torn = t;
+                    self.stats.torn_retries = self.stats.torn_retries.wrapping_add(1);
+                }
+                // `b` has the block's length by construction.
+                Err(BlockError::Length { .. }) => return Err(Error::Transport(TransportError::OutOfRange)),
+            }
+        }
+        self.stats.torn_failures = self.stats.torn_failures.wrapping_add(1);
+        Err(Error::Torn(torn))
+    }
+
+    /// Write a block in one ascending pass with the next counter after `*seq` (advanced even
+    /// if the transport fails: a half-written block is never completed under the same number).
+    fn write<V>(&mut self, c: &BlockCodec<V>, value: &V, seq: &mut u16) -> Result<u16, Error> {
+        let mut buf = [0u8; MAX_BLOCK];
+        let b = &mut buf[..c.len()];
+        *seq = next_seq(*seq);
+        if c.encode(value, *seq, b).is_err() {
+            return Err(Error::Transport(TransportError::OutOfRange));
+        }
+        match self.transport.write(c.start() as u16, b) {
+            Ok(()) => Ok(*seq),
+            Err(e) => Err(self.transport_error(e)),
+        }
+    }
+}

@@ -1,0 +1,186 @@
+//! How the host reaches the card's DPM image: a [`Transport`] moves byte ranges of the image
+//! (ARCHITECTURE §5; `docs/DPM.md`). The in-process transports here serve the host tests, the
+//! soft slave and the QEMU build; on the board an SPI frame client implements the same trait.
+//!
+//! **Order rule.** A transport must move the bytes of one `read` or `write` in ascending address
+//! order (the sequenced-block protocol of `pbcard::dpm` relies on it: the host reads and writes
+//! a block in one ascending pass). Every transport here does; an SPI frame of command / address
+//! / length / data does by construction.
+
+use pbcard::dpm::Dpm;
+
+/// Why a transport access failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TransportError {
+    /// The range lies (partly) outside the image.
+    OutOfRange,
+    /// The link to the card did not answer (no card, SPI not clocked, timeout).
+    NoResponse,
+    /// A frame arrived corrupted (CRC / check failed); nothing of it was used.
+    Corrupt,
+    /// The card refused the access (e.g. a write to a block the card writes).
+    Refused,
+}
+
+impl core::fmt::Display for TransportError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            TransportError::OutOfRange => "access outside the DPM image",
+            TransportError::NoResponse => "the card did not answer",
+            TransportError::Corrupt => "corrupted frame",
+            TransportError::Refused => "access refused by the card",
+        })
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for TransportError {}
+
+/// Byte-range access to the card's DPM image (offsets as in `docs/DPM.md`).
+///
+/// Implement it for the board's link (SPI frames, a parallel dual-port RAM, …). Each call must
+/// move its bytes in ascending address order, and a failed `write` may have written a prefix
+/// of `data` (the sequenced blocks make that visible to the card as a torn block, never as data).
+pub trait Transport {
+    /// Read `buf.len()` bytes from `offset`.
+    fn read(&mut self, offset: u16, buf: &mut [u8]) -> Result<(), TransportError>;
+    /// Write `data` at `offset`.
+    fn write(&mut self, offset: u16, data: &[u8]) -> Result<(), TransportError>;
+}
+
+impl<T: Transport + ?Sized> Transport for &mut T {
+    fn read(&mut self, offset: u16, buf: &mut [u8]) -> Result<(), TransportError> {
+        (**self).read(offset, buf)
+    }
+    fn write(&mut self, offset: u16, data: &[u8]) -> Result<(), TransportError> {
+        (**self).write(offset, data)
+    }
+}
+
+fn range(len: usize, offset: u16, n: usize) -> Result<core::ops::Range<usize>, TransportError> {
+    let start = offset as usize;
+    match start.checked_add(n) {
+        Some(end) if end <= len => Ok(start..end),
+        _ => Err(TransportError::OutOfRange),
+    }
+}
+
+/// Any byte memory as the image: a memory-mapped dual-port RAM window, a buffer an SPI
+/// driver fills, a test's array.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct MemoryTransport<M> {
+    memory: M,
+}
+
+impl<M: AsRef<[u8]> + AsMut<[u8]>> MemoryTransport<M> {
+    /// Access `memory` (offset 0 = the image's first byte).
+    pub const fn new(memory: M) -> Self {
+        MemoryTransport { memory }
+    }
+
+    /// The memory.
+    pub fn memory(&self) -> &M {
+        &self.memory
+    }
+
+    /// The memory, writable.
+    pub fn memory_mut(&mut self) -> &mut M {
+        &mut self.memory
+    }
+}
+
+impl<M: AsRef<[u8]> + AsMut<[u8]>> Transport for MemoryTransport<M> {
+    fn read(&mut self, offset: u16, buf: &mut [u8]) -> Result<(), TransportError> {
+        let m = self.memory.as_ref();
+        let r = range(m.len(), offset, buf.len())?;
+        buf.copy_from_slice(&m[r]);
+        Ok(())
+    }
+    fn write(&mut self, offset: u16, data: &[u8]) -> Result<(), TransportError> {
+        let m = self.memory.as_mut();
+        let r = range(m.len(), offset, data.len())?;
+        m[r].copy_from_slice(data);
+        Ok(())
+    }
+}
+
+/// The in-process transport over a [`Dpm`] image the card side also works on (owned: `Dpm`,
+/// borrowed: `&mut Dpm`, or anything that lends one).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct DpmTransport<D> {
+    dpm: D,
+}
+
+impl<D: core::borrow::BorrowMut<Dpm>> DpmTransport<D> {
+    /// Access `dpm`.
+    pub const fn new(dpm: D) -> Self {
+        DpmTransport { dpm }
+    }
+
+    /// The image (the card side: `dpm().card()` is not available through `&`, use
+    /// [`Self::dpm_mut`]).
+    pub fn dpm(&self) -> &Dpm {
+        self.dpm.borrow()
+    }
+
+    /// The image, for the card side between host calls.
+    pub fn dpm_mut(&mut self) -> &mut Dpm {
+        self.dpm.borrow_mut()
+    }
+
+    /// Give the image back.
+    pub fn into_inner(self) -> D {
+        self.dpm
+    }
+}
+
+impl<D: core::borrow::BorrowMut<Dpm>> Transport for DpmTransport<D> {
+    fn read(&mut self, offset: u16, buf: &mut [u8]) -> Result<(), TransportError> {
+        let img = self.dpm.borrow().as_bytes();
+        let r = range(img.len(), offset, buf.len())?;
+        buf.copy_from_slice(&img[r]);
+        Ok(())
+    }
+    fn write(&mut self, offset: u16, data: &[u8]) -> Result<(), TransportError> {
+        let img = self.dpm.borrow_mut().as_bytes_mut();
+        let r = range(img.len(), offset, data.len())?;
+        img[r].copy_from_slice(data);
+        Ok(())
+    }
+}
+
+/// An image shared by the card side and the host in one process (`std`): clone it, give one
+/// clone to the [`crate::Host`], keep the other for the card's [`pbcard::dpm::Link`].
+#[cfg(feature = "std")]
+#[derive(Debug, Clone, Default)]
+pub struct SharedDpm(pub std::rc::Rc<core::cell::RefCell<Dpm>>);
+
+#[cfg(feature = "std")]
+impl SharedDpm {
+    /// A shared fresh image ([`Dpm::new`]).
+    pub fn new() -> Self {
+        Self::from(Dpm::new())
+    }
+
+    /// Borrow the image (the card side works on it between host calls).
+    pub fn borrow_mut(&self) -> core::cell::RefMut<'_, Dpm> {
+        self.0.borrow_mut()
+    }
+}
+
+#[cfg(feature = "std")]
+impl From<Dpm> for SharedDpm {
+    fn from(dpm: Dpm) -> Self {
+        SharedDpm(std::rc::Rc::new(core::cell::RefCell::new(dpm)))
+    }
+}
+
+#[cfg(feature = "std")]
+impl Transport for SharedDpm {
+    fn read(&mut self, offset: u16, buf: &mut [u8]) -> Result<(), TransportError> {
+        DpmTransport::new(&mut *self.0.borrow_mut()).read(offset, buf)
+    }
+    fn write(&mut self, offset: u16, data: &[u8]) -> Result<(), TransportError> {
+        DpmTransport::new(&mut *self.0.borrow_mut()).write(offset, data)
+    }
+}
