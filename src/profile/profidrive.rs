@@ -576,7 +576,8 @@ impl ControlProfile for Profidrive {
                     self.frozen = None;
                 }
             }
-            if !(self.config.freeze_bit && !stw.contains(Stw1::UNFREEZE_RAMP)) {
+            let frozen = self.config.freeze_bit && !stw.contains(Stw1::UNFREEZE_RAMP);
+            if !frozen {
                 self.setpoint = self.convert_setpoint(stw, setpoint);
             }
         } else {
@@ -646,4 +647,4 @@ impl ControlProfile for Profidrive {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;
