@@ -2,6 +2,13 @@
 //!
 //! * [`drive_if`] — the drive-neutral command / status the profile exchanges with the drive
 //!   through the DPM (OPTE3/E5 §11 FBFixedControlWord / FBFixedStatusWord model).
+//! * [`profidrive`] — the PROFIdrive control profiles on that interface: PROFIdrive 4.1 (ST1,
+//!   ST20, VACON telegrams 100/101/138/139; general state diagram, STW1/ZSW1, OPTE3/E5
+//!   §6.3) and PROFIdrive 2.0 for the PPO types (§6.5), plus [`profidrive::SpeedScale`], the
+//!   conversion between a profile's speed word and the neutral N2 scale.
+//! * [`weg`] — WEG's profiles (CFW500 §4 / §5.1, CFW-11 §3): the manufacturer profile
+//!   (P0684 / P0680, 13-bit speed P0685 / P0681) and the PROFIdrive selection (P0967 / P0968).
+//! * [`invt`] — the INVT HD2 control word commands 1–9 and status word values (INVT §2.6).
 //! * [`param`] — PROFIdrive base-mode parameter access, data record 47: request parser, the
 //!   [`param::ParameterAccess`] trait a drive parameter table implements, and [`param::respond`],
 //!   which builds the parameter response (VACON OPTE3/E5 manual §6.4, WEG CFW-11 §4.2.4,
@@ -21,8 +28,13 @@
 //! record routing above them.
 
 pub mod drive_if;
+#[cfg(test)]
+pub(crate) mod drive_stub;
+pub mod invt;
 pub mod param;
 pub mod pnu;
+pub mod profidrive;
 pub mod records;
 pub mod table;
+pub mod weg;
 pub mod weg48;
