@@ -192,3 +192,18 @@ write("dpv1_pdu", "initiate_longer_than_pdu", [0x57, 0, 0, 0, 0, 100, 1, 0, 0, 0
 # Set_Prm + Chk_Cfg is still executed and answered afterwards.
 write("node_dpv1", "known_bug_c1_broadcast_sdn", [0x00, 0, 0x00, 14, 2, 0, 0x06, 0x85, 0x01, 0x0A, 0x01, 0x02, 11, 2])
 write("node_dpv1", "known_bug_c1_stale_request", [0x00, 0, 0x04] + PR_READ_918 + [13, 0x00, 0x00, 11, 2])
+
+# pkw: byte 0 = dialect (0 VACON, 1 INVT, 2 PROFIdrive 2.0) + 4 x slowness (0..3 pending calls);
+# then 9-byte steps: op (1 request, 2 service, 4 repeat, 8 reset) + the 8 request bytes.
+def pkw_step(op, *words):
+    return [op] + [b for w in words for b in w.to_bytes(2, "big")]
+
+
+write("pkw", "vacon_6_6_3", [0x00] + pkw_step(3, 0x1066, 0, 0, 0) + pkw_step(6, 0, 0, 0, 0)
+      + pkw_step(3, 0x207D, 0, 0, 2) + pkw_step(3, 0x207D, 0, 0, 2) + pkw_step(3, 0x3066, 0, 0, 0))
+write("pkw", "invt_example_slow", [0x01 | 2 << 2] + pkw_step(1, 1, 0x0010, 0, 0) + pkw_step(2, 0, 0, 0, 0) * 3
+      + pkw_step(3, 4, 1, 0, 300) + pkw_step(2, 0, 0, 0, 0) * 3 + pkw_step(3, 2, 1, 0, 1) + pkw_step(11, 0, 0, 0, 0))
+write("pkw", "profidrive2_ak", [0x02 | 1 << 2] + pkw_step(3, 0x6003, 0x0200, 0, 0) + pkw_step(2, 0, 0, 0, 0)
+      + pkw_step(3, 0x7003, 0x0100, 0, 77) + pkw_step(2, 0, 0, 0, 0) + pkw_step(3, 0x3004, 0, 0x0A5C, 0xDD50)
+      + pkw_step(2, 0, 0, 0, 0) + pkw_step(3, 0x9003, 0, 0, 0) + pkw_step(3, 0x4001, 0x0100, 0, 0)
+      + pkw_step(3, 0x2002, 0, 0, 1) + pkw_step(3, 0xF001, 0, 0, 0))

@@ -17,6 +17,11 @@
 //!
 //! * [`records`] — slot 0 / records 47 and 48 as a [`crate::dpv1::records::RecordHandler`]:
 //!   the one-shot response of record 47, the error codes of the routing.
+//! * [`pkw`] — the PKW parameter channel of PPO 1/2/5 (four words in the cyclic data): request
+//!   held, executed once against a [`param::ParameterAccess`] table, response repeated; VACON
+//!   (OPTE3/E5 §6.6.2), INVT (§2.6) and PROFIdrive 2.0 (reference §5.6) codings.
+//! * [`faults`] — the PROFIdrive fault buffer behind PNU 944 / 947 / 950: four fault situations
+//!   of eight messages, fed by the drive's fault reports (OPTE3/E5 §6.4.6, Table 112).
 //! * [`pnu`] — the PROFIdrive parameters the card owns (918, 922, 930, 944, 947, 963, 964, 965,
 //!   975, 980) in front of the drive's table.
 //! * [`table`] — a generic, allocation-free drive parameter table ([`table::ParamDef`],
@@ -31,7 +36,9 @@ pub mod drive_if;
 #[cfg(test)]
 pub(crate) mod drive_stub;
 pub mod invt;
+pub mod faults;
 pub mod param;
+pub mod pkw;
 pub mod pnu;
 pub mod profidrive;
 pub mod records;

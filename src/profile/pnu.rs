@@ -17,6 +17,9 @@ pub const PNU_OPERATING_MODE: u16 = 930;
 pub const PNU_FAULT_COUNTER: u16 = 944;
 /// PNU 947: fault numbers (four fault situations × eight messages, OPTE3/E5 §6.4.6).
 pub const PNU_FAULT_NUMBERS: u16 = 947;
+/// PNU 950: scaling of the fault buffer, [situations, messages] = [4, 8] (OPTE3/E5 Table 112;
+/// [`super::faults::SCALING`]).
+pub const PNU_FAULT_SCALING: u16 = 950;
 /// PNU 963: detected baud rate (P0963 coding).
 pub const PNU_BAUD_RATE: u16 = 963;
 /// PNU 964: device identification (six elements).
@@ -30,12 +33,13 @@ pub const PNU_DO_ID: u16 = 975;
 pub const PNU_PARAMETER_LIST: u16 = 980;
 
 /// Every PNU the card answers itself, ascending (the content of PNU 980).
-pub const CARD_PNUS: [u16; 10] = [
+pub const CARD_PNUS: [u16; 11] = [
     PNU_STATION_ADDRESS,
     PNU_TELEGRAM,
     PNU_OPERATING_MODE,
     PNU_FAULT_COUNTER,
     PNU_FAULT_NUMBERS,
+    PNU_FAULT_SCALING,
     PNU_BAUD_RATE,
     PNU_DEVICE_ID,
     PNU_PROFILE_ID,
@@ -51,6 +55,7 @@ const CARD_DEFS: &[ParamDef] = &[
     ParamDef::new(PNU_OPERATING_MODE, "Operating mode", Type::U16).read_only(),
     ParamDef::new(PNU_FAULT_COUNTER, "Fault msg count", Type::U16).read_only(),
     ParamDef::new(PNU_FAULT_NUMBERS, "Fault numbers", Type::U16).array(FAULT_BUFFER_LEN as u16).read_only(),
+    ParamDef::new(PNU_FAULT_SCALING, "Fault scaling", Type::U16).array(2).read_only(),
     ParamDef::new(PNU_BAUD_RATE, "Baud rate", Type::U16).limits(0, 11).read_only(),
     ParamDef::new(PNU_DEVICE_ID, "Drive unit ident", Type::U16).array(6).read_only(),
     ParamDef::new(PNU_DO_ID, "DO ident", Type::U16).array(7).read_only(),
@@ -110,6 +115,7 @@ impl<D: ParameterAccess> CardTable<'_, D> {
             PNU_TELEGRAM => Value::Word(info.telegram),
             PNU_OPERATING_MODE => Value::Word(1),
             PNU_FAULT_COUNTER => Value::Word(info.fault_counter),
+            PNU_FAULT_SCALING => Value::Words(&super::faults::SCALING),
             PNU_BAUD_RATE => Value::Word(info.baud_p963),
             PNU_DEVICE_ID => Value::Words(&CardInfo::DEVICE_ID),
             PNU_PROFILE_ID => Value::Octets(&[3, 41]),
@@ -121,7 +127,7 @@ impl<D: ParameterAccess> CardTable<'_, D> {
 }
 
 /// PNU 980: the card's PNUs, zero-terminated.
-const PARAMETER_LIST: [u16; 11] = [918, 922, 930, 944, 947, 963, 964, 965, 975, 980, 0];
+const PARAMETER_LIST: [u16; 12] = [918, 922, 930, 944, 947, 950, 963, 964, 965, 975, 980, 0];
 
 fn elements<'v, T: Copy>(all: &'v [T], addr: &ParamAddress) -> Result<&'v [T], ParamError> {
     let first = addr.subindex as usize;
