@@ -74,20 +74,29 @@ pub const MAX_DIAG_DATA_LEN: usize = 64;
 /// Room for extended diagnosis after the 6 standard octets.
 pub const MAX_EXT_DIAG_LEN: usize = MAX_DIAG_DATA_LEN - 6;
 
-/// GSD `Max_Input_Len` / `Max_Output_Len`: the largest cyclic images of any module.
+/// GSD `Max_Input_Len` / `Max_Output_Len`: the largest cyclic images of any module (VACON
+/// telegram 139, 18 words each way). The DPM carries them whole:
+/// `dpm::layout::PD_CAPACITY` (64 bytes) ≥ 36 (asserted below).
 #[cfg(not(feature = "bench"))]
-pub const MAX_INPUT_LEN: usize = 28;
+pub const MAX_INPUT_LEN: usize = 36;
 /// See [`MAX_INPUT_LEN`].
 #[cfg(not(feature = "bench"))]
-pub const MAX_OUTPUT_LEN: usize = 28;
+pub const MAX_OUTPUT_LEN: usize = 36;
 /// The benchmark build (feature `bench`, not in the GSD): room for [`BENCH_244`].
 #[cfg(feature = "bench")]
 pub const MAX_INPUT_LEN: usize = 244;
 /// See [`MAX_INPUT_LEN`].
 #[cfg(feature = "bench")]
 pub const MAX_OUTPUT_LEN: usize = 244;
-/// GSD `Max_Module`: one drive module per configuration.
+/// GSD `Max_Module`: one drive module per configuration (OPTE3/E5 §5.3 drive module rules:
+/// only one drive module is allowed, one must always be configured). The card has no safety
+/// slot, so OPTE3/E5 Table 12's "Empty" placeholder for slot 1 has no use here.
 pub const MAX_MODULE: u8 = 1;
+
+/// The largest GSD module fits the DPM's process-data blocks.
+#[cfg(not(feature = "bench"))]
+const _: () =
+    assert!(MAX_INPUT_LEN <= crate::dpm::layout::PD_CAPACITY && MAX_OUTPUT_LEN <= crate::dpm::layout::PD_CAPACITY);
 
 /// One cyclic-data module the card offers (a GSD `Module`): the configuration bytes Chk_Cfg
 /// must carry to select it and the cyclic image sizes they imply (reference §3.4).
@@ -95,7 +104,9 @@ pub const MAX_MODULE: u8 = 1;
 pub struct Module {
     /// GSD module name.
     pub name: &'static str,
-    /// GSD module reference number (the line after `Module = ...`).
+    /// GSD module reference number (the line after `Module = ...`): 1 / 20 for Standard
+    /// Telegram 1 / 20, 101..=106 for PPO 1..6, family tag × 1000 + telegram number for a
+    /// manufacturer's telegram (`dpm::Family`: 1 VACON, 2 WEG CFW500, 3 WEG CFW-11, 4 INVT).
     pub reference: u16,
     /// The Cfg_Data identifier bytes (Chk_Cfg / Get_Cfg).
     pub cfg: &'static [u8],
@@ -105,11 +116,45 @@ pub struct Module {
     pub outputs: u8,
 }
 
-/// Every module of the GSD. Standard Telegram 1 uses the special identifier format with three
-/// manufacturer bytes naming the telegram (`C3 C1 C1 FD 00 01`: out 2 words, in 2 words, both
-/// consistent; telegram 1), so that it cannot be confused with PPO 3 (`F1`). The PPO types
-/// use the classic general identifiers of PROFIdrive 2.0 drives: PKW = `F3` (4 words in/out),
-/// PZD 2/6/10 words = `F1`/`F5`/`F9` (OPTE3/E5 §6.5.4, reference §5.5).
+/// A manufacturer telegram of `words` consistent words each way in the special identifier
+/// format: `C4` (output and input length bytes, 4 manufacturer bytes), the length bytes,
+/// then `FE <family tag> <telegram number, 2 bytes>`.
+macro_rules! vendor_module {
+    ($name:literal, $family:literal, $number:literal, $words:literal) => {
+        Module {
+            name: $name,
+            reference: $family * 1000 + $number,
+            cfg: &[0xC4, 0xC0 | ($words - 1), 0xC0 | ($words - 1), 0xFE, $family, 0x00, $number],
+            inputs: 2 * $words,
+            outputs: 2 * $words,
+        }
+    };
+}
+
+/// Every module of the GSD, in GSD order.
+///
+/// **Identifier choice** (reference §3.4). A module is recognised by its bytes alone, so no
+/// two modules may share them, and the general format says only "n words": VACON telegram
+/// 100, CFW500 telegram 106 and CFW-11 telegram 103 are all 6 words each way, which is also
+/// PPO 4's `F5`. Hence:
+/// * PROFIdrive standard telegrams use the special identifier format with three
+///   manufacturer bytes `FD <telegram number, 2 bytes>` naming the telegram, as SINAMICS
+///   GSDs do: ST1 = `C3 C1 C1 FD 00 01` (out 2 words, in 2 words, consistent), ST20 =
+///   `C3 C1 C5 FD 00 14` (out 2 words, in 6 words).
+/// * Manufacturer telegrams use four manufacturer bytes `FE <family tag> <number>`, because
+///   telegram numbers collide across families (VACON 100 ≠ CFW-11 100, CFW500 103 ≠
+///   CFW-11 103): VACON 100 = `C4 C5 C5 FE 01 00 64`.
+/// * The PPO types keep the classic general identifiers of PROFIdrive 2.0 drives: PKW = `F3`
+///   (4 words in/out, consistent), PZD 2/6/10 words = `F1`/`F5`/`F9` (OPTE3/E5 §6.5.4,
+///   reference §5.5), so existing PLC projects keep working.
+/// * The INVT frame (PKW + CW/SW + PZD2..PZD12, INVT manual §2.6) is PPO-like and uses the
+///   general format too: `F3 FB` (PKW, then 12 words consistent), which no other module has.
+///   The INVT manual shows one frame layout only (every example carries PZD2..PZD12; an unused
+///   word is switched off by mapping it to "0: invalid" in P15.02–P15.23, not by a shorter
+///   telegram), so there is one INVT module.
+///
+/// `host-tests/tests/gsd.rs` checks this list against the GSD and that no two modules share
+/// their bytes; `dp::cfg` refuses a concatenation of two modules (one drive module only).
 pub const MODULES: &[Module] = &[
     Module {
         name: "Standard telegram 1, PZD-2/2",
@@ -118,12 +163,38 @@ pub const MODULES: &[Module] = &[
         inputs: 4,
         outputs: 4,
     },
+    Module {
+        name: "Standard telegram 20, PZD-2/6",
+        reference: 20,
+        cfg: &[0xC3, 0xC1, 0xC5, 0xFD, 0x00, 0x14],
+        inputs: 12,
+        outputs: 4,
+    },
+    vendor_module!("VACON telegram 100, PZD-6/6", 1, 100, 6),
+    vendor_module!("VACON telegram 101, PZD-10/10", 1, 101, 10),
+    vendor_module!("VACON telegram 138, PZD-14/14", 1, 138, 14),
+    vendor_module!("VACON telegram 139, PZD-18/18", 1, 139, 18),
     Module { name: "PPO 1, PKW + PZD-2/2", reference: 101, cfg: &[0xF3, 0xF1], inputs: 12, outputs: 12 },
     Module { name: "PPO 2, PKW + PZD-6/6", reference: 102, cfg: &[0xF3, 0xF5], inputs: 20, outputs: 20 },
     Module { name: "PPO 3, PZD-2/2", reference: 103, cfg: &[0xF1], inputs: 4, outputs: 4 },
     Module { name: "PPO 4, PZD-6/6", reference: 104, cfg: &[0xF5], inputs: 12, outputs: 12 },
     Module { name: "PPO 5, PKW + PZD-10/10", reference: 105, cfg: &[0xF3, 0xF9], inputs: 28, outputs: 28 },
     Module { name: "PPO 6, PZD-10/10", reference: 106, cfg: &[0xF9], inputs: 20, outputs: 20 },
+    vendor_module!("CFW500 telegram 103, PZD-3/3", 2, 103, 3),
+    vendor_module!("CFW500 telegram 104, PZD-4/4", 2, 104, 4),
+    vendor_module!("CFW500 telegram 105, PZD-5/5", 2, 105, 5),
+    vendor_module!("CFW500 telegram 106, PZD-6/6", 2, 106, 6),
+    vendor_module!("CFW500 telegram 107, PZD-7/7", 2, 107, 7),
+    vendor_module!("CFW500 telegram 108, PZD-8/8", 2, 108, 8),
+    vendor_module!("CFW-11 telegram 100, PZD-3/3", 3, 100, 3),
+    vendor_module!("CFW-11 telegram 101, PZD-4/4", 3, 101, 4),
+    vendor_module!("CFW-11 telegram 102, PZD-5/5", 3, 102, 5),
+    vendor_module!("CFW-11 telegram 103, PZD-6/6", 3, 103, 6),
+    vendor_module!("CFW-11 telegram 104, PZD-7/7", 3, 104, 7),
+    vendor_module!("CFW-11 telegram 105, PZD-8/8", 3, 105, 8),
+    vendor_module!("CFW-11 telegram 106, PZD-9/9", 3, 106, 9),
+    vendor_module!("CFW-11 telegram 107, PZD-10/10", 3, 107, 10),
+    Module { name: "INVT PKW + PZD-12/12", reference: 4001, cfg: &[0xF3, 0xFB], inputs: 32, outputs: 32 },
     #[cfg(feature = "bench")]
     BENCH_32,
     #[cfg(feature = "bench")]

@@ -167,7 +167,11 @@ impl Node {
         }
         let info = CardInfo {
             address: self.slave.address(),
-            telegram: self.slave.module().map_or(0, |m| if m.reference < 100 { m.reference } else { 0 }),
+            telegram: self
+                .slave
+                .module()
+                .and_then(crate::dpm::Telegram::of_module)
+                .unwrap_or(crate::dpm::Telegram::None),
             baud_p963: self.baudrate.map_or(5, |b| u16::from(b.p0963_code())),
             fault_counter: 0,
             faults: [0; FAULT_BUFFER_LEN],

@@ -297,6 +297,52 @@ fn modules_match_card() {
     assert_eq!(refs.len(), card::MODULES.len(), "duplicate module reference numbers");
 }
 
+/// The manufacturer bytes of every special-format module name its telegram (`FD <number>` for
+/// a PROFIdrive standard telegram, `FE <family> <number>` for a manufacturer's), so that the
+/// telegram identity of `dpm::Telegram` — family included — is in the GSD itself; the
+/// general-format modules are the PPO types and the INVT frame. No module's bytes start with
+/// another's (Chk_Cfg tells one module from two concatenated ones).
+#[test]
+fn module_bytes_name_their_telegram() {
+    use pbcard::dpm::{Family, Telegram};
+    let gsd = parse();
+    for (g, c) in gsd.available_modules.iter().zip(card::MODULES) {
+        let t = Telegram::of_module(c).unwrap_or_else(|| panic!("{:?} has no telegram", c.name));
+        let cfg = &g.config;
+        if cfg[0] & 0x30 == 0 {
+            let lengths = usize::from(cfg[0] >> 7) + usize::from((cfg[0] >> 6) & 1);
+            let m = &cfg[1 + lengths..];
+            assert_eq!(m.len(), usize::from(cfg[0] & 0x0F), "{:?}", c.name);
+            let named = match m {
+                [0xFD, hi, lo] => Telegram::Standard(u16::from_be_bytes([*hi, *lo])),
+                [0xFE, fam, hi, lo] => Telegram::Vendor(
+                    Family::from_tag(*fam).unwrap_or_else(|| panic!("{:?}: family tag {fam}", c.name)),
+                    u16::from_be_bytes([*hi, *lo]),
+                ),
+                _ => panic!("{:?}: manufacturer bytes {m:02X?}", c.name),
+            };
+            assert_eq!(named, t, "{:?}", c.name);
+        } else {
+            assert!(matches!(t, Telegram::Ppo(_) | Telegram::Vendor(Family::Invt, _)), "{:?} general format", c.name);
+        }
+        assert_eq!(2 * (t.pkw_words() + t.pzd_words()), usize::from(c.inputs), "{:?}", c.name);
+        assert_eq!(2 * (t.pkw_words() + t.pzd_out_words()), usize::from(c.outputs), "{:?}", c.name);
+        for o in card::MODULES.iter().filter(|o| o.reference != c.reference) {
+            assert!(!cfg.starts_with(o.cfg), "{:?} starts with the bytes of {:?}", c.name, o.name);
+        }
+    }
+    // Every telegram family of the brief is offered: ST1, ST20, VACON 100/101/138/139, PPO 1-6,
+    // CFW500 103-108, CFW-11 100-107, INVT.
+    let telegrams: BTreeSet<u16> = card::MODULES.iter().filter_map(Telegram::of_module).map(|t| t.code()).collect();
+    let mut want = vec![Telegram::Standard(1), Telegram::Standard(20), Telegram::Vendor(Family::Invt, 1)];
+    want.extend([100, 101, 138, 139].map(|n| Telegram::Vendor(Family::Vacon, n)));
+    want.extend((1..=6).map(Telegram::Ppo));
+    want.extend((103..=108).map(|n| Telegram::Vendor(Family::WegCfw500, n)));
+    want.extend((100..=107).map(|n| Telegram::Vendor(Family::WegCfw11, n)));
+    assert_eq!(telegrams, want.iter().map(|t| t.code()).collect(), "telegrams offered");
+    assert_eq!(card::MODULES.len(), want.len());
+}
+
 // ---------------------------------------------------------------------------------------------
 // User parameters
 // ---------------------------------------------------------------------------------------------

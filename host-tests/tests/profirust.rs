@@ -433,3 +433,142 @@ fn judge_rejects_early_answer() {
         .set_fault_hook(|dir, _, _| if dir == Dir::Tx { Fault::SendAfter(BitTimes(0)) } else { Fault::Pass });
     bus.run_for(Duration::from_millis(50));
 }
+
+// ---------------------------------------------------------------------------------------------
+// Every module of the GSD with the simulated drive behind the DPM
+// ---------------------------------------------------------------------------------------------
+
+/// The card's DPM with the simulated drive (`pbcard::drive::SimDrive`) behind it: every new
+/// output image goes into the DPM's OUTPUTS block tagged with the module's telegram, the drive
+/// runs one step and its INPUTS block becomes the next input image (as `Link` does).
+struct DriveApp {
+    dpm: pbcard::dpm::Dpm,
+    drive: pbcard::drive::SimDrive,
+    telegram: pbcard::dpm::Telegram,
+    /// Input images the drive answered, in order.
+    answers: usize,
+}
+
+impl DriveApp {
+    fn new(module: &card::Module) -> Self {
+        DriveApp {
+            dpm: pbcard::dpm::Dpm::new(),
+            drive: pbcard::drive::SimDrive::new(pbcard::drive::DriveConfig::DEFAULT),
+            telegram: pbcard::dpm::Telegram::of_module(module).expect("every GSD module has a telegram"),
+            answers: 0,
+        }
+    }
+}
+
+impl SlaveApp for DriveApp {
+    fn on_frame(&mut self, now: pbcard::time::Instant, slave: &mut pbcard::dp::DpSlave, f: FrameInfo<'_>) {
+        use pbcard::dpm::{PdFlags, ProcessData};
+        if !f.data_exchange || f.retry {
+            return;
+        }
+        let pd = ProcessData::new(self.telegram, PdFlags::DATA_EXCHANGE, slave.outputs());
+        self.dpm.card().write_outputs(&pd);
+        self.drive.step(now, &mut self.dpm.host());
+        if let Ok(inputs) = self.dpm.card().read_inputs() {
+            if inputs.telegram == self.telegram && inputs.seq != 0 {
+                slave.set_inputs(inputs.bytes());
+                self.answers += 1;
+            }
+        }
+    }
+}
+
+fn words_of(b: &[u8]) -> Vec<u16> {
+    b.chunks(2).map(|w| u16::from_be_bytes([w[0], w[1]])).collect()
+}
+
+/// PI_Q of cycle `k` for `module`: PKW request words 0xA000.., STW1 0x047E (S1 → S2), NSOLL_A
+/// 0x1000, then programmable words 0x1100 + position + 0x10·k (every cycle differs).
+fn drive_outputs(module: &card::Module, k: usize) -> Vec<u8> {
+    let t = pbcard::dpm::Telegram::of_module(module).unwrap();
+    let pkw = t.pkw_words();
+    (0..module.outputs as usize / 2)
+        .map(|i| match i {
+            i if i < pkw => 0xA000 + i as u16,
+            i if i == pkw => 0x047E,
+            i if i == pkw + 1 => 0x1000,
+            i => 0x1100 + i as u16 + 0x10 * k as u16,
+        })
+        .flat_map(u16::to_be_bytes)
+        .collect()
+}
+
+/// (m) profirust brings the card up with every module's Chk_Cfg bytes and exchanges data with
+/// the simulated drive: ZSW1 (S2, "ready to switch on") in the status position, NIST_A 0 at
+/// standstill, the PKW answered with zeros (the PKW server is a later piece), and every word
+/// after ZSW/HIW the echo of the same position of the previous cycle's outputs (ST20: its four
+/// extra input words have no output counterpart and read 0 until the drive-neutral path
+/// fills them).
+#[test]
+fn m_every_module_exchanges_with_the_drive() {
+    let rate = Baudrate::B1500k;
+    for module in card::MODULES {
+        let t = pbcard::dpm::Telegram::of_module(module).unwrap();
+        let (pkw, pzd_in) = (t.pkw_words(), t.pzd_words());
+        let mut bus = SimBus::new(
+            MasterConfig::new(rate).watchdog_ms(watchdog_ms(rate)),
+            &[PeripheralConfig::card(SLAVE, module, rate)],
+            vec![(SLAVE, DriveApp::new(module))],
+        );
+        bus.bring_up(SLAVE, Duration::from_millis(2_000));
+        assert_eq!(bus.slave(SLAVE).slave.module(), Some(module), "{}", module.name);
+        let log = bus.exchange(SLAVE, 12, Duration::from_millis(2_000), |k| drive_outputs(module, k));
+        let ep = bus.slave(SLAVE);
+        assert_eq!(ep.slave.outputs(), &log.last().unwrap().q_sent[..], "{}", module.name);
+        assert_eq!(ep.app.drive.telegram(), t, "{}: the drive sees the telegram", module.name);
+        assert!(ep.app.answers >= log.len(), "{}: the drive answered every image", module.name);
+        assert_eq!(ep.app.drive.control_word(), 0x047E, "{}: STW1 at the control position", module.name);
+        assert_eq!(ep.app.drive.setpoint(), 0x1000, "{}: NSOLL_A at the setpoint position", module.name);
+        for k in 2..log.len() {
+            let i = words_of(&log[k].i_received);
+            let q = words_of(&log[k - 1].q_sent);
+            assert_eq!(i.len(), module.inputs as usize / 2, "{} cycle {k}", module.name);
+            assert!(i[..pkw].iter().all(|&w| w == 0), "{} cycle {k}: PKW {:04X?}", module.name, &i[..pkw]);
+            assert_eq!(i[pkw] & 0x0277, 0x0231, "{} cycle {k}: ZSW1 S2 in {:04X?}", module.name, i);
+            assert_eq!(i[pkw + 1], 0, "{} cycle {k}: NIST_A at standstill", module.name);
+            for (p, &got) in i.iter().enumerate().take(pkw + pzd_in).skip(pkw + 2) {
+                let want = q.get(p).copied().unwrap_or(0);
+                assert_eq!(got, want, "{} cycle {k}: PZD{} echoed", module.name, p - pkw + 1);
+            }
+        }
+        assert!(!bus.events_for(SLAVE).contains(&PeripheralEvent::Offline), "{}", module.name);
+    }
+}
+
+/// (n) A Chk_Cfg of two modules (ST1 + ST20) is a Cfg_Fault (one drive module only, OPTE3/E5
+/// §5.3); Standard Telegram 20 with Remote Echo forced in Set_Prm is one too (§5.1.5), and
+/// with Remote PROFIdrive it runs.
+#[test]
+fn n_module_rules_refuse_with_cfg_fault() {
+    let rate = Baudrate::B1500k;
+    let st20 = card::MODULES.iter().find(|m| m.reference == 20).unwrap();
+    let mut two = PeripheralConfig::card(SLAVE, &card::MODULES[0], rate);
+    two.cfg = [card::MODULES[0].cfg, st20.cfg].concat();
+    two.inputs = 16;
+    two.outputs = 8;
+    let mut echo = PeripheralConfig::card(SLAVE, st20, rate);
+    echo.user_prm[card::PRM_OPERATE_MODE.offset] = 3;
+    for p in [two, echo] {
+        let mut bus = SimBus::new(
+            MasterConfig::new(rate).watchdog_ms(50),
+            std::slice::from_ref(&p),
+            vec![(SLAVE, EchoApp::default())],
+        );
+        bus.expect_event(SLAVE, PeripheralEvent::ConfigError, Duration::from_millis(500));
+        let d = bus.peripheral(SLAVE).last_diagnostics().unwrap();
+        assert!(d.flags.contains(DiagnosticFlags::CONFIGURATION_FAULT), "{:02X?}: {:?}", p.cfg, d.flags);
+        let ep = bus.slave(SLAVE);
+        assert!(ep.events_seen.contains(Events::CFG_FAULT));
+        assert_eq!(ep.slave.module(), None);
+    }
+    let mut ok = PeripheralConfig::card(SLAVE, st20, rate);
+    ok.user_prm[card::PRM_OPERATE_MODE.offset] = 1;
+    let mut bus = SimBus::new(MasterConfig::new(rate).watchdog_ms(50), &[ok], vec![(SLAVE, EchoApp::default())]);
+    bus.bring_up(SLAVE, Duration::from_millis(1_000));
+    assert_eq!(bus.slave(SLAVE).slave.module(), Some(st20));
+}

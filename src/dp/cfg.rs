@@ -17,6 +17,12 @@ pub enum CfgError {
     Malformed,
     /// Well-formed, but no module of the GSD has these bytes.
     NoSuchModule,
+    /// The bytes are two or more of the GSD's drive modules one after the other: only one
+    /// drive module is allowed (OPTE3/E5 §5.3 drive module rules; `card::MAX_MODULE`).
+    MoreThanOneDriveModule,
+    /// The module is not allowed in the operate mode the master forces through Set_Prm:
+    /// Standard Telegram 20 with Remote Bypass or Remote Echo (OPTE3/E5 §5.1.5).
+    NotAllowedInOperateMode,
 }
 
 /// Input and output byte counts implied by a configuration.
@@ -79,10 +85,52 @@ pub fn io_lengths(cfg: &[u8]) -> Result<IoLengths, CfgError> {
 }
 
 /// Check a Chk_Cfg against the modules the card offers: the bytes must be exactly those of
-/// one module (strict check; `Check_Cfg_Mode` is not offered).
+/// one module (strict check; `Check_Cfg_Mode` is not offered). The allowed combinations are
+/// OPTE3/E5 §5.3's drive module rules without safety modules: exactly one drive module —
+/// none (empty or unknown bytes) is [`CfgError::Malformed`] / [`CfgError::NoSuchModule`], two
+/// or more concatenated modules [`CfgError::MoreThanOneDriveModule`]. Every error is a
+/// Cfg_Fault.
 pub fn check(cfg: &[u8]) -> Result<&'static Module, CfgError> {
     io_lengths(cfg)?;
-    card::module_for_cfg(cfg).ok_or(CfgError::NoSuchModule)
+    if let Some(m) = card::module_for_cfg(cfg) {
+        return Ok(m);
+    }
+    if splits_into_modules(cfg) {
+        return Err(CfgError::MoreThanOneDriveModule);
+    }
+    Err(CfgError::NoSuchModule)
+}
+
+/// [`check`], then the operate mode rule: with `operate_mode` (the Set_Prm user parameter
+/// `card::PRM_OPERATE_MODE`) = 2 Remote Bypass or 3 Remote Echo, Standard Telegram 20 is
+/// refused (OPTE3/E5 §5.1.5: "only PROFIdrive mode is allowed" with ST20).
+///
+/// Why here and not in Set_Prm: the master sends Set_Prm *before* Chk_Cfg, so when the mode
+/// arrives the module is not known yet; the forbidden pair is a configuration error, which
+/// OPTE3/E5 §5.3 answers with the configuration fault ("an invalid module configuration
+/// causes a diagnostic configuration fault"). A mode chosen locally in the drive (operate
+/// mode 0) is checked by `profile::cyclic::Cyclic::new` instead.
+pub fn check_for_mode(cfg: &[u8], operate_mode: u8) -> Result<&'static Module, CfgError> {
+    let m = check(cfg)?;
+    if m.reference == 20 && matches!(operate_mode, 2 | 3) {
+        return Err(CfgError::NotAllowedInOperateMode);
+    }
+    Ok(m)
+}
+
+/// Whether `cfg` is two or more GSD modules one after the other. No module's bytes start
+/// with another module's (tested), so at most one module matches at each position and the
+/// greedy loop is exact (and bounded: every step eats at least one byte).
+fn splits_into_modules(cfg: &[u8]) -> bool {
+    let (mut rest, mut count) = (cfg, 0usize);
+    while !rest.is_empty() {
+        match card::MODULES.iter().find(|m| !m.cfg.is_empty() && rest.starts_with(m.cfg)) {
+            Some(m) => rest = &rest[m.cfg.len()..],
+            None => return false,
+        }
+        count += 1;
+    }
+    count >= 2
 }
 
 #[cfg(test)]
@@ -108,10 +156,62 @@ mod tests {
         assert_eq!(check(&[0xF2]), Err(CfgError::NoSuchModule));
     }
 
+    #[test]
+    fn no_module_is_another_or_a_concatenation() {
+        for (i, a) in card::MODULES.iter().enumerate() {
+            for b in &card::MODULES[i + 1..] {
+                assert!(!a.cfg.starts_with(b.cfg) && !b.cfg.starts_with(a.cfg), "{} / {}", a.name, b.name);
+            }
+            // A module's bytes are never read as two modules.
+            assert!(!splits_into_modules(a.cfg), "{}", a.name);
+        }
+    }
+
+    #[test]
+    fn one_drive_module_only() {
+        let st1 = card::MODULES[0];
+        for m in card::MODULES {
+            let two = [st1.cfg, m.cfg].concat();
+            assert_eq!(check(&two), Err(CfgError::MoreThanOneDriveModule), "ST1 + {}", m.name);
+            let three = [m.cfg, m.cfg, st1.cfg].concat();
+            if io_lengths(&three).is_ok() {
+                assert_eq!(check(&three), Err(CfgError::MoreThanOneDriveModule), "{} twice + ST1", m.name);
+            }
+        }
+        // PPO 1 = F3 F1 is one module, not "PKW" + PPO 3.
+        assert_eq!(check(&[0xF3, 0xF1]).map(|m| m.reference), Ok(101));
+        // A module plus an unknown identifier is no module at all.
+        assert_eq!(check(&[0xF1, 0xF2]), Err(CfgError::NoSuchModule));
+        assert_eq!(check(&[]), Err(CfgError::Malformed));
+    }
+
+    #[test]
+    fn st20_only_in_profidrive_mode() {
+        let st20 = card::MODULES.iter().find(|m| m.reference == 20).unwrap();
+        for mode in 0..=3 {
+            let want = if mode >= 2 { Err(CfgError::NotAllowedInOperateMode) } else { Ok(st20) };
+            assert_eq!(check_for_mode(st20.cfg, mode), want, "mode {mode}");
+            for m in card::MODULES.iter().filter(|m| m.reference != 20) {
+                assert_eq!(check_for_mode(m.cfg, mode), Ok(m), "{} in mode {mode}", m.name);
+            }
+        }
+    }
+
     proptest::proptest! {
         #[test]
         fn never_panics(bytes in proptest::collection::vec(proptest::num::u8::ANY, 0..260)) {
             let _ = check(&bytes);
+            for mode in 0..=4 {
+                let _ = check_for_mode(&bytes, mode);
+            }
+        }
+
+        #[test]
+        fn accepted_bytes_are_exactly_one_module(i in 0..card::MODULES.len(), j in 0..card::MODULES.len()) {
+            let m = &card::MODULES[i];
+            proptest::prop_assert_eq!(check(m.cfg), Ok(m));
+            let two = [m.cfg, card::MODULES[j].cfg].concat();
+            proptest::prop_assert_eq!(check(&two), Err(CfgError::MoreThanOneDriveModule));
         }
     }
 }

@@ -642,7 +642,8 @@ impl DpSlave {
             }
             return Reply::ShortAck;
         }
-        match cfg::check(req.pdu) {
+        let operate_mode = self.prm.as_ref().map_or(0, |p| p.user[card::PRM_OPERATE_MODE.offset]);
+        match cfg::check_for_mode(req.pdu, operate_mode) {
             Ok(m) => {
                 let changed = self.module != Some(m);
                 self.cfg_fault = false;

@@ -640,7 +640,7 @@ pub const FIELDS: &[Field] = &[
     f!("STATUS.BAUD", status::BAUD, 1, "u8", C, "consistent block: P0963 coding, 5 = not detected"),
     f!("STATUS.STATION_ADDRESS", status::STATION_ADDRESS, 1, "u8", C, "consistent block: own address 0..=126"),
     f!("STATUS.MASTER_ADDRESS", status::MASTER_ADDRESS, 1, "u8", C, "consistent block: master holding the lock, 0xFF = none"),
-    f!("STATUS.TELEGRAM", status::TELEGRAM, 2, "u16", C, "consistent block: 0 none, n = telegram n, 0x8000|n = PPO n"),
+    f!("STATUS.TELEGRAM", status::TELEGRAM, 2, "u16", C, "consistent block: 0 none, n = standard telegram n (< 0x4000), 0x4000|family<<8|n = vendor telegram n (family 1 VACON, 2 CFW500, 3 CFW-11, 4 INVT), 0x8000|n = PPO n"),
     f!("STATUS.DP_STATE", status::DP_STATE, 1, "u8", C, "consistent block: 0 Wait_Prm, 1 Wait_Cfg, 2 Data_Exch"),
     f!("STATUS.FLAGS", status::FLAGS, 1, "u8", C, "consistent block: bit 0 clear, 1 sync, 2 freeze, 3 watchdog on, 4 address locked"),
     f!("STATUS.WATCHDOG_MS", status::WATCHDOG_MS, 2, "u16", C, "consistent block: DP watchdog ms, 0 = off"),

@@ -227,7 +227,13 @@ mod tests {
         f.acknowledge();
         f.report(0x0506);
         let mut drive: Table<{ slots(NO_DEFS) }> = Table::new(NO_DEFS);
-        let info = CardInfo { address: 3, telegram: 0, baud_p963: 5, fault_counter: f.counter(), faults: *f.numbers() };
+        let info = CardInfo {
+            address: 3,
+            telegram: crate::dpm::Telegram::None,
+            baud_p963: 5,
+            fault_counter: f.counter(),
+            faults: *f.numbers(),
+        };
         let mut card = CardTable { info, drive: &mut drive };
         let [c0, c1] = PNU_FAULT_COUNTER.to_be_bytes();
         let [n0, n1] = PNU_FAULT_NUMBERS.to_be_bytes();

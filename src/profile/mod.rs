@@ -1,5 +1,10 @@
 //! Drive profiles carried in DP-V1 data records (reference §5).
 //!
+//! * [`telegram`] — what each word of every telegram is, the control profile family it needs,
+//!   and the PNU 915 / 916 signal lists (OPTE3/E5 §6.3.2, §6.3.9).
+//! * [`cyclic`] — the cyclic engine: output image → [`drive_if::DriveCommand`] and raw words
+//!   for the drive, drive status → input image, in the PROFIdrive / Bypass / Echo operate modes
+//!   (OPTE3/E5 §5.1).
 //! * [`drive_if`] — the drive-neutral command / status the profile exchanges with the drive
 //!   through the DPM (OPTE3/E5 §11 FBFixedControlWord / FBFixedStatusWord model).
 //! * [`profidrive`] — the PROFIdrive control profiles on that interface: PROFIdrive 4.1 (ST1,
@@ -32,16 +37,18 @@
 //! response exists (0xB5)" sequence and the one-shot response buffer belong to the DP-V1
 //! record routing above them.
 
+pub mod cyclic;
 pub mod drive_if;
 #[cfg(test)]
 pub(crate) mod drive_stub;
-pub mod invt;
 pub mod faults;
+pub mod invt;
 pub mod param;
 pub mod pkw;
 pub mod pnu;
 pub mod profidrive;
 pub mod records;
 pub mod table;
+pub mod telegram;
 pub mod weg;
 pub mod weg48;

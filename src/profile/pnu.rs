@@ -5,11 +5,21 @@
 use super::param::Attribute;
 use super::param::{ErrorValue, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
 use super::table::{slots, ParamDef, Table, Type};
+use super::telegram::{Layout, PZD_SIGNALS};
 use crate::card;
+use crate::dpm::Telegram;
 
+/// PNU 915: PZD assignment of the setpoint telegram — the signal number of each output PZD
+/// (OPTE3/E5 Table 108 UINT[18], coding §6.3.9 Table 37; see [`super::telegram`]).
+pub const PNU_PZD_SETPOINTS: u16 = 915;
+/// PNU 916: PZD assignment of the actual value telegram — the signal number of each input
+/// PZD (OPTE3/E5 Table 108 UINT[18]).
+pub const PNU_PZD_ACTUALS: u16 = 916;
 /// PNU 918: station address (read-only here; set by Set_Slave_Add or the drive).
 pub const PNU_STATION_ADDRESS: u16 = 918;
-/// PNU 922: telegram selection (1 = Standard Telegram 1, 0 = a PPO type / free).
+/// PNU 922: telegram selection — the active telegram's number ([`Telegram::pnu922`]: 1, 20,
+/// VACON 100/101/138/139, CFW500 103–108, CFW-11 100–107; 0 = a PPO type, the INVT frame or
+/// no module).
 pub const PNU_TELEGRAM: u16 = 922;
 /// PNU 930: operating mode (1 = speed control).
 pub const PNU_OPERATING_MODE: u16 = 930;
@@ -33,7 +43,9 @@ pub const PNU_DO_ID: u16 = 975;
 pub const PNU_PARAMETER_LIST: u16 = 980;
 
 /// Every PNU the card answers itself, ascending (the content of PNU 980).
-pub const CARD_PNUS: [u16; 11] = [
+pub const CARD_PNUS: [u16; 13] = [
+    PNU_PZD_SETPOINTS,
+    PNU_PZD_ACTUALS,
     PNU_STATION_ADDRESS,
     PNU_TELEGRAM,
     PNU_OPERATING_MODE,
@@ -50,6 +62,8 @@ pub const CARD_PNUS: [u16; 11] = [
 /// The card's PNUs as description entries (attribute 0x20): names, types, array sizes,
 /// read-only. Values are not kept here ([`CardTable`] reads them from [`CardInfo`]).
 const CARD_DEFS: &[ParamDef] = &[
+    ParamDef::new(PNU_PZD_SETPOINTS, "PZD setpoints", Type::U16).array(PZD_SIGNALS as u16).read_only(),
+    ParamDef::new(PNU_PZD_ACTUALS, "PZD actuals", Type::U16).array(PZD_SIGNALS as u16).read_only(),
     ParamDef::new(PNU_STATION_ADDRESS, "Station address", Type::U16).limits(0, 126).read_only(),
     ParamDef::new(PNU_TELEGRAM, "Telegram select", Type::U16).read_only(),
     ParamDef::new(PNU_OPERATING_MODE, "Operating mode", Type::U16).read_only(),
@@ -73,8 +87,8 @@ pub const FAULT_BUFFER_LEN: usize = 32;
 pub struct CardInfo {
     /// Station address.
     pub address: u8,
-    /// Active telegram (PNU 922).
-    pub telegram: u16,
+    /// Active telegram (PNU 922, and PNU 915 / 916 from its layout).
+    pub telegram: Telegram,
     /// Detected baud rate, P0963 coding (5 = not detected).
     pub baud_p963: u16,
     /// Fault message counter (PNU 944).
@@ -102,6 +116,7 @@ pub struct CardTable<'a, D> {
 }
 
 enum Value<'v> {
+    Signals([u16; PZD_SIGNALS]),
     Word(u16),
     Words(&'v [u16]),
     Octets(&'v [u8]),
@@ -112,7 +127,9 @@ impl<D: ParameterAccess> CardTable<'_, D> {
         let info = self.info;
         Some(match pnu {
             PNU_STATION_ADDRESS => Value::Word(u16::from(info.address)),
-            PNU_TELEGRAM => Value::Word(info.telegram),
+            PNU_PZD_SETPOINTS => Value::Signals(pzd_signals(info.telegram, true)),
+            PNU_PZD_ACTUALS => Value::Signals(pzd_signals(info.telegram, false)),
+            PNU_TELEGRAM => Value::Word(info.telegram.pnu922()),
             PNU_OPERATING_MODE => Value::Word(1),
             PNU_FAULT_COUNTER => Value::Word(info.fault_counter),
             PNU_FAULT_SCALING => Value::Words(&super::faults::SCALING),
@@ -126,8 +143,18 @@ impl<D: ParameterAccess> CardTable<'_, D> {
     }
 }
 
+/// PNU 915 (`setpoints`) / 916: the signal numbers of the telegram's PZD with the drive
+/// family's factory data profile ([`Layout::default_profile`]); all 0 without a module.
+fn pzd_signals(telegram: Telegram, setpoints: bool) -> [u16; PZD_SIGNALS] {
+    match Layout::of(telegram) {
+        Some(l) if setpoints => l.setpoint_signals(l.default_profile()),
+        Some(l) => l.actual_signals(l.default_profile()),
+        None => [0; PZD_SIGNALS],
+    }
+}
+
 /// PNU 980: the card's PNUs, zero-terminated.
-const PARAMETER_LIST: [u16; 12] = [918, 922, 930, 944, 947, 950, 963, 964, 965, 975, 980, 0];
+const PARAMETER_LIST: [u16; 14] = [915, 916, 918, 922, 930, 944, 947, 950, 963, 964, 965, 975, 980, 0];
 
 fn elements<'v, T: Copy>(all: &'v [T], addr: &ParamAddress) -> Result<&'v [T], ParamError> {
     let first = addr.subindex as usize;
@@ -162,6 +189,7 @@ impl<D: ParameterAccess> ParameterAccess for CardTable<'_, D> {
                 out.push_u16(v)
             }
             Some(Value::Words(all)) => elements(all, addr)?.iter().try_for_each(|&v| out.push_u16(v)),
+            Some(Value::Signals(all)) => elements(&all, addr)?.iter().try_for_each(|&v| out.push_u16(v)),
             Some(Value::Octets(all)) => {
                 out.set_format(super::param::Format::OCTET_STRING);
                 elements(all, addr)?.iter().try_for_each(|&v| out.push_u8(v))
@@ -204,5 +232,88 @@ impl<D: ParameterAccess> ParameterAccess for CardTable<'_, D> {
 
     fn start_job(&mut self) {
         self.drive.start_job();
+    }
+}
+
+/// PNU 915 / 916 / 922 through [`CardTable`] (the telegram PNUs; OPTE3/E5 Table 108).
+#[cfg(test)]
+mod telegram_pnu_tests {
+    use super::*;
+    use crate::dpm::Family;
+    use crate::profile::param::ParamError;
+
+    struct NoDrive;
+    impl ParameterAccess for NoDrive {
+        fn has_axis(&self, _: u8) -> bool {
+            true
+        }
+        fn read_value(&mut self, _: u8, _: &ParamAddress, _: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+            Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into())
+        }
+        fn write_value(&mut self, _: u8, _: &ParamAddress, _: &ValueBlock<'_>) -> Result<(), ParamError> {
+            Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into())
+        }
+    }
+
+    fn info(telegram: Telegram) -> CardInfo {
+        CardInfo { address: 3, telegram, baud_p963: 5, fault_counter: 0, faults: [0; FAULT_BUFFER_LEN] }
+    }
+
+    fn read(telegram: Telegram, pnu: u16, subindex: u16, elements: u8) -> Result<Vec<u16>, ParamError> {
+        let mut drive = NoDrive;
+        let mut t = CardTable { info: info(telegram), drive: &mut drive };
+        let addr = ParamAddress { attribute: Attribute::Value, elements, pnu, subindex };
+        let mut buf = [0u8; 240];
+        let mut w = ValueWriter::new(&mut buf);
+        t.read_value(1, &addr, &mut w)?;
+        Ok(w.bytes().chunks(2).map(|c| u16::from_be_bytes([c[0], c[1]])).collect())
+    }
+
+    #[test]
+    fn pnu_922_is_the_telegram_number() {
+        for (t, n) in [
+            (Telegram::Standard(1), 1),
+            (Telegram::Standard(20), 20),
+            (Telegram::Vendor(Family::Vacon, 139), 139),
+            (Telegram::Vendor(Family::WegCfw500, 108), 108),
+            (Telegram::Vendor(Family::WegCfw11, 100), 100),
+            (Telegram::Ppo(5), 0),
+            (Telegram::Vendor(Family::Invt, 1), 0),
+            (Telegram::None, 0),
+        ] {
+            assert_eq!(read(t, PNU_TELEGRAM, 0, 1), Ok(vec![n]), "{t:?}");
+        }
+    }
+
+    #[test]
+    fn pnu_915_916_list_the_signals() {
+        let st20 = Telegram::Standard(20);
+        let set = read(st20, PNU_PZD_SETPOINTS, 0, 18).unwrap();
+        assert_eq!(set.len(), 18);
+        assert_eq!(&set[..3], &[1, 5, 0]);
+        assert_eq!(read(st20, PNU_PZD_ACTUALS, 0, 6), Ok(vec![2, 57, 51, 52, 54, 58]));
+        // Subindex access and its limit.
+        assert_eq!(read(Telegram::Vendor(Family::Vacon, 100), PNU_PZD_ACTUALS, 2, 2), Ok(vec![100, 101]));
+        assert!(read(st20, PNU_PZD_ACTUALS, 18, 1).is_err());
+        assert!(read(st20, PNU_PZD_ACTUALS, 17, 2).is_err());
+        // WEG with its factory profile (manufacturer): non-profile control/status words.
+        assert_eq!(read(Telegram::Vendor(Family::WegCfw11, 100), PNU_PZD_SETPOINTS, 0, 4), Ok(vec![118, 120, 110, 0]));
+        // No module: zeros.
+        assert_eq!(read(Telegram::None, PNU_PZD_SETPOINTS, 0, 18), Ok(vec![0; 18]));
+    }
+
+    #[test]
+    fn telegram_pnus_have_descriptions_and_are_listed() {
+        let mut drive = NoDrive;
+        let mut t = CardTable { info: info(Telegram::Standard(1)), drive: &mut drive };
+        for pnu in [PNU_PZD_SETPOINTS, PNU_PZD_ACTUALS, PNU_TELEGRAM] {
+            assert!(CARD_PNUS.contains(&pnu) && PARAMETER_LIST.contains(&pnu));
+            let addr = ParamAddress { attribute: Attribute::Description, elements: 1, pnu, subindex: 0 };
+            let mut buf = [0u8; 240];
+            let mut w = ValueWriter::new(&mut buf);
+            assert_eq!(t.read_description(1, &addr, &mut w), Ok(()), "PNU {pnu} description");
+        }
+        assert!(CARD_PNUS.windows(2).all(|w| w[0] < w[1]));
+        assert_eq!(&PARAMETER_LIST[..CARD_PNUS.len()], &CARD_PNUS);
     }
 }
