@@ -1,45 +1,24 @@
 //! # dpm-host — the host-side reference implementation of the pbcard DPM interface
 //!
 //! What a drive's control board runs to integrate the PROFIBUS DP-V1 option card through its
-//! dual-port memory (issue 7 item 5; ARCHITECTURE §5; the map in `docs/DPM.md`). `no_std`,
-//! no allocation, no `unsafe`, time handed in: port it by implementing [`Transport`] for the
-//! board's link to the card (SPI frames, a dual-port RAM) and calling [`Host`] from the drive's
-//! cycle.
+//! dual-port memory (issue 7 item 5; ARCHITECTURE §5; the map in `docs/DPM.md`).
 //!
-//! The layout is not repeated here: every offset and every block codec comes from
+//! The implementation itself is `pbcard::dpm::host` (`no_std`, no allocation, no `unsafe`,
+//! time handed in), so that the card's own simulated drive (QEMU build, soft slave, host
+//! tests) runs exactly this code; this crate is the port's entry point: it re-exports it with
+//! the pbcard types a host needs, and adds, with the `std` feature (default), [`SharedDpm`],
+//! an image shared in one process.
+//!
+//! The layout is not repeated anywhere: every offset and every block codec comes from
 //! `pbcard::dpm::layout` and `pbcard::dpm::codec`, the card firmware's own source of truth.
-//!
-//! * [`Host::open`] — check magic, layout version, image size, capabilities.
-//! * [`Host::identity`], [`Host::status`], [`Host::card_report`] — what the card is and does
-//!   (P0740 communication state, P0963 baud, addresses, active telegram, counters).
-//! * [`Host::write_config`], [`Host::config_outcome`] — configuration, taken over by the card
-//!   only while no cyclic exchange runs (`CARD.CONFIG_RESULT`).
-//! * [`Host::read_process_data`], [`Host::write_process_data`] — DRIVE_CMD + OUTPUTS of one
-//!   card cycle in, INPUTS + DRIVE_STATE out, through the sequenced blocks (torn reads are
-//!   repeated, never returned).
-//! * [`Host::serve_parameters`], [`Host::respond`] — the parameter mailbox ([`ParameterServer`],
-//!   [`Table`] for a [`pbcard::profile::param::ParameterAccess`] table); late answers are
-//!   never taken for the next request (REQ_ID).
-//! * [`Host::set_fault`], [`Host::set_warning`], [`Host::set_ext_diag`], [`Host::poll`] — the
-//!   DRIVE block with the drive's heartbeat every cycle, and the card's heartbeat watched
-//!   (lost = the A140 situation) with the card → drive events.
-//!
-//! Feature `std` (default): [`SharedDpm`], an image shared in one process, and
-//! `std::error::Error` for the errors.
 #![cfg_attr(not(feature = "std"), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
-mod host;
-mod transport;
-
-pub use host::{
-    Answer, CardEvents, ConfigOutcome, Error, Host, HostStats, OpenError, Options, ParameterServer, Poll, ProcessImage,
-    Table,
+pub use pbcard::dpm::host::{
+    Answer, CardEvents, ConfigOutcome, DpmTransport, Error, Host, HostStats, MemoryTransport, OpenError, Options,
+    ParameterServer, Poll, ProcessImage, Table, Transport, TransportError,
 };
-#[cfg(feature = "std")]
-pub use transport::SharedDpm;
-pub use transport::{DpmTransport, MemoryTransport, Transport, TransportError};
 
 /// The pbcard items a host works with, re-exported so a port needs one dependency path.
 pub use pbcard::dpm::{
@@ -49,3 +28,44 @@ pub use pbcard::dpm::{
 };
 pub use pbcard::profile::drive_if::{CommandFlags, DriveCommand, DriveStatus, StatusFlags};
 pub use pbcard::time::{Duration, Instant};
+
+#[cfg(feature = "std")]
+mod shared {
+    use pbcard::dpm::host::{DpmTransport, Transport, TransportError};
+    use pbcard::dpm::Dpm;
+
+    /// An image shared by the card side and the host in one process (`std`): clone it, give one
+    /// clone to the [`Host`], keep the other for the card's [`crate::dpm::Link`].
+    #[derive(Debug, Clone, Default)]
+    pub struct SharedDpm(pub std::rc::Rc<core::cell::RefCell<Dpm>>);
+
+    impl SharedDpm {
+        /// A shared fresh image ([`Dpm::new`]).
+        pub fn new() -> Self {
+            Self::from(Dpm::new())
+        }
+
+        /// Borrow the image (the card side works on it between host calls).
+        pub fn borrow_mut(&self) -> core::cell::RefMut<'_, Dpm> {
+            self.0.borrow_mut()
+        }
+    }
+
+    impl From<Dpm> for SharedDpm {
+        fn from(dpm: Dpm) -> Self {
+            SharedDpm(std::rc::Rc::new(core::cell::RefCell::new(dpm)))
+        }
+    }
+
+    impl Transport for SharedDpm {
+        fn read(&mut self, offset: u16, buf: &mut [u8]) -> Result<(), TransportError> {
+            DpmTransport::new(&mut *self.0.borrow_mut()).read(offset, buf)
+        }
+        fn write(&mut self, offset: u16, data: &[u8]) -> Result<(), TransportError> {
+            DpmTransport::new(&mut *self.0.borrow_mut()).write(offset, data)
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+pub use shared::SharedDpm;

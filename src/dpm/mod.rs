@@ -59,6 +59,7 @@
 
 mod blocks;
 pub mod codec;
+pub mod host;
 pub mod layout;
 mod link;
 pub mod mailbox;

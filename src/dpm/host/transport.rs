@@ -3,11 +3,11 @@
 //! soft slave and the QEMU build; on the board an SPI frame client implements the same trait.
 //!
 //! **Order rule.** A transport must move the bytes of one `read` or `write` in ascending address
-//! order (the sequenced-block protocol of `pbcard::dpm` relies on it: the host reads and writes
+//! order (the sequenced-block protocol of `crate::dpm` relies on it: the host reads and writes
 //! a block in one ascending pass). Every transport here does; an SPI frame of command / address
 //! / length / data does by construction.
 
-use pbcard::dpm::Dpm;
+use crate::dpm::Dpm;
 
 /// Why a transport access failed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -33,8 +33,7 @@ impl core::fmt::Display for TransportError {
     }
 }
 
-#[cfg(feature = "std")]
-impl std::error::Error for TransportError {}
+impl core::error::Error for TransportError {}
 
 /// Byte-range access to the card's DPM image (offsets as in `docs/DPM.md`).
 ///
@@ -146,41 +145,5 @@ impl<D: core::borrow::BorrowMut<Dpm>> Transport for DpmTransport<D> {
         let r = range(img.len(), offset, data.len())?;
         img[r].copy_from_slice(data);
         Ok(())
-    }
-}
-
-/// An image shared by the card side and the host in one process (`std`): clone it, give one
-/// clone to the [`crate::Host`], keep the other for the card's [`pbcard::dpm::Link`].
-#[cfg(feature = "std")]
-#[derive(Debug, Clone, Default)]
-pub struct SharedDpm(pub std::rc::Rc<core::cell::RefCell<Dpm>>);
-
-#[cfg(feature = "std")]
-impl SharedDpm {
-    /// A shared fresh image ([`Dpm::new`]).
-    pub fn new() -> Self {
-        Self::from(Dpm::new())
-    }
-
-    /// Borrow the image (the card side works on it between host calls).
-    pub fn borrow_mut(&self) -> core::cell::RefMut<'_, Dpm> {
-        self.0.borrow_mut()
-    }
-}
-
-#[cfg(feature = "std")]
-impl From<Dpm> for SharedDpm {
-    fn from(dpm: Dpm) -> Self {
-        SharedDpm(std::rc::Rc::new(core::cell::RefCell::new(dpm)))
-    }
-}
-
-#[cfg(feature = "std")]
-impl Transport for SharedDpm {
-    fn read(&mut self, offset: u16, buf: &mut [u8]) -> Result<(), TransportError> {
-        DpmTransport::new(&mut *self.0.borrow_mut()).read(offset, buf)
-    }
-    fn write(&mut self, offset: u16, data: &[u8]) -> Result<(), TransportError> {
-        DpmTransport::new(&mut *self.0.borrow_mut()).write(offset, data)
     }
 }

@@ -1,14 +1,32 @@
-//! The [`Host`]: what the drive's control board runs against the card's DPM (issue 7 item 5).
+//! The host-side reference implementation of the DPM interface (issue 7 item 5): the
+//! [`Host`] is what the drive's control board runs against the card's DPM. `no_std`, no
+//! allocation, time handed in: port it by implementing [`Transport`] for the board's link to
+//! the card (the SPI frames of [`crate::dpm::spi`], a dual-port RAM) and calling [`Host`] from the
+//! drive's cycle. The simulated drive of the QEMU build, the soft slave and the host tests
+//! ([`crate::app::Application`]) runs through it. The `dpm-host` crate re-exports it with `std`
+//! extras (a shared in-process image).
+//!
+//! * [`Host::open`] — check magic, layout version, image size, capabilities.
+//! * [`Host::identity`], [`Host::status`], [`Host::card_report`] — what the card is and does.
+//! * [`Host::write_config`], [`Host::config_outcome`] — configuration, taken over by the card
+//!   only while no cyclic exchange runs (`CARD.CONFIG_RESULT`).
+//! * [`Host::read_process_data`], [`Host::write_process_data`] — DRIVE_CMD + OUTPUTS of one
+//!   card cycle in, INPUTS + DRIVE_STATE out (torn reads repeated, never returned).
+//! * [`Host::serve_parameters`], [`Host::respond`] — the parameter mailbox.
+//! * [`Host::set_fault`], [`Host::set_warning`], [`Host::set_ext_diag`], [`Host::poll`] — the
+//!   DRIVE block with the drive's heartbeat, the card's heartbeat watched (lost = A140).
 
-use crate::transport::{Transport, TransportError};
-use pbcard::dpm::codec::{self, BlockCodec, BlockError, Header};
-use pbcard::dpm::layout::{self, cap, CARD_EVENT_COUNT, EXT_DIAG_CAPACITY};
-use pbcard::dpm::{
+pub mod transport;
+
+use crate::dpm::codec::{self, BlockCodec, BlockError, Header};
+use crate::dpm::layout::{self, cap, CARD_EVENT_COUNT, EXT_DIAG_CAPACITY};
+use crate::dpm::{
     mailbox, CardEvent, CardReport, ConfigResult, DriveCommandImage, DriveReport, DriveStateImage, HeartbeatMonitor,
     HostConfig, Identity, Liveness, MailboxRequest, MailboxResponse, ParamValues, ProcessData, Status, Torn,
 };
-use pbcard::profile::param::{ParamError, ParameterAccess};
-use pbcard::time::{Duration, Instant};
+use crate::profile::param::{ParamError, ParameterAccess};
+use crate::time::{Duration, Instant};
+pub use transport::{DpmTransport, MemoryTransport, Transport, TransportError};
 
 /// The longest block (the reader's buffer).
 const MAX_BLOCK: usize = {
@@ -133,11 +151,9 @@ impl core::fmt::Display for Error {
     }
 }
 
-#[cfg(feature = "std")]
-impl std::error::Error for Error {}
+impl core::error::Error for Error {}
 
-#[cfg(feature = "std")]
-impl std::error::Error for OpenError {}
+impl core::error::Error for OpenError {}
 
 impl core::fmt::Display for OpenError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
@@ -238,7 +254,7 @@ impl<F: FnMut(&MailboxRequest) -> Answer> ParameterServer for F {
 
 /// A synchronous parameter table ([`ParameterAccess`], the same trait the card's own
 /// parameters implement) as a [`ParameterServer`]: answered at once by
-/// [`pbcard::dpm::mailbox::execute`] (format and count checks, PROFIdrive error values).
+/// [`crate::dpm::mailbox::execute`] (format and count checks, PROFIdrive error values).
 #[derive(Debug)]
 pub struct Table<'a, P>(pub &'a mut P);
 
