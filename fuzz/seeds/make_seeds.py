@@ -192,3 +192,19 @@ write("dpv1_pdu", "initiate_longer_than_pdu", [0x57, 0, 0, 0, 0, 100, 1, 0, 0, 0
 # Set_Prm + Chk_Cfg is still executed and answered afterwards.
 write("node_dpv1", "known_bug_c1_broadcast_sdn", [0x00, 0, 0x00, 14, 2, 0, 0x06, 0x85, 0x01, 0x0A, 0x01, 0x02, 11, 2])
 write("node_dpv1", "known_bug_c1_stale_request", [0x00, 0, 0x04] + PR_READ_918 + [13, 0x00, 0x00, 11, 2])
+
+# dpm_spi: control byte (bit 0: 0 = card transaction, 1 = host reply decode; bit 1: fix the
+# CRC), then the bytes. Request frame: CMD TAG ADDR(2) LEN(2) DATA CRC16/CCITT-FALSE (big-endian).
+def spi_frame(cmd, tag, addr, ln, data=b""):
+    import binascii
+    f = bytes([cmd, tag]) + addr.to_bytes(2, "big") + ln.to_bytes(2, "big") + bytes(data)
+    return f + binascii.crc_hqx(f, 0xFFFF).to_bytes(2, "big")
+
+
+write("dpm_spi", "read_status", b"\x00" + spi_frame(0xA1, 1, 0x10, 32))
+write("dpm_spi", "read_all_padded", b"\x00" + spi_frame(0xA1, 2, 0, 624) + bytes(8))
+write("dpm_spi", "write_inputs", b"\x00" + spi_frame(0xB2, 3, 0x78, 4, [0x04, 0x7F, 0x12, 0x34]))
+write("dpm_spi", "write_card_block", b"\x00" + spi_frame(0xB2, 4, 0xC0, 2, [1, 2]))
+write("dpm_spi", "status", b"\x00" + spi_frame(0xC4, 5, 0, 0))
+write("dpm_spi", "fix_crc_write", b"\x02" + spi_frame(0xB2, 6, 0x120, 3, [5, 0, 0]))
+write("dpm_spi", "reply", b"\x01" + bytes([0x80, 1, 0xA1, 0, 0, 0x10, 0, 2, 0xAA, 0xBB, 0, 0]))

@@ -51,6 +51,7 @@ pub mod layout;
 mod link;
 pub mod mailbox;
 pub mod params;
+pub mod spi;
 
 pub use blocks::{
     CardEvent, CardFlags, CardReport, ConfigResult, DriveReport, HeartbeatMonitor, HostConfig, Identity, Liveness,
