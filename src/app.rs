@@ -93,6 +93,11 @@ impl Application {
     pub fn dpm(&self) -> &Dpm {
         &self.dpm
     }
+    /// The DPM image, writable: for a transport that moves the host's bytes into it
+    /// (`dpm::spi::SpiSlave` on the board).
+    pub fn dpm_mut(&mut self) -> &mut Dpm {
+        &mut self.dpm
+    }
     /// The card-side link (counters, init-error flag).
     pub fn link_mut(&mut self) -> &mut Link {
         &mut self.link

@@ -296,6 +296,9 @@ mod app {
         node: Node,
         line: LineCounters,
         drive: Drive,
+        // DPM SPI transport: see the block "DPM SPI transport" below.
+        spi: DpmSpiPort,
+        spi_slave: pbcard::dpm::spi::SpiSlave,
     }
 
     #[local]
@@ -317,7 +320,17 @@ mod app {
         let mut node = Node::new(DpSlave::new(STATION_ADDRESS));
         node.set_baudrate(Some(LINE_RATE));
         housekeeping::spawn().ok();
-        (Shared { node, line: LineCounters::default(), drive: Drive::new(clock) }, Local { port, acyclic_clock: clock })
+        let spi = start_dpm_spi();
+        (
+            Shared {
+                node,
+                line: LineCounters::default(),
+                drive: Drive::new(clock),
+                spi,
+                spi_slave: pbcard::dpm::spi::SpiSlave::new(),
+            },
+            Local { port, acyclic_clock: clock },
+        )
     }
 
     #[idle]
@@ -458,6 +471,101 @@ mod app {
                     defmt::info!("line {}, framer {}, station {}, dp {}, dpm link {}", line, framer, station, dp, link);
                     last_stats = Some(stats);
                 }
+            }
+        }
+    }
+
+    // ---------------------------------------------------------------------------------------
+    // DPM SPI transport (issue 7 item 4; board-f411 only). The drive's control board is SPI
+    // master; `bsp/spi.rs` moves the bytes, `pbcard::dpm::spi::SpiSlave` decides. NSS rising
+    // (EXTI15_10, short, priority 12 — below USART1) re-arms the DMA and hands the received
+    // frame to `spi_frame` (priority 1), which applies it to the application's image under
+    // the `drive` lock and stages the reply for the next transaction. `spi_irq` keeps the IRQ
+    // line in step with the card's writes. While the simulated drive still stands in for the
+    // control board (`Application::step`), it writes the host blocks too: switching the
+    // housekeeping step to publish / collect only is the lead's wiring step.
+    // ---------------------------------------------------------------------------------------
+
+    /// The SPI port (QEMU: none; its transport is in-process, `pbcard::dpm::spi::Loopback`).
+    #[cfg(feature = "board-f411")]
+    type DpmSpiPort = crate::bsp::spi::SpiPort;
+    /// The SPI port (QEMU: none; its transport is in-process, `pbcard::dpm::spi::Loopback`).
+    #[cfg(not(feature = "board-f411"))]
+    type DpmSpiPort = NoSpiPort;
+    /// QEMU has no SPI port.
+    #[cfg(not(feature = "board-f411"))]
+    pub struct NoSpiPort;
+    /// A received SPI frame (QEMU: none).
+    #[cfg(feature = "board-f411")]
+    type DpmSpiFrame = crate::bsp::spi::Frame;
+    /// A received SPI frame (QEMU: none).
+    #[cfg(not(feature = "board-f411"))]
+    type DpmSpiFrame = ();
+
+    /// Bring up the SPI port and start the IRQ task (from `init`).
+    #[cfg(feature = "board-f411")]
+    fn start_dpm_spi() -> DpmSpiPort {
+        spi_irq::spawn().ok();
+        crate::bsp::spi::init()
+    }
+    #[cfg(not(feature = "board-f411"))]
+    fn start_dpm_spi() -> DpmSpiPort {
+        NoSpiPort
+    }
+
+    /// NSS rising: the end of one SPI transaction.
+    #[cfg(feature = "board-f411")]
+    #[task(binds = EXTI15_10, priority = 12, shared = [spi])]
+    fn spi_nss(mut cx: spi_nss::Context) {
+        if let Some(frame) = cx.shared.spi.lock(|p| p.on_nss_rise()) {
+            if let Err(frame) = spi_frame::spawn(frame) {
+                cx.shared.spi.lock(|p| p.drop_frame(frame));
+            }
+        }
+    }
+
+    /// One received SPI frame against the DPM image; the reply goes out in the next
+    /// transaction.
+    #[cfg(feature = "board-f411")]
+    #[task(priority = 1, shared = [spi, spi_slave, drive])]
+    async fn spi_frame(cx: spi_frame::Context, frame: DpmSpiFrame) {
+        let spi_frame::SharedResources { mut spi, mut spi_slave, mut drive, .. } = cx.shared;
+        let Some(reply) = spi.lock(|p| p.reply_buffer()) else {
+            spi.lock(|p| p.drop_frame(frame));
+            return;
+        };
+        // The image is locked for one `handle` (masks the DP-V1 task, not USART1).
+        let (len, irq) = (&mut spi_slave, &mut drive).lock(|slave, d| {
+            let dpm = d.app.dpm_mut();
+            let len = slave.handle(frame.bytes(), dpm, reply);
+            (len, slave.irq(dpm))
+        });
+        spi.lock(|p| {
+            p.reply_ready(reply, len);
+            p.give_back(frame);
+            p.set_irq(irq);
+        });
+    }
+
+    /// The IRQ line to the drive every millisecond (the card writes its blocks in the
+    /// housekeeping step), and the transport's counters in the log when they change.
+    #[cfg(feature = "board-f411")]
+    #[task(priority = 1, shared = [spi, spi_slave, drive])]
+    async fn spi_irq(cx: spi_irq::Context) {
+        let spi_irq::SharedResources { mut spi, mut spi_slave, mut drive, .. } = cx.shared;
+        let mut ms: u32 = 0;
+        let mut shown = None;
+        loop {
+            Mono::delay(1.millis()).await;
+            let (irq, proto) = (&mut spi_slave, &mut drive).lock(|s, d| (s.irq(d.app.dpm()), s.stats()));
+            let port = spi.lock(|p| {
+                p.set_irq(irq);
+                p.stats()
+            });
+            ms = ms.wrapping_add(1);
+            if ms.is_multiple_of(10_000) && shown != Some((port, proto)) {
+                defmt::info!("dpm spi port {}, protocol {}", port, proto);
+                shown = Some((port, proto));
             }
         }
     }

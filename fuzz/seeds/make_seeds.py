@@ -207,3 +207,20 @@ write("pkw", "profidrive2_ak", [0x02 | 1 << 2] + pkw_step(3, 0x6003, 0x0200, 0, 
       + pkw_step(3, 0x7003, 0x0100, 0, 77) + pkw_step(2, 0, 0, 0, 0) + pkw_step(3, 0x3004, 0, 0x0A5C, 0xDD50)
       + pkw_step(2, 0, 0, 0, 0) + pkw_step(3, 0x9003, 0, 0, 0) + pkw_step(3, 0x4001, 0x0100, 0, 0)
       + pkw_step(3, 0x2002, 0, 0, 1) + pkw_step(3, 0xF001, 0, 0, 0))
+
+
+# dpm_spi: control byte (bit 0: 0 = card transaction, 1 = host reply decode; bit 1: fix the
+# CRC), then the bytes. Request frame: CMD TAG ADDR(2) LEN(2) DATA CRC16/CCITT-FALSE (big-endian).
+def spi_frame(cmd, tag, addr, ln, data=b""):
+    import binascii
+    f = bytes([cmd, tag]) + addr.to_bytes(2, "big") + ln.to_bytes(2, "big") + bytes(data)
+    return f + binascii.crc_hqx(f, 0xFFFF).to_bytes(2, "big")
+
+
+write("dpm_spi", "read_status", b"\x00" + spi_frame(0xA1, 1, 0x10, 32))
+write("dpm_spi", "read_all_padded", b"\x00" + spi_frame(0xA1, 2, 0, 624) + bytes(8))
+write("dpm_spi", "write_inputs", b"\x00" + spi_frame(0xB2, 3, 0x78, 4, [0x04, 0x7F, 0x12, 0x34]))
+write("dpm_spi", "write_card_block", b"\x00" + spi_frame(0xB2, 4, 0xC0, 2, [1, 2]))
+write("dpm_spi", "status", b"\x00" + spi_frame(0xC4, 5, 0, 0))
+write("dpm_spi", "fix_crc_write", b"\x02" + spi_frame(0xB2, 6, 0x120, 3, [5, 0, 0]))
+write("dpm_spi", "reply", b"\x01" + bytes([0x80, 1, 0xA1, 0, 0, 0x10, 0, 2, 0xAA, 0xBB, 0, 0]))

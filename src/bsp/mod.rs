@@ -21,6 +21,9 @@ pub mod divisor;
 pub mod f411;
 #[cfg(feature = "qemu")]
 pub mod qemu;
+/// The DPM transport to the drive's control board: SPI2 slave + DMA1 (issue 7 item 4).
+#[cfg(feature = "board-f411")]
+pub mod spi;
 
 /// The board this firmware is built for (cargo feature `board-f411` or `qemu`).
 #[cfg(feature = "board-f411")]

@@ -64,6 +64,7 @@ pub mod layout;
 mod link;
 pub mod mailbox;
 pub mod params;
+pub mod spi;
 
 pub use blocks::{
     CardEvent, CardFlags, CardReport, ConfigResult, DriveCommandImage, DriveReport, DriveStateImage, HeartbeatMonitor,

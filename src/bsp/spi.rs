@@ -1,0 +1,336 @@
+//! The DPM transport on the STM32F411 reference board: SPI2 as SPI **slave** to the drive's
+//! control board, both directions by DMA1, NSS as the transaction delimiter, and an IRQ
+//! output to the host. The frame protocol (byte-level spec, checks, replies, events) is
+//! `pbcard::dpm::spi`; this file only moves bytes (ARCHITECTURE §3).
+//!
+//! ## Pinout (connector to the drive's control board)
+//!
+//! | pin | function | direction (card) | note |
+//! |---|---|---|---|
+//! | PB12 | SPI2_NSS (AF5) + EXTI12 | in | hardware NSS: the SPI ignores SCK while high; its rising edge ends a transaction |
+//! | PB13 | SPI2_SCK (AF5) | in | mode 0 (CPOL 0, CPHA 0), up to 12 MHz |
+//! | PB14 | SPI2_MISO (AF5) | out | push-pull, very high speed |
+//! | PB15 | SPI2_MOSI (AF5) | in | |
+//! | PB0 | IRQ | out | active low, push-pull: low while the card has pending events |
+//!
+//! Nothing here touches the PROFIBUS side (USART1 on PA9 / PA10, DE on PA8, `f411.rs`) or
+//! its DMA controller (USART1 is served by DMA2 only): this driver owns SPI2, DMA1 streams 3
+//! and 4, EXTI line 12 and GPIOB pins 0 and 12..=15.
+//!
+//! ## DMA
+//!
+//! SPI2_RX = DMA1 stream 3 channel 0 (peripheral → memory, [`RX_LEN`] bytes), SPI2_TX = DMA1
+//! stream 4 channel 0 (memory → peripheral, [`TX_LEN`] bytes). No DMA interrupt: the
+//! transaction end is NSS rising.
+//!
+//! ## One transaction
+//!
+//! NSS rising → EXTI15_10 → [`SpiPort::on_nss_rise`] (a few µs, never blocks on the
+//! protocol): the received length is `RX_LEN - NDTR`; both streams stop; SPI2 is **reset
+//! through RCC** and programmed again — the only way to drop the byte the TX DMA has already
+//! preloaded into the data register (without it, the next reply would start with a stale
+//! byte); RX is re-armed on a spare buffer, TX on the reply the frame task has prepared (or
+//! not at all: MISO then sends `0x00`, "no reply", as the protocol specifies). The received
+//! buffer goes to the frame task (RTIC software task, low priority), which runs
+//! `dpm::spi::SpiSlave::handle` against the image and hands back the reply buffer with
+//! [`SpiPort::reply_ready`]. That is why the HAL's `SpiSlave` / `dma::Transfer` are not
+//! used: they cannot reset and re-program SPI2 between transactions from the interrupt;
+//! GPIO, EXTI and RCC enable / reset come from the HAL.
+//!
+//! Buffers: two RX and two TX buffers of about 1 KiB each (`cortex_m::singleton!`), owned
+//! by whoever holds the `&'static mut` — the DMA only ever sees a buffer this port holds.
+//! If the frame task still holds the spare RX buffer when a transaction ends (the master
+//! was faster than [`pbcard::dpm::spi::T_READY_US`]), the transaction is dropped and
+//! counted ([`PortStats::dropped`]); the master sees "no reply" and polls or repeats.
+
+use core::sync::atomic::{compiler_fence, Ordering};
+
+use pbcard::dpm::spi::{MAX_REPLY, MAX_TRANSACTION};
+use stm32f4xx_hal::gpio::{
+    Alternate, Edge, ExtiPin, GpioExt, Output, PinState, PushPull, Speed, PB0, PB12, PB13, PB14, PB15,
+};
+use stm32f4xx_hal::pac::{DMA1, EXTI, RCC, SPI2};
+use stm32f4xx_hal::rcc::{Enable, Reset};
+use stm32f4xx_hal::syscfg::SysCfgExt;
+
+/// RX buffer length: one byte more than the longest transaction, so that an overlong one is
+/// seen (and refused) instead of cut to a valid length.
+pub const RX_LEN: usize = MAX_TRANSACTION + 1;
+/// TX buffer length: the longest reply; the bytes after a reply are `0x00`.
+pub const TX_LEN: usize = MAX_REPLY;
+
+/// A receive buffer.
+pub type RxBuf = [u8; RX_LEN];
+/// A transmit (reply) buffer.
+pub type TxBuf = [u8; TX_LEN];
+
+const RX_STREAM: usize = 3;
+const TX_STREAM: usize = 4;
+
+/// One received transaction, handed from the interrupt to the frame task (and back with
+/// [`SpiPort::give_back`]).
+pub struct Frame {
+    buf: &'static mut RxBuf,
+    len: usize,
+}
+
+impl Frame {
+    /// The MOSI bytes between NSS falling and rising.
+    pub fn bytes(&self) -> &[u8] {
+        &self.buf[..self.len]
+    }
+}
+
+/// Counters of the port (the protocol's own are in `SpiSlave::stats`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, defmt::Format)]
+pub struct PortStats {
+    /// Transactions with at least one byte.
+    pub transactions: u32,
+    /// NSS pulses without a byte (ignored).
+    pub empty: u32,
+    /// Transactions dropped because the frame task had not returned the spare buffer.
+    pub dropped: u32,
+    /// Transactions during which no reply was armed (MISO `0x00`).
+    pub no_reply: u32,
+}
+
+/// SPI2 slave + DMA1 + NSS EXTI + IRQ pin.
+pub struct SpiPort {
+    spi: SPI2,
+    dma: DMA1,
+    rcc: RCC,
+    nss: PB12<Alternate<5>>,
+    _pins: (PB13<Alternate<5>>, PB14<Alternate<5>>, PB15<Alternate<5>>),
+    irq: PB0<Output<PushPull>>,
+    /// Armed for RX (the DMA writes it).
+    rx: Option<&'static mut RxBuf>,
+    rx_spare: Option<&'static mut RxBuf>,
+    /// Armed for TX (the DMA reads it).
+    tx: Option<&'static mut TxBuf>,
+    /// A reply prepared for the next transaction.
+    tx_ready: Option<&'static mut TxBuf>,
+    /// Reply buffers nobody uses (two slots: there are two buffers).
+    tx_free: [Option<&'static mut TxBuf>; 2],
+    stats: PortStats,
+}
+
+impl SpiPort {
+    /// Handle the end of a transaction (NSS rising; call from the EXTI15_10 interrupt):
+    /// re-arm for the next one and return what was received, if the frame task can take it.
+    pub fn on_nss_rise(&mut self) -> Option<Frame> {
+        self.nss.clear_interrupt_pending_bit();
+        let remaining = usize::from(self.dma.st(RX_STREAM).ndtr().read().ndt().bits());
+        let len = RX_LEN.saturating_sub(remaining);
+        self.stop();
+        let mut frame = None;
+        if len == 0 {
+            self.stats.empty = self.stats.empty.wrapping_add(1);
+        } else {
+            self.stats.transactions = self.stats.transactions.wrapping_add(1);
+            match (self.rx_spare.take(), self.rx.take()) {
+                (Some(spare), Some(full)) => {
+                    self.rx = Some(spare);
+                    frame = Some(Frame { buf: full, len });
+                }
+                (spare, full) => {
+                    // The frame task still holds the spare: drop this transaction.
+                    self.rx_spare = spare;
+                    self.rx = full;
+                    self.stats.dropped = self.stats.dropped.wrapping_add(1);
+                }
+            }
+        }
+        if let Some(sent) = self.tx.take() {
+            self.put_free(sent);
+        }
+        self.tx = self.tx_ready.take();
+        if self.tx.is_none() {
+            self.stats.no_reply = self.stats.no_reply.wrapping_add(1);
+        }
+        self.start();
+        frame
+    }
+
+    /// A buffer for the next reply: a free one, else the prepared one not sent yet (a newer
+    /// reply replaces it). `None` only if the frame task already holds one.
+    pub fn reply_buffer(&mut self) -> Option<&'static mut TxBuf> {
+        let [a, b] = &mut self.tx_free;
+        a.take().or_else(|| b.take()).or_else(|| self.tx_ready.take())
+    }
+
+    fn put_free(&mut self, buf: &'static mut TxBuf) {
+        let slot = if self.tx_free[0].is_none() { 0 } else { 1 };
+        self.tx_free[slot] = Some(buf);
+    }
+
+    /// The reply in `buf` (its first `len` bytes; the rest is zeroed here) goes out in the
+    /// next transaction.
+    pub fn reply_ready(&mut self, buf: &'static mut TxBuf, len: usize) {
+        buf[len.min(TX_LEN)..].fill(0);
+        if let Some(old) = self.tx_ready.replace(buf) {
+            self.put_free(old);
+        }
+    }
+
+    /// The frame task is done with a received frame.
+    pub fn give_back(&mut self, frame: Frame) {
+        self.rx_spare = Some(frame.buf);
+    }
+
+    /// A received frame nobody could handle (the frame task was still running): count it
+    /// dropped and take its buffer back.
+    pub fn drop_frame(&mut self, frame: Frame) {
+        self.stats.dropped = self.stats.dropped.wrapping_add(1);
+        self.give_back(frame);
+    }
+
+    /// Drive the IRQ line: `true` = asserted (low).
+    pub fn set_irq(&mut self, asserted: bool) {
+        if asserted {
+            self.irq.set_low();
+        } else {
+            self.irq.set_high();
+        }
+    }
+
+    /// The port's counters.
+    pub fn stats(&self) -> PortStats {
+        self.stats
+    }
+
+    /// Stop both streams and reset SPI2 (drops the preloaded TX byte and any overrun).
+    fn stop(&mut self) {
+        for s in [RX_STREAM, TX_STREAM] {
+            let st = self.dma.st(s);
+            st.cr().modify(|_, w| w.en().disabled());
+            // EN reads 1 until the stream has finished its current beat (a few cycles).
+            while st.cr().read().en().is_enabled() {}
+        }
+        // Clear every flag of streams 3 (LIFCR) and 4 (HIFCR).
+        self.dma.lifcr().write(|w| {
+            w.cfeif3().clear();
+            w.cdmeif3().clear();
+            w.cteif3().clear();
+            w.chtif3().clear();
+            w.ctcif3().clear()
+        });
+        self.dma.hifcr().write(|w| {
+            w.cfeif4().clear();
+            w.cdmeif4().clear();
+            w.cteif4().clear();
+            w.chtif4().clear();
+            w.ctcif4().clear()
+        });
+        SPI2::reset(&mut self.rcc);
+    }
+
+    /// Program SPI2 and the streams for the next transaction (RM0383 §20.3.8 order: RXDMAEN,
+    /// streams, TXDMAEN, SPE).
+    fn start(&mut self) {
+        // Slave, mode 0, 8 bit, MSB first, hardware NSS (SSM = 0).
+        self.spi.cr1().write(|w| {
+            w.mstr().clear_bit();
+            w.cpol().clear_bit();
+            w.cpha().clear_bit();
+            w.dff().clear_bit();
+            w.lsbfirst().clear_bit();
+            w.ssm().clear_bit()
+        });
+        self.spi.cr2().write(|w| w.rxdmaen().set_bit());
+        let dr = self.spi.dr().as_ptr() as u32;
+        compiler_fence(Ordering::SeqCst);
+        cortex_m::asm::dmb();
+        if let Some(rx) = self.rx.as_deref_mut() {
+            arm(&self.dma, RX_STREAM, dr, rx.as_mut_ptr() as u32, RX_LEN as u16, false);
+        }
+        if let Some(tx) = self.tx.as_deref() {
+            arm(&self.dma, TX_STREAM, dr, tx.as_ptr() as u32, TX_LEN as u16, true);
+            self.spi.cr2().modify(|_, w| w.txdmaen().set_bit());
+        }
+        self.spi.cr1().modify(|_, w| w.spe().set_bit());
+    }
+}
+
+/// Program and enable one stream: channel 0, byte transfers, memory increment.
+fn arm(dma: &DMA1, stream: usize, periph: u32, mem: u32, n: u16, to_periph: bool) {
+    let st = dma.st(stream);
+    // SAFETY: `periph` is SPI2's data register, `mem` a buffer of at least `n` bytes that
+    // the port owns (`&'static mut`) until the stream is stopped again in `stop`.
+    st.par().write(|w| unsafe { w.pa().bits(periph) });
+    st.m0ar().write(|w| unsafe { w.m0a().bits(mem) });
+    st.ndtr().write(|w| w.ndt().set(n));
+    st.fcr().reset(); // direct mode
+    st.cr().write(|w| {
+        w.chsel().set(0);
+        if to_periph {
+            w.dir().memory_to_peripheral();
+        } else {
+            w.dir().peripheral_to_memory();
+        }
+        w.minc().incremented();
+        w.pinc().fixed();
+        w.psize().bits8();
+        w.msize().bits8();
+        w.pl().high();
+        w.en().enabled()
+    });
+}
+
+/// Bring up SPI2 slave, DMA1, the NSS interrupt and the IRQ pin (released). Call once from
+/// the RTIC `init`, after `f411::init`.
+///
+/// The board's `init` takes the whole `pac::Peripherals`; until it hands over the pieces
+/// this port needs, they are taken here with `steal`: SPI2, DMA1, GPIOB, EXTI and SYSCFG,
+/// which nothing else in the firmware uses, and RCC, of which only the enable / reset bits
+/// of these peripherals are touched (bit-band writes, see the HAL's `rcc` module).
+pub fn init() -> SpiPort {
+    // SAFETY: see the function docs — only peripherals nobody else owns are used, and RCC
+    // only for the enable / reset bits of those.
+    let dp = unsafe { stm32f4xx_hal::pac::Peripherals::steal() };
+    let mut rcc = dp.RCC;
+    SPI2::enable(&mut rcc);
+    SPI2::reset(&mut rcc);
+    DMA1::enable(&mut rcc);
+    DMA1::reset(&mut rcc);
+
+    let gpiob = dp.GPIOB.split(&mut rcc);
+    let irq = gpiob.pb0.into_push_pull_output_in_state(PinState::High);
+    let mut nss = gpiob.pb12.into_alternate::<5>();
+    let sck = gpiob.pb13.into_alternate::<5>();
+    let miso = gpiob.pb14.into_alternate::<5>().speed(Speed::VeryHigh);
+    let mosi = gpiob.pb15.into_alternate::<5>();
+
+    let mut syscfg = dp.SYSCFG.constrain(&mut rcc);
+    let mut exti: EXTI = dp.EXTI;
+    nss.make_interrupt_source(&mut syscfg);
+    nss.trigger_on_edge(&mut exti, Edge::Rising);
+    nss.enable_interrupt(&mut exti);
+
+    let rx_a = cortex_m::singleton!(: RxBuf = [0; RX_LEN]);
+    let rx_b = cortex_m::singleton!(: RxBuf = [0; RX_LEN]);
+    let tx_a = cortex_m::singleton!(: TxBuf = [0; TX_LEN]);
+    let tx_b = cortex_m::singleton!(: TxBuf = [0; TX_LEN]);
+    let (Some(rx_a), Some(rx_b), Some(tx_a), Some(tx_b)) = (rx_a, rx_b, tx_a, tx_b) else {
+        defmt::panic!("bsp::spi::init called twice");
+    };
+
+    let mut port = SpiPort {
+        spi: dp.SPI2,
+        dma: dp.DMA1,
+        rcc,
+        nss,
+        _pins: (sck, miso, mosi),
+        irq,
+        rx: Some(rx_a),
+        rx_spare: Some(rx_b),
+        tx: None,
+        tx_ready: None,
+        tx_free: [Some(tx_a), Some(tx_b)],
+        stats: PortStats::default(),
+    };
+    port.start();
+    defmt::info!(
+        "DPM SPI: SPI2 slave mode 0 (NSS PB12, SCK PB13, MISO PB14, MOSI PB15), IRQ PB0 active low, DMA1 streams 3/4"
+    );
+    port
+}

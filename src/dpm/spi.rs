@@ -1,0 +1,880 @@
+//! The DPM transport on the board: a framed protocol over SPI between the drive's control
+//! board (SPI **master**, "host") and the card (SPI **slave**), sans-IO (issue 7 item 4,
+//! ARCHITECTURE §5). The card side is [`SpiSlave`]; the host side is [`SpiHostCodec`] (frame
+//! encoder / reply decoder) and [`SpiHost`] (read / write over any full-duplex [`SpiBus`]);
+//! [`Loopback`] is an in-process card that the QEMU build, the soft slave and the tests can
+//! put behind [`SpiHost`]. The board driver (`src/bsp/spi.rs`, STM32F411 SPI2 + DMA1) only
+//! moves bytes; every decision is made here.
+//!
+//! # Byte-level specification (protocol version 1)
+//!
+//! **Electrical.** SPI mode 0 (CPOL = 0, CPHA = 0), 8-bit words, most significant bit first,
+//! SCK up to 12 MHz. NSS (active low) frames a **transaction**: NSS falls, the master clocks
+//! any number of bytes (at most [`MAX_TRANSACTION`]), NSS rises. The card's IRQ output
+//! (active low) is described under "Events" below.
+//!
+//! **Pipelining.** SPI is full duplex, and a slave fed by DMA cannot compute an answer
+//! within a byte time. Therefore the reply to the request sent in transaction *k* is clocked
+//! out on MISO during transaction *k + 1*, while the master sends its next request on MOSI.
+//! The master must clock at least as many bytes as the longer of (its request frame, the
+//! reply it expects); the master pads its request with `0x00`, the card pads its reply with
+//! `0x00`. Between NSS rising and the next NSS falling the master leaves the card
+//! [`T_READY_US`] µs (a design target, not measured on hardware: the board's frame task
+//! runs at the lowest priority and can wait behind one application step). A card that is not ready sends `0x00` bytes only (first
+//! byte `0x00` = "no reply in this transaction"); the master then polls with a STATUS
+//! request. Each reply echoes the request's TAG, so a reply is never taken for another
+//! request. READ and WRITE are idempotent: a master that lost a reply repeats the request;
+//! it also repeats a request refused with CRC_ERROR, BAD_LENGTH or BAD_COMMAND (a flipped
+//! bit in CMD or LEN moves the CRC, so line errors show as these too), while BAD_ADDRESS and
+//! FORBIDDEN_WRITE are decided on CRC-checked content and are final.
+//!
+//! **Request frame** (MOSI; big-endian):
+//!
+//! | byte | field | meaning |
+//! |---|---|---|
+//! | 0 | CMD | [`Command`]: `0xA1` READ, `0xB2` WRITE, `0xC4` STATUS |
+//! | 1 | TAG | chosen by the master, echoed in the reply |
+//! | 2..4 | ADDR | u16 offset in the DPM image (`docs/DPM.md`); STATUS: 0 |
+//! | 4..6 | LEN | u16 data length: READ bytes wanted, WRITE bytes of DATA (1..=[`MAX_DATA`]); STATUS: 0 |
+//! | 6..6+n | DATA | WRITE only: n = LEN bytes for ADDR.. |
+//! | 6+n..8+n | CRC | u16 [`crc16`] of bytes 0..6+n |
+//! | 8+n.. | padding | `0x00` up to the end of the transaction |
+//!
+//! **Reply frame** (MISO, in the next transaction; big-endian):
+//!
+//! | byte | field | meaning |
+//! |---|---|---|
+//! | 0 | RESULT | [`ResultCode`]: `0x80` OK, `0x81` CRC error, `0x82` bad command, `0x83` bad length, `0x84` bad address, `0x85` forbidden write; `0x00` = no reply |
+//! | 1 | TAG | the request's TAG (as received) |
+//! | 2 | CMD | the request's CMD (as received) |
+//! | 3 | FLAGS | bit 0: events pending (the IRQ line is asserted); other bits 0 |
+//! | 4..6 | ADDR | the request's ADDR (as received) |
+//! | 6..8 | LEN | u16 n = bytes of DATA that follow (READ OK: the LEN asked; STATUS OK: [`STATUS_LEN`]; else 0) |
+//! | 8..8+n | DATA | READ: image bytes ADDR..ADDR+n; STATUS: see below |
+//! | 8+n..10+n | CRC | u16 [`crc16`] of bytes 0..8+n |
+//! | 10+n.. | padding | `0x00` |
+//!
+//! **Checks, in this order** (the first that fails decides RESULT; each has a counter in
+//! [`SpiStats`], shown in the STATUS data): transaction shorter than the frame its CMD and
+//! LEN announce, or longer than [`MAX_TRANSACTION`] → BAD_LENGTH; CRC → CRC_ERROR; padding
+//! not all `0x00` → BAD_LENGTH; CMD unknown (framed as header + CRC, no data) → BAD_COMMAND; LEN 0 or above [`MAX_DATA`]
+//! (READ/WRITE), or ADDR/LEN not 0 (STATUS) → BAD_LENGTH; ADDR + LEN beyond the image →
+//! BAD_ADDRESS; a WRITE touching a byte of a block the card writes (`layout::BLOCKS`, writer
+//! "card") → FORBIDDEN_WRITE. A WRITE is applied to the image only after the whole frame has
+//! passed every check, in one copy that the card's own accesses cannot interleave: a refused
+//! or cut frame never changes a byte.
+//!
+//! **CRC**: CRC-16/CCITT-FALSE — polynomial `0x1021`, initial value `0xFFFF`, no reflection,
+//! no final XOR; check value `crc16(b"123456789") = 0x29B1`. Sent high byte first.
+//! Examples (CRCs cross-checked with Python's `binascii.crc_hqx(frame, 0xFFFF)`):
+//! READ, TAG 1, ADDR 0x0010 (STATUS block), LEN 32 = `A1 01 00 10 00 20 67 C8`;
+//! WRITE, TAG 2, ADDR 0x0078 (INPUTS), DATA `12 34` = `B2 02 00 78 00 02 12 34 07 2B`;
+//! STATUS, TAG 3 = `C4 03 00 00 00 00 58 53`.
+//!
+//! **STATUS data** ([`STATUS_LEN`] = 20 bytes, big-endian): 0 protocol version (1), 1
+//! reserved, 2..4 [`MAX_DATA`], 4..6 image size, 6..8 pending events (bitmap below), then
+//! u16 counters (wrapping): 8 frames accepted, 10 CRC errors, 12 bad command, 14 bad length,
+//! 16 bad address, 18 forbidden writes.
+//!
+//! **Events and the IRQ line.** Bit *i* of the pending-events bitmap stands for
+//! `layout::BLOCKS[i]` (bit 1 STATUS, 2 OUTPUTS, 5 CARD, 8 MBX_REQ — the sequenced blocks the
+//! card writes). It is set while the block's `SEQ_HEAD` differs from the value the host last
+//! read, and cleared by reading: an accepted READ whose range covers both bytes of a block's
+//! `SEQ_HEAD` records the value sent. No separate acknowledge exists, so an update that comes
+//! after the host's read is never lost. The card drives IRQ low while the bitmap is not 0
+//! (level, not edge); reply FLAGS bit 0 mirrors it.
+//!
+//! **A host cycle** (what [`SpiHost`] does): READ STATUS/OUTPUTS/CARD when IRQ is low, WRITE
+//! INPUTS/DRIVE, and after each request one STATUS request to fetch its reply, matching the
+//! TAG; a STATUS reply with another TAG is older and skipped, `0x00` means "poll again".
+
+use super::layout::{Writer, BLOCKS};
+use super::{Dpm, IMAGE_SIZE};
+
+/// Protocol version, first byte of the STATUS data.
+pub const PROTOCOL_VERSION: u8 = 1;
+/// Most data bytes one READ or WRITE moves.
+pub const MAX_DATA: usize = 1024;
+/// Request header: CMD, TAG, ADDR, LEN.
+pub const REQUEST_HEADER: usize = 6;
+/// Reply header: RESULT, TAG, CMD, FLAGS, ADDR, LEN.
+pub const REPLY_HEADER: usize = 8;
+/// The CRC at the end of each frame.
+pub const CRC_LEN: usize = 2;
+/// The longest request frame (a WRITE of [`MAX_DATA`] bytes).
+pub const MAX_REQUEST: usize = REQUEST_HEADER + MAX_DATA + CRC_LEN;
+/// The longest reply frame (a READ of [`MAX_DATA`] bytes).
+pub const MAX_REPLY: usize = REPLY_HEADER + MAX_DATA + CRC_LEN;
+/// The longest transaction the card takes (a longer one is refused as BAD_LENGTH).
+pub const MAX_TRANSACTION: usize = if MAX_REPLY > MAX_REQUEST { MAX_REPLY } else { MAX_REQUEST };
+/// Bytes of STATUS data.
+pub const STATUS_LEN: usize = 20;
+/// Time the master leaves the card between two transactions (typical; see the module docs).
+pub const T_READY_US: u32 = 200;
+/// Reply byte 0 when the card had no reply ready for this transaction.
+pub const NO_REPLY: u8 = 0x00;
+/// Reply FLAGS bit 0: events pending (IRQ asserted).
+pub const FLAG_EVENTS: u8 = 1 << 0;
+
+const _: () = {
+    assert!(BLOCKS.len() <= 16, "the events bitmap is a u16");
+    assert!(MAX_DATA <= u16::MAX as usize);
+    assert!(IMAGE_SIZE <= u16::MAX as usize);
+    assert!(REPLY_HEADER + STATUS_LEN + CRC_LEN <= MAX_TRANSACTION);
+};
+
+/// A request's CMD byte (the codes are at least 3 bits apart, and neither `0x00` nor `0xFF`,
+/// which a floating or stuck line produces).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[repr(u8)]
+pub enum Command {
+    /// Read LEN bytes of the image from ADDR.
+    Read = 0xA1,
+    /// Write the DATA to the image at ADDR (host-written blocks only).
+    Write = 0xB2,
+    /// The card's protocol status and counters; also the "poll" that fetches a reply.
+    Status = 0xC4,
+}
+
+impl Command {
+    /// The command of a CMD byte.
+    pub const fn from_code(code: u8) -> Option<Command> {
+        match code {
+            0xA1 => Some(Command::Read),
+            0xB2 => Some(Command::Write),
+            0xC4 => Some(Command::Status),
+            _ => None,
+        }
+    }
+
+    /// Bytes of DATA a request with `len` in its LEN field carries.
+    pub const fn data_len(self, len: u16) -> usize {
+        match self {
+            Command::Write => len as usize,
+            Command::Read | Command::Status => 0,
+        }
+    }
+}
+
+/// A reply's RESULT byte.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[repr(u8)]
+pub enum ResultCode {
+    /// Done: READ data / WRITE applied / STATUS data.
+    Ok = 0x80,
+    /// The request's CRC did not match: nothing done.
+    CrcError = 0x81,
+    /// CMD is not a [`Command`].
+    BadCommand = 0x82,
+    /// The transaction was shorter than the frame, longer than [`MAX_TRANSACTION`], its
+    /// padding was not zero, or LEN was 0 / above [`MAX_DATA`].
+    BadLength = 0x83,
+    /// ADDR + LEN is beyond the image.
+    BadAddress = 0x84,
+    /// A WRITE touched a block the card writes.
+    ForbiddenWrite = 0x85,
+}
+
+impl ResultCode {
+    /// Every code.
+    pub const ALL: [ResultCode; 6] = [
+        ResultCode::Ok,
+        ResultCode::CrcError,
+        ResultCode::BadCommand,
+        ResultCode::BadLength,
+        ResultCode::BadAddress,
+        ResultCode::ForbiddenWrite,
+    ];
+
+    /// Whether a damaged line can cause this refusal of a well-formed request (CRC error,
+    /// a LEN or CMD bit flipped, a cut transaction): the master repeats the request. BAD_ADDRESS
+    /// and FORBIDDEN_WRITE are decided on CRC-checked content and are final.
+    pub const fn line_error(self) -> bool {
+        matches!(self, ResultCode::CrcError | ResultCode::BadLength | ResultCode::BadCommand)
+    }
+
+    /// The code of a RESULT byte.
+    pub fn from_code(code: u8) -> Option<ResultCode> {
+        ResultCode::ALL.into_iter().find(|r| *r as u8 == code)
+    }
+}
+
+/// CRC-16/CCITT-FALSE of `data`: polynomial 0x1021, init 0xFFFF, no reflection, no final
+/// XOR (check value 0x29B1 for "123456789").
+pub fn crc16(data: &[u8]) -> u16 {
+    crc16_update(0xFFFF, data)
+}
+
+/// Continue a CRC-16/CCITT-FALSE over more bytes.
+pub fn crc16_update(mut crc: u16, data: &[u8]) -> u16 {
+    for &b in data {
+        crc = (crc << 8) ^ CRC_TABLE[usize::from((crc >> 8) as u8 ^ b)];
+    }
+    crc
+}
+
+const CRC_TABLE: [u16; 256] = {
+    let mut t = [0u16; 256];
+    let mut i = 0;
+    while i < 256 {
+        let mut c = (i as u16) << 8;
+        let mut k = 0;
+        while k < 8 {
+            c = if c & 0x8000 != 0 { (c << 1) ^ 0x1021 } else { c << 1 };
+            k += 1;
+        }
+        t[i] = c;
+        i += 1;
+    }
+    t
+};
+
+fn get16(b: &[u8], at: usize) -> u16 {
+    u16::from_be_bytes([b[at], b[at + 1]])
+}
+
+fn put16(b: &mut [u8], at: usize, v: u16) {
+    b[at..at + 2].copy_from_slice(&v.to_be_bytes());
+}
+
+/// The card's protocol counters (all wrap). The STATUS data shows their low 16 bits.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct SpiStats {
+    /// Frames accepted (RESULT OK).
+    pub frames_ok: u32,
+    /// Frames refused for their CRC.
+    pub crc_errors: u32,
+    /// Frames refused for an unknown CMD.
+    pub bad_command: u32,
+    /// Frames refused for their length (cut, overlong, padding, LEN).
+    pub bad_length: u32,
+    /// Frames refused because ADDR + LEN is beyond the image.
+    pub bad_address: u32,
+    /// WRITEs refused because they touched a card-written block.
+    pub forbidden_writes: u32,
+}
+
+impl SpiStats {
+    fn count(&mut self, r: ResultCode) {
+        let c = match r {
+            ResultCode::Ok => &mut self.frames_ok,
+            ResultCode::CrcError => &mut self.crc_errors,
+            ResultCode::BadCommand => &mut self.bad_command,
+            ResultCode::BadLength => &mut self.bad_length,
+            ResultCode::BadAddress => &mut self.bad_address,
+            ResultCode::ForbiddenWrite => &mut self.forbidden_writes,
+        };
+        *c = c.wrapping_add(1);
+    }
+
+    /// Frames refused, all causes.
+    pub fn refused(&self) -> u32 {
+        self.crc_errors
+            .wrapping_add(self.bad_command)
+            .wrapping_add(self.bad_length)
+            .wrapping_add(self.bad_address)
+            .wrapping_add(self.forbidden_writes)
+    }
+}
+
+/// A request that passed every check.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Request<'a> {
+    /// The command.
+    pub cmd: Command,
+    /// TAG.
+    pub tag: u8,
+    /// ADDR.
+    pub addr: u16,
+    /// LEN.
+    pub len: u16,
+    /// WRITE data (empty otherwise).
+    pub data: &'a [u8],
+}
+
+/// Why a transaction was refused, with what could be read of its header (for the reply's
+/// echo fields; 0 where the transaction was too short).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Refusal {
+    /// The RESULT sent.
+    pub result: ResultCode,
+    /// CMD byte as received.
+    pub cmd: u8,
+    /// TAG as received.
+    pub tag: u8,
+    /// ADDR as received.
+    pub addr: u16,
+}
+
+/// Check one received transaction (MOSI bytes between NSS falling and rising) against the
+/// grammar and the image: every check of the module docs, in that order. Pure: the image is
+/// not touched.
+pub fn parse_request(rx: &[u8]) -> Result<Request<'_>, Refusal> {
+    let at = |i: usize| rx.get(i).copied().unwrap_or(0);
+    let refuse = |result| Refusal { result, cmd: at(0), tag: at(1), addr: u16::from_be_bytes([at(2), at(3)]) };
+    if rx.len() < REQUEST_HEADER + CRC_LEN || rx.len() > MAX_TRANSACTION {
+        return Err(refuse(ResultCode::BadLength));
+    }
+    let (addr, len) = (get16(rx, 2), get16(rx, 4));
+    // Unknown commands are framed as a header + CRC (no data): that is the only length
+    // their CRC can be checked at.
+    let cmd = Command::from_code(rx[0]);
+    let data_len = cmd.map_or(0, |c| c.data_len(len));
+    let frame = REQUEST_HEADER + data_len + CRC_LEN;
+    if rx.len() < frame {
+        return Err(refuse(ResultCode::BadLength));
+    }
+    if crc16(&rx[..frame - CRC_LEN]) != get16(rx, frame - CRC_LEN) {
+        return Err(refuse(ResultCode::CrcError));
+    }
+    if rx[frame..].iter().any(|&b| b != 0) {
+        return Err(refuse(ResultCode::BadLength));
+    }
+    let Some(cmd) = cmd else {
+        return Err(refuse(ResultCode::BadCommand));
+    };
+    let n = usize::from(len);
+    match cmd {
+        Command::Status if addr != 0 || len != 0 => return Err(refuse(ResultCode::BadLength)),
+        Command::Status => {}
+        Command::Read | Command::Write => {
+            if n == 0 || n > MAX_DATA {
+                return Err(refuse(ResultCode::BadLength));
+            }
+            if usize::from(addr) + n > IMAGE_SIZE {
+                return Err(refuse(ResultCode::BadAddress));
+            }
+            if cmd == Command::Write && !host_writable(usize::from(addr), n) {
+                return Err(refuse(ResultCode::ForbiddenWrite));
+            }
+        }
+    }
+    Ok(Request { cmd, tag: rx[1], addr, len, data: &rx[REQUEST_HEADER..REQUEST_HEADER + data_len] })
+}
+
+/// Whether every byte of `start..start + len` lies in a block the host writes.
+pub fn host_writable(start: usize, len: usize) -> bool {
+    let end = start + len;
+    let mut p = start;
+    while p < end {
+        match BLOCKS.iter().find(|b| p >= b.start && p < b.start + b.len) {
+            Some(b) if b.writer == Writer::Host => p = b.start + b.len,
+            _ => return false,
+        }
+    }
+    true
+}
+
+/// Bits of the events bitmap that can be set: the sequenced blocks the card writes.
+pub const EVENT_BLOCKS: u16 = {
+    let mut m = 0u16;
+    let mut i = 0;
+    while i < BLOCKS.len() {
+        if BLOCKS[i].sequenced && matches!(BLOCKS[i].writer, Writer::Card) {
+            m |= 1 << i;
+        }
+        i += 1;
+    }
+    m
+};
+
+/// The card side of the SPI transport: takes one transaction's MOSI bytes, checks them,
+/// applies an accepted WRITE to the image, and builds the reply for the next transaction.
+/// Also keeps the pending-events bitmap that drives the IRQ line.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SpiSlave {
+    stats: SpiStats,
+    /// Per block: the `SEQ_HEAD` value the host last read (0 = never read).
+    host_seen: [u16; BLOCKS.len()],
+}
+
+impl Default for SpiSlave {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl SpiSlave {
+    /// No frame seen yet; every card block written since the image was created is pending.
+    pub const fn new() -> Self {
+        SpiSlave {
+            stats: SpiStats {
+                frames_ok: 0,
+                crc_errors: 0,
+                bad_command: 0,
+                bad_length: 0,
+                bad_address: 0,
+                forbidden_writes: 0,
+            },
+            host_seen: [0; BLOCKS.len()],
+        }
+    }
+
+    /// The counters.
+    pub fn stats(&self) -> SpiStats {
+        self.stats
+    }
+
+    /// The pending-events bitmap: bit i = `BLOCKS[i]` changed since the host last read its
+    /// `SEQ_HEAD`.
+    pub fn events(&self, dpm: &Dpm) -> u16 {
+        let img = dpm.as_bytes();
+        let mut m = 0;
+        for (i, b) in BLOCKS.iter().enumerate() {
+            if EVENT_BLOCKS & (1 << i) != 0 && get16(img, b.start) != self.host_seen[i] {
+                m |= 1 << i;
+            }
+        }
+        m
+    }
+
+    /// The IRQ line: asserted while any event is pending.
+    pub fn irq(&self, dpm: &Dpm) -> bool {
+        self.events(dpm) != 0
+    }
+
+    /// Handle one transaction: `rx` is every MOSI byte between NSS falling and rising. An
+    /// accepted WRITE is applied to `dpm`; the reply (to be clocked out in the next
+    /// transaction, followed by `0x00` padding) is written to the start of `reply`. Returns
+    /// the reply's length. Never panics, whatever `rx` holds.
+    pub fn handle(&mut self, rx: &[u8], dpm: &mut Dpm, reply: &mut [u8; MAX_REPLY]) -> usize {
+        let (result, cmd, tag, addr, n) = match parse_request(rx) {
+            Ok(req) => {
+                let n = match req.cmd {
+                    Command::Read => {
+                        let (a, n) = (usize::from(req.addr), usize::from(req.len));
+                        reply[REPLY_HEADER..REPLY_HEADER + n].copy_from_slice(&dpm.as_bytes()[a..a + n]);
+                        self.note_read(dpm, a, n);
+                        n
+                    }
+                    Command::Write => {
+                        let a = usize::from(req.addr);
+                        dpm.as_bytes_mut()[a..a + req.data.len()].copy_from_slice(req.data);
+                        0
+                    }
+                    Command::Status => STATUS_LEN,
+                };
+                self.stats.count(ResultCode::Ok);
+                if req.cmd == Command::Status {
+                    self.status_data(dpm, &mut reply[REPLY_HEADER..REPLY_HEADER + STATUS_LEN]);
+                }
+                (ResultCode::Ok, req.cmd as u8, req.tag, req.addr, n)
+            }
+            Err(r) => {
+                self.stats.count(r.result);
+                (r.result, r.cmd, r.tag, r.addr, 0)
+            }
+        };
+        reply[0] = result as u8;
+        reply[1] = tag;
+        reply[2] = cmd;
+        reply[3] = if self.irq(dpm) { FLAG_EVENTS } else { 0 };
+        put16(reply, 4, addr);
+        put16(reply, 6, n as u16);
+        let end = REPLY_HEADER + n;
+        let crc = crc16(&reply[..end]);
+        put16(reply, end, crc);
+        end + CRC_LEN
+    }
+
+    /// An accepted READ of `a..a + n` clears the events of the blocks whose `SEQ_HEAD` it
+    /// covers.
+    fn note_read(&mut self, dpm: &Dpm, a: usize, n: usize) {
+        for (i, b) in BLOCKS.iter().enumerate() {
+            if EVENT_BLOCKS & (1 << i) != 0 && b.start >= a && b.start + 2 <= a + n {
+                self.host_seen[i] = get16(dpm.as_bytes(), b.start);
+            }
+        }
+    }
+
+    fn status_data(&self, dpm: &Dpm, d: &mut [u8]) {
+        let s = &self.stats;
+        d[0] = PROTOCOL_VERSION;
+        d[1] = 0;
+        put16(d, 2, MAX_DATA as u16);
+        put16(d, 4, IMAGE_SIZE as u16);
+        put16(d, 6, self.events(dpm));
+        for (i, c) in [s.frames_ok, s.crc_errors, s.bad_command, s.bad_length, s.bad_address, s.forbidden_writes]
+            .into_iter()
+            .enumerate()
+        {
+            put16(d, 8 + 2 * i, c as u16);
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Host side
+// ---------------------------------------------------------------------------------------------
+
+/// A decoded reply.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Reply<'a> {
+    /// RESULT.
+    pub result: ResultCode,
+    /// TAG.
+    pub tag: u8,
+    /// CMD byte.
+    pub cmd: u8,
+    /// FLAGS ([`FLAG_EVENTS`]).
+    pub flags: u8,
+    /// ADDR.
+    pub addr: u16,
+    /// DATA (READ: image bytes; STATUS: [`StatusData`] bytes).
+    pub data: &'a [u8],
+}
+
+/// Why MISO bytes are not a reply.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum ReplyError {
+    /// First byte `0x00`: the card had no reply ready (poll again).
+    NoReply,
+    /// RESULT is no [`ResultCode`] (e.g. `0xFF`: no card, MISO floating high).
+    BadResult(u8),
+    /// Fewer bytes than the reply announces.
+    Truncated,
+    /// The reply's CRC does not match.
+    Crc,
+}
+
+/// The STATUS data, decoded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StatusData {
+    /// [`PROTOCOL_VERSION`] of the card.
+    pub version: u8,
+    /// [`MAX_DATA`] of the card.
+    pub max_data: u16,
+    /// The image size.
+    pub image_size: u16,
+    /// The pending-events bitmap.
+    pub events: u16,
+    /// The card's counters (low 16 bits).
+    pub stats: [u16; 6],
+}
+
+impl StatusData {
+    /// Decode [`STATUS_LEN`] bytes (`None` if shorter).
+    pub fn decode(d: &[u8]) -> Option<StatusData> {
+        if d.len() < STATUS_LEN {
+            return None;
+        }
+        let mut stats = [0u16; 6];
+        for (i, s) in stats.iter_mut().enumerate() {
+            *s = get16(d, 8 + 2 * i);
+        }
+        Some(StatusData { version: d[0], max_data: get16(d, 2), image_size: get16(d, 4), events: get16(d, 6), stats })
+    }
+}
+
+/// The host's frame encoder and reply decoder: what a drive maker ports (it needs nothing
+/// but [`crc16`]). It hands out the TAGs.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct SpiHostCodec {
+    next_tag: u8,
+}
+
+impl SpiHostCodec {
+    /// TAGs start at 0.
+    pub const fn new() -> Self {
+        SpiHostCodec { next_tag: 0 }
+    }
+
+    /// Encode a request into `out` (zero-padded to its end): returns (TAG, frame length).
+    /// `data` is sent for WRITE only; for READ, `len` is the bytes wanted. `None` if `out`
+    /// is too short for the frame.
+    pub fn encode(&mut self, cmd: Command, addr: u16, len: u16, data: &[u8], out: &mut [u8]) -> Option<(u8, usize)> {
+        let data = if cmd == Command::Write { data } else { &[] };
+        let n = REQUEST_HEADER + data.len() + CRC_LEN;
+        if out.len() < n {
+            return None;
+        }
+        let tag = self.next_tag;
+        self.next_tag = self.next_tag.wrapping_add(1);
+        out[0] = cmd as u8;
+        out[1] = tag;
+        put16(out, 2, addr);
+        put16(out, 4, len);
+        out[REQUEST_HEADER..REQUEST_HEADER + data.len()].copy_from_slice(data);
+        let crc = crc16(&out[..n - CRC_LEN]);
+        put16(out, n - CRC_LEN, crc);
+        out[n..].fill(0);
+        Some((tag, n))
+    }
+
+    /// Decode the MISO bytes of a transaction.
+    pub fn decode(miso: &[u8]) -> Result<Reply<'_>, ReplyError> {
+        match miso.first() {
+            None => return Err(ReplyError::Truncated),
+            Some(&NO_REPLY) => return Err(ReplyError::NoReply),
+            Some(_) => {}
+        }
+        let result = ResultCode::from_code(miso[0]).ok_or(ReplyError::BadResult(miso[0]))?;
+        if miso.len() < REPLY_HEADER + CRC_LEN {
+            return Err(ReplyError::Truncated);
+        }
+        let n = usize::from(get16(miso, 6));
+        let end = REPLY_HEADER + n;
+        if miso.len() < end + CRC_LEN {
+            return Err(ReplyError::Truncated);
+        }
+        if crc16(&miso[..end]) != get16(miso, end) {
+            return Err(ReplyError::Crc);
+        }
+        Ok(Reply {
+            result,
+            tag: miso[1],
+            cmd: miso[2],
+            flags: miso[3],
+            addr: get16(miso, 4),
+            data: &miso[REPLY_HEADER..end],
+        })
+    }
+}
+
+/// The SPI bus, as the host's SPI master driver offers it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct BusFault;
+
+/// One full-duplex transaction: NSS low, `mosi.len()` bytes out while as many come in on
+/// `miso` (same length), NSS high.
+pub trait SpiBus {
+    /// Run one transaction.
+    fn transfer(&mut self, mosi: &[u8], miso: &mut [u8]) -> Result<(), BusFault>;
+}
+
+/// Why a host access failed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+#[non_exhaustive]
+pub enum HostError {
+    /// The SPI driver failed.
+    Bus,
+    /// The card refused the request (a line-error refusal only after every retry).
+    Refused(ResultCode),
+    /// No valid reply with our TAG after every retry (no card, a card too busy, a line too
+    /// noisy).
+    NoReply,
+    /// The request does not fit a frame (longer than [`MAX_DATA`] per piece is split; this
+    /// is an empty access or one past `u16::MAX`).
+    BadRequest,
+}
+
+/// The host side over any [`SpiBus`]: `read(offset, buf)` / `write(offset, data)` on the
+/// card's image, split into frames of at most [`MAX_DATA`] bytes, each confirmed by its
+/// reply (fetched with STATUS polls, TAG-matched; CRC errors either way are retried).
+#[derive(Debug, Clone)]
+pub struct SpiHost<B: SpiBus> {
+    bus: B,
+    codec: SpiHostCodec,
+    mosi: [u8; MAX_TRANSACTION],
+    miso: [u8; MAX_TRANSACTION],
+    /// Requests sent again after a lost or corrupted reply.
+    retries: u8,
+    /// STATUS polls per request while the card answers "no reply".
+    polls: u8,
+    last_flags: u8,
+    retried: u32,
+}
+
+impl<B: SpiBus> SpiHost<B> {
+    /// Three retries, eight polls per try.
+    pub fn new(bus: B) -> Self {
+        SpiHost {
+            bus,
+            codec: SpiHostCodec::new(),
+            mosi: [0; MAX_TRANSACTION],
+            miso: [0; MAX_TRANSACTION],
+            retries: 3,
+            polls: 8,
+            last_flags: 0,
+            retried: 0,
+        }
+    }
+
+    /// The bus (the loopback card, for a test).
+    pub fn bus(&self) -> &B {
+        &self.bus
+    }
+
+    /// The bus, mutable.
+    pub fn bus_mut(&mut self) -> &mut B {
+        &mut self.bus
+    }
+
+    /// Requests sent again so far.
+    pub fn retried(&self) -> u32 {
+        self.retried
+    }
+
+    /// FLAGS of the last reply: [`FLAG_EVENTS`] = the card has pending events (IRQ).
+    pub fn events_pending(&self) -> bool {
+        self.last_flags & FLAG_EVENTS != 0
+    }
+
+    /// Read `buf.len()` bytes of the image from `offset`.
+    pub fn read(&mut self, offset: u16, buf: &mut [u8]) -> Result<(), HostError> {
+        check_range(offset, buf.len())?;
+        for (i, chunk) in buf.chunks_mut(MAX_DATA).enumerate() {
+            let at = offset + (i * MAX_DATA) as u16;
+            let data = self.exchange(Command::Read, at, chunk.len() as u16, &[])?;
+            chunk.copy_from_slice(data);
+        }
+        Ok(())
+    }
+
+    /// Write `data` to the image at `offset` (host-written blocks only).
+    pub fn write(&mut self, offset: u16, data: &[u8]) -> Result<(), HostError> {
+        check_range(offset, data.len())?;
+        for (i, chunk) in data.chunks(MAX_DATA).enumerate() {
+            let at = offset + (i * MAX_DATA) as u16;
+            self.exchange(Command::Write, at, chunk.len() as u16, chunk)?;
+        }
+        Ok(())
+    }
+
+    /// The card's STATUS data.
+    pub fn status(&mut self) -> Result<StatusData, HostError> {
+        let d = self.exchange(Command::Status, 0, 0, &[])?;
+        StatusData::decode(d).ok_or(HostError::NoReply)
+    }
+
+    /// One request and its reply's data (in `self.miso`).
+    fn exchange(&mut self, cmd: Command, addr: u16, len: u16, data: &[u8]) -> Result<&[u8], HostError> {
+        let want = REPLY_HEADER
+            + match cmd {
+                Command::Read => usize::from(len),
+                Command::Status => STATUS_LEN,
+                Command::Write => 0,
+            }
+            + CRC_LEN;
+        let mut last = HostError::NoReply;
+        for attempt in 0..=self.retries {
+            if attempt > 0 {
+                self.retried = self.retried.wrapping_add(1);
+            }
+            let (tag, n) = self.codec.encode(cmd, addr, len, data, &mut self.mosi).ok_or(HostError::BadRequest)?;
+            self.bus.transfer(&self.mosi[..n], &mut self.miso[..n]).map_err(|_| HostError::Bus)?;
+            match self.poll_reply(tag, want)? {
+                Some(ResultCode::Ok) => {
+                    let n = usize::from(get16(&self.miso, 6));
+                    return Ok(&self.miso[REPLY_HEADER..REPLY_HEADER + n]);
+                }
+                // Our (well-formed) request was damaged on the way: send it again.
+                Some(r) if r.line_error() => last = HostError::Refused(r),
+                None => last = HostError::NoReply,
+                Some(r) => return Err(HostError::Refused(r)),
+            }
+        }
+        Err(last)
+    }
+
+    /// Poll with STATUS until the reply tagged `tag` comes: its RESULT, or `None` when it
+    /// did not come (lost, corrupted).
+    fn poll_reply(&mut self, tag: u8, want: usize) -> Result<Option<ResultCode>, HostError> {
+        for _ in 0..self.polls {
+            let (_, n) = self.codec.encode(Command::Status, 0, 0, &[], &mut self.mosi).ok_or(HostError::BadRequest)?;
+            let len = n.max(want);
+            self.bus.transfer(&self.mosi[..len], &mut self.miso[..len]).map_err(|_| HostError::Bus)?;
+            match SpiHostCodec::decode(&self.miso[..len]) {
+                Ok(r) if r.tag == tag => {
+                    self.last_flags = r.flags;
+                    return Ok(Some(r.result));
+                }
+                // An older reply (a poll's): ours comes later.
+                Ok(r) => self.last_flags = r.flags,
+                Err(ReplyError::NoReply) => {}
+                // The reply to our request was damaged: it cannot be fetched again.
+                Err(_) => return Ok(None),
+            }
+        }
+        Ok(None)
+    }
+}
+
+fn check_range(offset: u16, len: usize) -> Result<(), HostError> {
+    if len == 0 || usize::from(offset) + len > usize::from(u16::MAX) + 1 {
+        Err(HostError::BadRequest)
+    } else {
+        Ok(())
+    }
+}
+
+/// An in-process card behind an [`SpiBus`]: the image, an [`SpiSlave`], and the reply
+/// pipelined into the next transaction exactly as the board does it (`0x00` padding, "no
+/// reply" while busy). For the QEMU build, the soft slave and the tests.
+#[derive(Debug, Clone)]
+pub struct Loopback {
+    dpm: Dpm,
+    slave: SpiSlave,
+    reply: [u8; MAX_REPLY],
+    reply_len: usize,
+    busy: u32,
+    dropped: u32,
+}
+
+impl Loopback {
+    /// A card serving `dpm`, no reply pending.
+    pub fn new(dpm: Dpm) -> Self {
+        Loopback { dpm, slave: SpiSlave::new(), reply: [0; MAX_REPLY], reply_len: 0, busy: 0, dropped: 0 }
+    }
+
+    /// The image.
+    pub fn dpm(&self) -> &Dpm {
+        &self.dpm
+    }
+
+    /// The image, for the card's own writes.
+    pub fn dpm_mut(&mut self) -> &mut Dpm {
+        &mut self.dpm
+    }
+
+    /// The card's protocol state.
+    pub fn slave(&self) -> &SpiSlave {
+        &self.slave
+    }
+
+    /// The IRQ line (asserted = true).
+    pub fn irq(&self) -> bool {
+        self.slave.irq(&self.dpm)
+    }
+
+    /// Fault injection: the next `n` transactions find the card busy — MISO `0x00`, the
+    /// request dropped (what the board does when its frame task has not taken the previous
+    /// frame yet).
+    pub fn set_busy(&mut self, n: u32) {
+        self.busy = n;
+    }
+
+    /// Transactions dropped while busy.
+    pub fn dropped(&self) -> u32 {
+        self.dropped
+    }
+}
+
+impl SpiBus for Loopback {
+    fn transfer(&mut self, mosi: &[u8], miso: &mut [u8]) -> Result<(), BusFault> {
+        if mosi.len() != miso.len() {
+            return Err(BusFault);
+        }
+        if self.busy > 0 {
+            self.busy -= 1;
+            self.dropped = self.dropped.wrapping_add(1);
+            miso.fill(NO_REPLY);
+            return Ok(());
+        }
+        let k = self.reply_len.min(miso.len());
+        miso[..k].copy_from_slice(&self.reply[..k]);
+        miso[k..].fill(0);
+        self.reply_len = self.slave.handle(mosi, &mut self.dpm, &mut self.reply);
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests;
