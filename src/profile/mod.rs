@@ -48,6 +48,7 @@ pub mod pkw;
 pub mod pnu;
 pub mod profidrive;
 pub mod records;
+pub mod runtime;
 pub mod table;
 pub mod telegram;
 pub mod weg;

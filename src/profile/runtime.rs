@@ -1,0 +1,400 @@
+//! The card's profile layer at run time (issue 6): the active telegram's cyclic engine
+//! ([`super::cyclic`]), the control profile it needs ([`AnyProfile`]), the PKW server of the
+//! PPO / INVT telegrams ([`super::pkw`]) and the fault buffer ([`super::faults`]) — between
+//! the DP slave's images and the DPM's drive-neutral blocks (DRIVE_CMD / DRIVE_STATE).
+//!
+//! ```text
+//! DpSlave outputs ─▶ Runtime::cycle ─▶ DriveCommandImage (DPM DRIVE_CMD) ─▶ drive
+//! DpSlave inputs  ◀─ Runtime::cycle ◀─ DriveStateImage   (DPM DRIVE_STATE) ◀─ drive
+//! ```
+//!
+//! Sans-IO and platform-neutral: [`crate::app::Application`] calls it every housekeeping
+//! step; the PKW jobs are served from the DP-V1 task ([`Runtime::service_pkw`]).
+//!
+//! The operate mode comes from the master (Set_Prm user parameter
+//! [`crate::card::PRM_OPERATE_MODE`], 1..=3 "remote") or, with 0 "local", from the drive's
+//! configuration (DPM CONFIG.OPERATE_MODE, OPTE3/E5 §5.1.4); PROFIdrive when neither says.
+
+use super::cyclic::{Cycle, Cyclic, CyclicError, DriveSide, OperateMode};
+use super::drive_if::{ControlProfile, DriveCommand, DriveStatus};
+use super::faults::FaultBuffer;
+use super::invt::Invt;
+use super::param::ParameterAccess;
+use super::pkw::{PkwDialect, PkwServer};
+use super::profidrive::{Profidrive, SpeedScale};
+use super::telegram::{DataProfile, Layout, ProfileFamily};
+use super::weg::{weg_profidrive, WegManufacturer, WegModel};
+use crate::dpm::{Family, Telegram};
+
+/// The physical references of the speed scales (one unit for all: 0.01 Hz by default).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Scales {
+    /// The drive's reference of the neutral N2 scale (0x4000 = this speed; PNU 10111-style).
+    pub n2_reference: u32,
+    /// Minimum / maximum frequency of the bypass / PPO scale 0..10000 (OPTE3/E5 §6.3.5).
+    pub bypass_min: u32,
+    /// See [`Self::bypass_min`].
+    pub bypass_max: u32,
+    /// WEG: 8192 of P0681 / P0685 (P0403 rated frequency).
+    pub weg_rated: u32,
+    /// WEG: 16384 of the PROFIdrive profile (P0134 maximum speed).
+    pub weg_p0134: u32,
+    /// INVT: the maximum frequency Fmax of the set-frequency word (0.01 Hz).
+    pub invt_fmax: u32,
+}
+
+impl Scales {
+    /// Everything 50.00 Hz (5000 × 0.01 Hz): N2 0x4000 = bypass 10000 = WEG 8192 = WEG
+    /// PROFIdrive 16384 = INVT 5000.
+    pub const DEFAULT: Scales = Scales {
+        n2_reference: 5000,
+        bypass_min: 0,
+        bypass_max: 5000,
+        weg_rated: 5000,
+        weg_p0134: 5000,
+        invt_fmax: 5000,
+    };
+}
+
+impl Default for Scales {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// One of the control profiles, chosen by the telegram (and, for WEG, the drive's P0741).
+#[derive(Debug, Clone)]
+pub enum AnyProfile {
+    /// PROFIdrive 4.1 / 2.0 / WEG PROFIdrive.
+    Profidrive(Profidrive),
+    /// WEG manufacturer profile.
+    Weg(WegManufacturer),
+    /// INVT control word.
+    Invt(Invt),
+}
+
+impl AnyProfile {
+    /// The profile `layout` needs with the drive's data profile `data`.
+    pub fn for_layout(layout: &Layout, data: DataProfile, s: &Scales) -> AnyProfile {
+        let weg_model = match layout.telegram {
+            Telegram::Vendor(Family::WegCfw11, _) => WegModel::Cfw11,
+            _ => WegModel::Cfw500,
+        };
+        match layout.profile(data) {
+            ProfileFamily::Profidrive41 if layout.is_st20() => AnyProfile::Profidrive(Profidrive::st20()),
+            ProfileFamily::Profidrive41 => AnyProfile::Profidrive(Profidrive::st1()),
+            ProfileFamily::Profidrive20 => {
+                AnyProfile::Profidrive(Profidrive::ppo(SpeedScale::bypass(s.bypass_min, s.bypass_max, s.n2_reference)))
+            }
+            ProfileFamily::WegManufacturer => {
+                AnyProfile::Weg(WegManufacturer::new(weg_model, WegModel::scale_13bit(s.weg_rated, s.n2_reference)))
+            }
+            ProfileFamily::WegProfidrive => AnyProfile::Profidrive(weg_profidrive(
+                weg_model,
+                WegModel::scale_profidrive(s.weg_p0134, s.n2_reference),
+            )),
+            ProfileFamily::Invt => AnyProfile::Invt(Invt::new(Invt::scale(s.invt_fmax, s.n2_reference))),
+        }
+    }
+}
+
+impl ControlProfile for AnyProfile {
+    fn command(&mut self, cw: u16, setpoint: u16, drive: &DriveStatus) -> DriveCommand {
+        match self {
+            AnyProfile::Profidrive(p) => p.command(cw, setpoint, drive),
+            AnyProfile::Weg(p) => p.command(cw, setpoint, drive),
+            AnyProfile::Invt(p) => p.command(cw, setpoint, drive),
+        }
+    }
+    fn comm_lost(&mut self, drive: &DriveStatus) -> DriveCommand {
+        match self {
+            AnyProfile::Profidrive(p) => p.comm_lost(drive),
+            AnyProfile::Weg(p) => p.comm_lost(drive),
+            AnyProfile::Invt(p) => p.comm_lost(drive),
+        }
+    }
+    fn status_word(&self, drive: &DriveStatus) -> u16 {
+        match self {
+            AnyProfile::Profidrive(p) => p.status_word(drive),
+            AnyProfile::Weg(p) => p.status_word(drive),
+            AnyProfile::Invt(p) => p.status_word(drive),
+        }
+    }
+    fn actual_value(&self, drive: &DriveStatus) -> u16 {
+        match self {
+            AnyProfile::Profidrive(p) => p.actual_value(drive),
+            AnyProfile::Weg(p) => p.actual_value(drive),
+            AnyProfile::Invt(p) => p.actual_value(drive),
+        }
+    }
+}
+
+/// What selects the engine: telegram, operate mode, data profile, communication-loss
+/// reaction. A change rebuilds the engine and the profile (back to S1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Selection {
+    /// The active telegram (from Chk_Cfg).
+    pub telegram: Telegram,
+    /// The operate mode in force.
+    pub mode: OperateMode,
+    /// The drive's data profile for the WEG telegrams (P0741).
+    pub data: DataProfile,
+    /// Set_Prm communication-loss reaction (copied into every command).
+    pub comm_loss_reaction: u8,
+}
+
+impl Selection {
+    /// The mode from the Set_Prm user parameter `remote` (1..=3) or, with 0 "local", the
+    /// drive's configured mode `local` (1..=3; else PROFIdrive).
+    pub fn mode_of(remote: u8, local: u8) -> OperateMode {
+        OperateMode::from_code(remote).or(OperateMode::from_code(local)).unwrap_or(OperateMode::Profidrive)
+    }
+}
+
+/// The result of a cycle for the platform.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Exchange<'a> {
+    /// The input image for the DP slave.
+    pub inputs: &'a [u8],
+    /// The command for the drive (`None` in Echo, and in Bypass while communicating).
+    pub command: Option<DriveCommand>,
+    /// The raw words for the drive.
+    pub words: &'a [u16],
+}
+
+/// Counters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct RuntimeStats {
+    /// Engines built (telegram / mode changes).
+    pub selections: u32,
+    /// Selections refused ([`CyclicError`]): the card serves the ZSW1 fault image.
+    pub refused: u32,
+}
+
+/// The card's profile layer (module docs).
+#[derive(Debug, Clone)]
+pub struct Runtime {
+    scales: Scales,
+    selection: Option<Selection>,
+    engine: Option<Cyclic>,
+    profile: Option<AnyProfile>,
+    error: Option<CyclicError>,
+    pkw: PkwServer,
+    faults: FaultBuffer,
+    drive_fault: u16,
+    last: Option<Cycle>,
+    stats: RuntimeStats,
+}
+
+impl Default for Runtime {
+    fn default() -> Self {
+        Self::new(Scales::DEFAULT)
+    }
+}
+
+impl Runtime {
+    /// No telegram yet.
+    pub fn new(scales: Scales) -> Self {
+        Runtime {
+            scales,
+            selection: None,
+            engine: None,
+            profile: None,
+            error: None,
+            pkw: PkwServer::new(PkwDialect::Profidrive2),
+            faults: FaultBuffer::new(),
+            drive_fault: 0,
+            last: None,
+            stats: RuntimeStats::default(),
+        }
+    }
+
+    /// Select telegram / mode / data profile / reaction; a change rebuilds the engine. A
+    /// selection the engine refuses (ST20 with a local Bypass / Echo) leaves no engine
+    /// ([`Self::error`]).
+    pub fn select(&mut self, sel: Selection) {
+        if self.selection == Some(sel) {
+            return;
+        }
+        self.selection = Some(sel);
+        self.stats.selections = self.stats.selections.wrapping_add(1);
+        self.last = None;
+        let dialect = match sel.telegram {
+            Telegram::Vendor(Family::Invt, _) => PkwDialect::Invt,
+            _ => PkwDialect::Profidrive2,
+        };
+        self.pkw = PkwServer::new(dialect);
+        match (Cyclic::new(sel.telegram, sel.mode, sel.comm_loss_reaction), Layout::of(sel.telegram)) {
+            (Ok(e), Some(l)) => {
+                self.profile = Some(AnyProfile::for_layout(&l, sel.data, &self.scales));
+                self.engine = Some(e);
+                self.error = None;
+            }
+            (r, _) => {
+                self.engine = None;
+                self.profile = None;
+                self.error = r.err().filter(|_| sel.telegram != Telegram::None);
+                if self.error.is_some() {
+                    self.stats.refused = self.stats.refused.wrapping_add(1);
+                }
+            }
+        }
+    }
+
+    /// The selection in force.
+    pub fn selection(&self) -> Option<Selection> {
+        self.selection
+    }
+    /// Why the selection has no engine.
+    pub fn error(&self) -> Option<CyclicError> {
+        self.error
+    }
+    /// The control profile in force.
+    pub fn profile(&self) -> Option<&AnyProfile> {
+        self.profile.as_ref()
+    }
+    /// The cyclic engine in force.
+    pub fn engine(&self) -> Option<&Cyclic> {
+        self.engine.as_ref()
+    }
+    /// The fault buffer (PNU 944 / 947).
+    pub fn faults(&self) -> &FaultBuffer {
+        &self.faults
+    }
+    /// The PKW server.
+    pub fn pkw(&self) -> &PkwServer {
+        &self.pkw
+    }
+    /// Counters.
+    pub fn stats(&self) -> RuntimeStats {
+        self.stats
+    }
+
+    /// One cycle: `outputs` = a new output image from Data_Exchange (else the last one is
+    /// evaluated again), `lost` = the communication is lost (watchdog, Clear, master gone),
+    /// `drive` = the drive's latest status and raw words. `None` without an engine.
+    pub fn cycle(&mut self, outputs: Option<&[u8]>, lost: bool, drive: &DriveStatus, words: &[u16]) -> Option<Exchange<'_>> {
+        self.track_faults(drive);
+        let (engine, profile) = (self.engine.as_mut()?, self.profile.as_mut()?);
+        let side = DriveSide { status: drive, words, pkw_response: self.pkw.response() };
+        let cycle = if lost {
+            engine.comm_lost(profile, side)
+        } else if let Some(out) = outputs {
+            match engine.exchange(profile, out, side) {
+                Some(c) => c,
+                None => engine.step(profile, side),
+            }
+        } else {
+            engine.step(profile, side)
+        };
+        if let Some(req) = cycle.pkw_request {
+            self.pkw.on_request(req);
+        }
+        let c = self.last.insert(cycle);
+        Some(Exchange { inputs: c.inputs(), command: c.command, words: c.drive_words() })
+    }
+
+    /// Whether a PKW job waits for [`Self::service_pkw`].
+    pub fn has_pkw_work(&self) -> bool {
+        self.pkw.is_busy()
+    }
+
+    /// Serve the PKW job against `table` (from the DP-V1 task, not the interrupt).
+    pub fn service_pkw(&mut self, table: &mut impl ParameterAccess) {
+        if self.pkw.is_busy() {
+            self.pkw.service(table);
+        }
+    }
+
+    /// Feed the fault buffer: a new drive fault code opens / extends the active situation,
+    /// the fault going away (acknowledged in the drive) closes it.
+    fn track_faults(&mut self, drive: &DriveStatus) {
+        let code = drive.fault_code;
+        if code == self.drive_fault {
+            return;
+        }
+        if code == 0 {
+            self.faults.acknowledge();
+        } else {
+            self.faults.report(code);
+        }
+        self.drive_fault = code;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::profile::drive_if::{CommandFlags, StatusFlags};
+
+    fn ready() -> DriveStatus {
+        DriveStatus {
+            flags: StatusFlags::READY | StatusFlags::FIELDBUS_CONTROL | StatusFlags::ZERO_SPEED,
+            ..DriveStatus::default()
+        }
+    }
+
+    fn sel(telegram: Telegram, mode: OperateMode) -> Selection {
+        Selection { telegram, mode, data: DataProfile::Manufacturer, comm_loss_reaction: 2 }
+    }
+
+    #[test]
+    fn st1_runs_through_the_profidrive_profile() {
+        let mut r = Runtime::default();
+        r.select(sel(Telegram::Standard(1), OperateMode::Profidrive));
+        let d = ready();
+        let e = r.cycle(Some(&[0x04, 0x7E, 0x20, 0x00]), false, &d, &[]).unwrap();
+        assert_eq!(e.inputs.len(), 4);
+        let cmd = e.command.unwrap();
+        assert!(!cmd.flags.contains(CommandFlags::RUN));
+        assert_eq!(cmd.comm_loss_reaction, 2);
+        let e = r.cycle(Some(&[0x04, 0x7F, 0x20, 0x00]), false, &d, &[]).unwrap();
+        let cmd = e.command.unwrap();
+        assert!(cmd.flags.contains(CommandFlags::RUN));
+        assert_eq!(cmd.speed_setpoint, 0x2000);
+        assert_eq!(u16::from_be_bytes([e.inputs[0], e.inputs[1]]) & 0x0007, 0x0007, "S4");
+    }
+
+    #[test]
+    fn echo_and_bypass() {
+        let mut r = Runtime::default();
+        r.select(sel(Telegram::Ppo(4), OperateMode::Echo));
+        let out: Vec<u8> = (1..=12).collect();
+        let e = r.cycle(Some(&out), false, &ready(), &[]).unwrap();
+        assert_eq!(e.inputs, &out[..]);
+        assert_eq!(e.command, None);
+        r.select(sel(Telegram::Ppo(4), OperateMode::Bypass));
+        let e = r.cycle(Some(&out), false, &ready(), &[0xAAAA, 0xBBBB]).unwrap();
+        assert_eq!(&e.inputs[..4], &[0xAA, 0xAA, 0xBB, 0xBB]);
+        assert_eq!(e.words.len(), 6);
+        assert_eq!(e.words[0], 0x0102);
+    }
+
+    #[test]
+    fn st20_with_local_echo_is_refused() {
+        let mut r = Runtime::default();
+        r.select(sel(Telegram::Standard(20), OperateMode::Echo));
+        assert_eq!(r.error(), Some(CyclicError::ModeNotAllowed));
+        assert!(r.cycle(Some(&[0; 4]), false, &ready(), &[]).is_none());
+        assert_eq!(r.stats().refused, 1);
+        assert_eq!(Selection::mode_of(0, 3), OperateMode::Echo);
+        assert_eq!(Selection::mode_of(2, 3), OperateMode::Bypass);
+        assert_eq!(Selection::mode_of(0, 0), OperateMode::Profidrive);
+    }
+
+    #[test]
+    fn the_fault_buffer_follows_the_drive() {
+        let mut r = Runtime::default();
+        r.select(sel(Telegram::Standard(1), OperateMode::Profidrive));
+        let mut d = ready();
+        d.fault_code = 0x2310;
+        r.cycle(None, false, &d, &[]);
+        r.cycle(None, false, &d, &[]);
+        assert_eq!(r.faults().active()[..2], [0x2310, 0]);
+        d.fault_code = 0;
+        r.cycle(None, false, &d, &[]);
+        assert_eq!(r.faults().situation(1).unwrap()[..2], [0x2310, 0]);
+        assert_eq!(r.faults().counter(), 2);
+    }
+}
