@@ -2,49 +2,67 @@
 //! the host tests run it: one call per main-loop turn.
 //!
 //! ```text
-//! Node::poll ─▶ Link::publish ─▶ DPM (STATUS, OUTPUTS) ─▶ SimDrive::step ─▶ DPM (INPUTS) ─▶ Link::collect ─▶ DpSlave::set_inputs
+//! Node::poll ─▶ Link::publish (STATUS, OUTPUTS, CARD)
+//!            ─▶ SimDrive::step over dpm::host::Host (reads DRIVE_CMD, runs the drive model, writes DRIVE_STATE, DRIVE, serves the mailbox)
+//!            ─▶ Link::collect (DRIVE, CONFIG, mailbox) ─▶ profile::runtime (DRIVE_STATE ─▶ input image; outputs ─▶ DRIVE_CMD)
 //! ```
 //!
-//! The board firmware of a real card does the same without the drive: [`Link::publish`],
-//! the transport to the drive's control board, [`Link::collect`].
+//! The card's profile layer ([`crate::profile::runtime::Runtime`]) owns the telegram, the
+//! control profile (PROFIdrive 4.1 / 2.0, WEG, INVT), the operate mode (PROFIdrive / Bypass /
+//! Echo), the PKW channel and the fault buffer; the drive sees only the drive-neutral
+//! DRIVE_CMD and answers DRIVE_STATE (issue 6 item 2). The drive runs the host-side reference
+//! implementation ([`crate::dpm::host`], issue 7 item 5) over an in-process transport: the
+//! same code a drive maker ports.
+//!
+//! The board firmware of a real card does the same without the drive: the host's
+//! transport is the SPI link ([`crate::dpm::spi`]).
 //!
 //! PROFIdrive parameters not owned by the card go to the drive through the DPM parameter
-//! mailbox: [`Application::parameters`] is the table for
-//! [`Node::process_acyclic`]; in [`Application::step`] the simulated drive serves the
-//! mailbox from its own parameter table ([`crate::drive::params`]) like a real drive's
-//! control board would.
+//! mailbox: [`Application::parameters`] is the table for [`Node::process_acyclic`]; the PKW
+//! channel of the PPO / INVT telegrams uses the same mailbox with its own answer cache.
 
-use crate::dp::Events;
-use crate::dpm::{Dpm, Link, MailboxParams, MailboxServer, ParamCache};
-use crate::drive::params::{sim_drive_table, DriveTable};
+use crate::card;
+use crate::dp::{DpState, Events};
+use crate::dpm::host::{DpmTransport, Host, Options};
+use crate::dpm::layout::operate_mode;
+use crate::dpm::{Dpm, DriveCommandImage, Link, MailboxParams, ParamCache, PzdWords, Telegram};
+use crate::drive::params::DriveTable;
 use crate::drive::{DriveConfig, SimDrive};
 use crate::node::Node;
+use crate::profile::cyclic::OperateMode;
+use crate::profile::profidrive::State;
+use crate::profile::runtime::{AnyProfile, Runtime, Scales, Selection};
+use crate::profile::telegram::DataProfile;
 use crate::time::{Baudrate, Instant};
 
-/// DPM image + card-side link and parameter cache + simulated drive with its parameters.
+/// DPM image (behind the drive's host interface) + card-side link, profile layer and
+/// parameter caches + simulated drive.
 #[derive(Debug, Clone)]
 pub struct Application {
-    dpm: Dpm,
+    host: Host<DpmTransport<Dpm>>,
     link: Link,
     params: ParamCache,
+    pkw_params: ParamCache,
+    runtime: Runtime,
     drive: SimDrive,
-    /// Host side: the drive's parameter table and its mailbox server.
-    drive_params: DriveTable,
-    server: MailboxServer,
-    serve_parameters: bool,
 }
 
 impl Application {
-    /// A fresh image (P0740 "inactive" until the first step) and a drive in S1.
+    /// A fresh image (P0740 "inactive" until the first step), the profile layer without a
+    /// telegram, and a drive at standstill.
     pub fn new(drive: DriveConfig) -> Self {
+        let host = match Host::open(DpmTransport::new(Dpm::new()), Options::DEFAULT) {
+            Ok(h) => h,
+            // A fresh image always carries the current header.
+            Err(_) => unreachable!("a fresh DPM image opens"),
+        };
         Application {
-            dpm: Dpm::new(),
+            host,
             link: Link::new(),
             params: ParamCache::new(),
+            pkw_params: ParamCache::new(),
+            runtime: Runtime::new(Scales::DEFAULT),
             drive: SimDrive::new(drive),
-            drive_params: sim_drive_table(),
-            server: MailboxServer::new(),
-            serve_parameters: true,
         }
     }
 
@@ -53,18 +71,18 @@ impl Application {
     /// job pending, a drive that does not answer makes it fail with 0x11 after the mailbox
     /// timeout.
     pub fn parameters(&mut self, now: Instant) -> MailboxParams<'_> {
-        MailboxParams::new(now, &mut self.link, &mut self.dpm, &mut self.params)
+        MailboxParams::new(now, &mut self.link, self.host.transport_mut().dpm_mut(), &mut self.params)
     }
 
     /// Whether the simulated drive answers the parameter mailbox (default yes; off: a drive
     /// whose control board does not answer — fault injection).
     pub fn set_serve_parameters(&mut self, on: bool) {
-        self.serve_parameters = on;
+        self.drive.set_serve_parameters(on);
     }
 
     /// The simulated drive's parameter table.
     pub fn drive_params(&self) -> &DriveTable {
-        &self.drive_params
+        self.drive.params()
     }
 
     /// The rate the platform listens at (`None` while searching); shown as P0963.
@@ -72,31 +90,89 @@ impl Application {
         self.link.set_baudrate(rate);
     }
 
-    /// Run the node's timers, move the master's outputs through the DPM to the drive, run
-    /// the drive (which also answers a parameter mailbox request), and stage its answer for
-    /// the next Data_Exchange. Returns the node's
-    /// events (for logs and LEDs). Call it often (every few ms, and after each received
-    /// telegram if the platform can): the answer to Data_Exchange *n* carries the drive's
-    /// reaction to the outputs of an earlier cycle.
+    /// Run the node's timers, publish the card's state and the master's outputs, run the
+    /// drive (which also answers a parameter mailbox request), take the drive's state through
+    /// the profile layer into the next input image and the profile's command into DRIVE_CMD,
+    /// and serve a PKW job. Returns the node's events (for logs and LEDs). Call it often
+    /// (every few ms, and after each received telegram if the platform can): the answer to
+    /// Data_Exchange *n* carries the drive's reaction to the outputs of an earlier cycle.
     pub fn step(&mut self, now: Instant, node: &mut Node) -> Events {
         let events = node.poll(now);
-        self.link.publish(node, events, &mut self.dpm);
-        self.drive.step(now, &mut self.dpm.host());
-        if self.serve_parameters {
-            self.server.serve(&mut self.dpm.host(), &mut self.drive_params);
-        }
-        self.link.collect(now, node, &self.dpm);
+        self.link.publish(node, events, self.host.transport_mut().dpm_mut());
+        self.drive.step(now, &mut self.host);
+        self.link.collect(now, node, self.host.transport().dpm());
+        self.run_profile(node, events);
+        self.service_pkw(now);
         events
+    }
+
+    /// The profile layer: select the engine for the active telegram, run one cycle with the
+    /// drive's latest state, stage the input image, write DRIVE_CMD.
+    fn run_profile(&mut self, node: &mut Node, events: Events) {
+        let slave = node.slave();
+        let telegram = slave.module().and_then(Telegram::of_module).unwrap_or(Telegram::None);
+        let in_dx = slave.state() == DpState::DataExch;
+        if telegram != Telegram::None && in_dx {
+            let user = slave.parameters().map(|p| p.user).unwrap_or(card::USER_PRM_DEFAULTS);
+            let config = self.link.config();
+            let local = config.map_or(0, |c| c.operate_mode);
+            let data = match config.map_or(1, |c| c.profile) {
+                0 => DataProfile::Profidrive,
+                _ => DataProfile::Manufacturer,
+            };
+            self.runtime.select(Selection {
+                telegram,
+                mode: Selection::mode_of(user[card::PRM_OPERATE_MODE.offset], local),
+                data,
+                comm_loss_reaction: user[card::PRM_COMM_LOSS_REACTION.offset],
+            });
+        }
+        let Some(sel) = self.runtime.selection() else { return };
+        // Watchdog expired / master gone (left data exchange) or master in Clear.
+        let lost = !in_dx || slave.is_clear();
+        let state = *self.link.read_drive_state(self.host.transport().dpm());
+        let outputs = (events.contains(Events::OUTPUTS_UPDATED) && !lost).then(|| slave.outputs());
+        let drive_lost = self.link.drive_lost();
+        let Some(x) = self.runtime.cycle(outputs, lost, &state.status, state.extra.words()) else { return };
+        let img = DriveCommandImage {
+            command: x.command.unwrap_or_default(),
+            operate_mode: match sel.mode {
+                OperateMode::Profidrive => operate_mode::PROFIDRIVE,
+                OperateMode::Bypass => operate_mode::BYPASS,
+                OperateMode::Echo => operate_mode::ECHO,
+            },
+            telegram: sel.telegram,
+            outputs_seq: 0,
+            extra: PzdWords::new(x.words).unwrap_or(PzdWords::EMPTY),
+        };
+        if in_dx && !drive_lost && sel.telegram == telegram {
+            node.slave_mut().set_inputs(x.inputs);
+        }
+        self.link.publish_command(&img, self.host.transport_mut().dpm_mut());
+    }
+
+    /// Serve a waiting PKW job through the mailbox (its own answer cache, so a record-47 job
+    /// and a PKW job never discard each other's answers).
+    pub fn service_pkw(&mut self, now: Instant) {
+        if self.runtime.has_pkw_work() {
+            let dpm = self.host.transport_mut().dpm_mut();
+            let mut table = MailboxParams::new(now, &mut self.link, dpm, &mut self.pkw_params);
+            self.runtime.service_pkw(&mut table);
+        }
     }
 
     /// The DPM image.
     pub fn dpm(&self) -> &Dpm {
-        &self.dpm
+        self.host.transport().dpm()
     }
     /// The DPM image, writable: for a transport that moves the host's bytes into it
     /// (`dpm::spi::SpiSlave` on the board).
     pub fn dpm_mut(&mut self) -> &mut Dpm {
-        &mut self.dpm
+        self.host.transport_mut().dpm_mut()
+    }
+    /// The drive's host interface (the reference implementation the simulated drive runs).
+    pub fn host(&self) -> &Host<DpmTransport<Dpm>> {
+        &self.host
     }
     /// The card-side link (counters, init-error flag).
     pub fn link_mut(&mut self) -> &mut Link {
@@ -105,6 +181,18 @@ impl Application {
     /// The card-side link.
     pub fn link(&self) -> &Link {
         &self.link
+    }
+    /// The card's profile layer.
+    pub fn runtime(&self) -> &Runtime {
+        &self.runtime
+    }
+    /// The PROFIdrive state of the active profile (`None` without one, or for the WEG
+    /// manufacturer / INVT profiles, which have no state machine).
+    pub fn profidrive_state(&self) -> Option<State> {
+        match self.runtime.profile()? {
+            AnyProfile::Profidrive(p) => Some(p.state()),
+            _ => None,
+        }
     }
     /// The simulated drive.
     pub fn drive(&self) -> &SimDrive {
@@ -122,8 +210,9 @@ mod tests {
     use crate::card;
     use crate::dp::{DpSlave, DpState};
     use crate::dpm::{CommState, Telegram};
-    use crate::drive::profidrive::DriveState;
     use crate::fdl::telegram::{self, FunctionCode, Header};
+    use crate::profile::drive_if::ControlProfile;
+    use crate::profile::profidrive::{State as DriveState, StopKind};
     use crate::time::Duration;
 
     const MASTER: u8 = 2;
@@ -238,11 +327,13 @@ mod tests {
 
     #[test]
     fn size_stays_small() {
-        // DPM image 624 B (layout 2), last status, outputs, drive report and a mailbox answer
-        // in the link, last outputs and inputs in the drive, the parameter cache (8 mailbox
-        // answers, ≈ 1.1 KiB) and the drive's parameter table: a static in the firmware.
+        // DPM image 728 B (layout 3) with the host's state, last status, outputs, drive
+        // report, command, drive state and a mailbox answer in the link, two parameter caches
+        // (record 47 and PKW, 8 mailbox answers each, ≈ 1.1 KiB each), the profile layer
+        // (last cycle, PKW server, fault buffer) and the drive's parameter table: a static in
+        // the firmware.
         let n = core::mem::size_of::<Application>();
-        assert!(n <= 2816, "Application is {n} bytes");
+        assert!(n <= 4608, "Application is {n} bytes");
     }
 
     #[test]
@@ -273,7 +364,7 @@ mod tests {
         for _ in 0..3 {
             b.cycle(&q, 5);
         }
-        assert_eq!(b.app.drive().state(), DriveState::ReadyToSwitchOn);
+        assert_eq!(b.app.profidrive_state().unwrap(), DriveState::ReadyToSwitchOn);
         let i = b.cycle(&q, 5);
         assert_eq!(words(&i)[0] & 0x0277, 0x0231, "S2: b0, b4, b5, b9 (got {:04X})", words(&i)[0]);
         q[1] = 0x7F;
@@ -294,11 +385,11 @@ mod tests {
         // 0x047E: ramp stop to standstill, then S2.
         q[1] = 0x7E;
         b.cycle(&q, 5);
-        assert_eq!(b.app.drive().state(), DriveState::SwitchingOff(crate::drive::profidrive::StopKind::Ramp));
+        assert_eq!(b.app.profidrive_state().unwrap(), DriveState::SwitchingOff(StopKind::Ramp));
         for _ in 0..120 {
             b.cycle(&q, 5);
         }
-        assert_eq!(b.app.drive().state(), DriveState::ReadyToSwitchOn);
+        assert_eq!(b.app.profidrive_state().unwrap(), DriveState::ReadyToSwitchOn);
         assert_eq!(b.app.drive().actual_speed(), 0);
     }
 
@@ -311,7 +402,7 @@ mod tests {
             let t = Telegram::of_module(m).unwrap();
             let pkw = t.pkw_words();
             let mut q = vec![0u8; m.outputs as usize];
-            for (i, w) in q.chunks_mut(2).enumerate() {
+            for (i, w) in q.chunks_mut(2).enumerate().skip(pkw) {
                 w.copy_from_slice(&(0x1100 + i as u16).to_be_bytes());
             }
             q[2 * pkw..2 * pkw + 4].copy_from_slice(&[0x04, 0x7E, 0x40, 0x00]);
@@ -322,12 +413,56 @@ mod tests {
             let w = words(&i);
             assert_eq!(w.len(), m.inputs as usize / 2, "{}", m.name);
             assert!(w[..pkw].iter().all(|&x| x == 0), "{}: PKW answered with zeros", m.name);
-            assert_eq!(w[pkw] & 0x0277, 0x0231, "{}: ZSW in S2", m.name);
+            if b.app.profidrive_state().is_some() {
+                assert_eq!(w[pkw] & 0x0277, 0x0231, "{}: ZSW in S2", m.name);
+            } else {
+                // WEG manufacturer profile / INVT: the profile's own status word.
+                let p = b.app.runtime().profile().unwrap();
+                assert_eq!(w[pkw], p.status_word(b.app.drive().status()), "{}: status word", m.name);
+            }
             assert_eq!(w[pkw + 1], 0, "{}: HIW at standstill", m.name);
             for (k, &x) in w.iter().enumerate().skip(pkw + 2) {
                 assert_eq!(x, 0x1100 + k as u16, "{}: PZD{} echoed", m.name, k - pkw + 1);
             }
         }
+    }
+
+    /// The PKW channel of PPO 1 end to end: the request goes through the PKW server and the
+    /// DPM mailbox to the drive's table; the response is repeated until the request changes
+    /// (PROFIdrive 2.0 PKW, reference §5.6: AK 1 read word → AK 1 value word).
+    #[cfg(not(feature = "bench"))]
+    #[test]
+    fn ppo1_pkw_reads_and_writes_a_drive_parameter() {
+        let m = card::MODULES.iter().find(|m| m.reference == 101).unwrap();
+        let mut b = Bench::new();
+        b.bring_up(m);
+        let mut q = [0u8; 12];
+        q[..8].copy_from_slice(&[0x10, 100, 0, 0, 0, 0, 0, 0]); // AK 1, PNU 100
+        q[8..].copy_from_slice(&[0x04, 0x7E, 0, 0]);
+        let mut i = vec![];
+        for _ in 0..6 {
+            i = b.cycle(&q, 2);
+        }
+        assert_eq!(&words(&i)[..4], &[0x1064, 0, 0, 50], "P100 = 50 (5.0 s)");
+        // Write P100 = 85 (AK 2 word), then the response is held while the request stays.
+        q[..8].copy_from_slice(&[0x20, 100, 0, 0, 0, 0, 0, 85]);
+        for _ in 0..6 {
+            i = b.cycle(&q, 2);
+        }
+        assert_eq!(&words(&i)[..4], &[0x1064, 0, 0, 85]);
+        assert_eq!(b.app.drive_params().get(100, 0), Some(85));
+        let requests = b.requests();
+        for _ in 0..5 {
+            i = b.cycle(&q, 2);
+        }
+        assert_eq!(&words(&i)[..4], &[0x1064, 0, 0, 85], "held");
+        assert_eq!(b.requests(), requests, "executed once");
+        // Unknown PNU 999: AK 7 with error number 0 (PROFIdrive: impermissible PNU).
+        q[..8].copy_from_slice(&[0x13, 0xE7, 0, 0, 0, 0, 0, 0]);
+        for _ in 0..6 {
+            i = b.cycle(&q, 2);
+        }
+        assert_eq!(&words(&i)[..4], &[0x73E7, 0, 0, 0]);
     }
 
     #[test]
@@ -339,11 +474,11 @@ mod tests {
                 b.cycle(&q, 5);
             }
         }
-        assert_eq!(b.app.drive().state(), DriveState::Operation);
+        assert_eq!(b.app.profidrive_state().unwrap(), DriveState::Operation);
         let ev = b.step(2000);
         assert!(ev.contains(Events::WATCHDOG_EXPIRED));
         b.step(1);
-        assert_eq!(b.app.drive().state(), DriveState::Fault);
+        assert_eq!(b.app.profidrive_state().unwrap(), DriveState::Fault);
         assert_eq!(b.app.dpm().status().unwrap().comm, CommState::Offline);
         assert_eq!(b.app.dpm().status().unwrap().watchdog_expiries, 1);
     }

@@ -736,6 +736,22 @@ pub struct DriveStateImage {
 }
 
 impl DriveStateImage {
+    /// Nothing reported: all flags clear, zero values, no extra words.
+    pub const EMPTY: DriveStateImage = DriveStateImage {
+        status: DriveStatus {
+            flags: DriveStatusFlags::empty(),
+            speed: 0,
+            current: 0,
+            torque: 0,
+            power: 0,
+            fault_code: 0,
+            warning_code: 0,
+            namur: 0,
+        },
+        inputs_seq: 0,
+        extra: PzdWords::EMPTY,
+    };
+
     pub(super) fn encode(&self, b: &mut [u8]) {
         let s = &self.status;
         put16(b, drive_state::FLAGS, s.flags.bits());

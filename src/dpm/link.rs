@@ -3,9 +3,9 @@
 //! the supervision of the drive's heartbeat.
 
 use super::{
-    CardEvent, CardFlags, CardReport, CardSide, CommState, ConfigResult, Dpm, DriveReport, HeartbeatMonitor,
-    HostConfig, Liveness, Mailbox, MailboxBusy, MailboxRequest, ParamValues, PdFlags, ProcessData, Status, StatusFlags,
-    Telegram,
+    CardEvent, CardFlags, CardReport, CardSide, CommState, ConfigResult, Dpm, DriveCommandImage, DriveReport,
+    DriveStateImage, HeartbeatMonitor, HostConfig, Liveness, Mailbox, MailboxBusy, MailboxRequest, ParamValues,
+    PdFlags, ProcessData, Status, StatusFlags, Telegram,
 };
 use crate::dp::{DpState, Events};
 use crate::node::Node;
@@ -36,6 +36,8 @@ pub struct LinkStats {
     pub bad_ext_diag: u32,
     /// Configurations taken over.
     pub configs_taken: u32,
+    /// DRIVE_CMD writes.
+    pub commands_written: u32,
 }
 
 /// Moves data between a [`Node`] and a [`Dpm`], on the card's side.
@@ -62,6 +64,9 @@ pub struct Link {
     telegram: Telegram,
     last_status: Option<Status>,
     last_outputs: Option<ProcessData>,
+    outputs_seq: u16,
+    last_command: Option<DriveCommandImage>,
+    drive_state: DriveStateImage,
     inputs_seq: u16,
     stats: LinkStats,
     report: CardReport,
@@ -89,6 +94,9 @@ impl Link {
             telegram: Telegram::None,
             last_status: None,
             last_outputs: None,
+            outputs_seq: 0,
+            last_command: None,
+            drive_state: DriveStateImage::EMPTY,
             inputs_seq: 0,
             stats: LinkStats {
                 torn_reads: 0,
@@ -99,6 +107,7 @@ impl Link {
                 torn_host_blocks: 0,
                 bad_ext_diag: 0,
                 configs_taken: 0,
+                commands_written: 0,
             },
             report: CardReport {
                 heartbeat: 0,
@@ -267,7 +276,7 @@ impl Link {
         flags.set(PdFlags::CLEAR, slave.is_clear());
         let pd = ProcessData::new(telegram, flags, slave.outputs());
         if events.contains(Events::OUTPUTS_UPDATED) || self.last_outputs.as_ref() != Some(&pd) {
-            card.write_outputs(&pd);
+            self.outputs_seq = card.write_outputs(&pd);
             self.last_outputs = Some(pd);
             self.stats.outputs_written = self.stats.outputs_written.wrapping_add(1);
         }
@@ -295,6 +304,29 @@ impl Link {
             }
             Ok(_) => {}
         }
+    }
+
+    /// Write DRIVE_CMD (layout 3) when it changed: the drive-neutral command of the card's
+    /// profile layer, tied to the OUTPUTS image written last (`outputs_seq`, so the host
+    /// never pairs a command with outputs of another cycle).
+    pub fn publish_command(&mut self, img: &DriveCommandImage, dpm: &mut Dpm) {
+        let img = DriveCommandImage { outputs_seq: self.outputs_seq, ..*img };
+        if self.last_command.as_ref() != Some(&img) {
+            dpm.card().write_drive_command(&img);
+            self.last_command = Some(img);
+            self.stats.commands_written = self.stats.commands_written.wrapping_add(1);
+        }
+    }
+
+    /// The drive's latest consistent DRIVE_STATE (layout 3); a torn read keeps the previous
+    /// one (counted). All zero until the host writes it.
+    pub fn read_drive_state(&mut self, dpm: &Dpm) -> &DriveStateImage {
+        match dpm.drive_state() {
+            Ok((seq, img)) if seq != 0 => self.drive_state = img,
+            Ok(_) => {}
+            Err(_) => self.stats.torn_host_blocks = self.stats.torn_host_blocks.wrapping_add(1),
+        }
+        &self.drive_state
     }
 
     fn raise_events(&mut self, node: &Node, events: Events) {

@@ -1,285 +1,250 @@
-//! A simulated AC drive behind the DPM: what the drive's control board would do with the
-//! process data, far enough to be alive. The QEMU firmware, the soft slave and the host tests
+//! A simulated AC drive's control board behind the DPM — what a drive maker's firmware does
+//! with the card, far enough to be alive. The QEMU firmware, the soft slave and the host tests
 //! run it; `no_std`, allocation-free, time passed in.
 //!
-//! [`SimDrive::step`] reads OUTPUTS through the host side of the [`Dpm`](crate::dpm::Dpm)
-//! (drive-neutral: the raw PZD words and the telegram that lays them out), runs the
-//! PROFIdrive general state diagram ([`profidrive`]) and a ramp-function generator, and
-//! writes INPUTS:
+//! [`SimDrive::step`] talks to the card only through the host-side reference implementation
+//! ([`crate::dpm::host::Host`], issue 7 item 5) over any [`Transport`]: it reads DRIVE_CMD
+//! (the drive-neutral command of [`crate::profile::drive_if`]), runs the drive model
+//! ([`model::DriveModel`]: ramps, quick stop, coast, jog, faults, communication-loss
+//! reactions, current / torque / power), writes DRIVE_STATE, reports faults and warnings in
+//! the DRIVE block (with the GSD's device-related diagnosis block), keeps its heartbeat
+//! going, and serves the parameter mailbox from its parameter table ([`params`]).
 //!
-//! | telegram | master → drive | drive → master |
-//! |---|---|---|
-//! | Standard Telegram 1 | STW1, NSOLL_A | ZSW1, NIST_A |
-//! | PPO 1/2/5 | PKW (4 words), STW, HSW, PZD3.. | PKW = 0 (the PKW channel is a later issue), ZSW, HIW, PZD3.. echoed |
-//! | PPO 3/4/6 | STW, HSW, PZD3.. | ZSW, HIW, PZD3.. echoed |
-//!
-//! Speeds are N2 values: 0x4000 = 100 % of the reference speed, negative = reverse. The ramp
-//! takes [`DriveConfig::ramp_time`] from 0 to 100 % (and back for OFF1), the quick stop
-//! [`DriveConfig::quick_stop_time`]. The words after ZSW/HIW of the PPO types are echoed so a
-//! PLC program can check its word mapping (as the OPTE3/E5 Echo operate mode does).
-//!
-//! ZSW1: b0/b1/b2/b3/b6 from the state, b4/b5 mirror STW1 b1/b2, b7 the simulated warning,
-//! b8 |NIST − target| ≤ [`DriveConfig::setpoint_tolerance`] in S4, b9 always (the drive wants
-//! PLC control), b10 |NIST| ≥ [`DriveConfig::compare_speed`].
+//! Programmable PZD words are echoed (each input word = the output word of the same
+//! position), so a PLC program can check its word mapping. In the Bypass operate mode
+//! (OPTE3/E5 §5.1.2, §6.7) the card passes the raw words: the drive reads word 1 as its
+//! FBFixedControlWord (OPTE3/E5 §11.1 Table 146: b0 run, b1 reverse, b2 fault reset edge)
+//! and word 2 as the setpoint 0..10000 = 0..100 %, and answers FBFixedStatusWord (§11.3
+//! Table 149) and the actual speed 0..10000, the other words echoed.
 
 pub mod model;
 pub mod params;
-pub mod profidrive;
 
-use crate::dpm::{HostSide, PdFlags, ProcessData, Telegram};
-use crate::time::{Duration, Instant};
-use profidrive::{Command, DriveState, StopKind, Stw1, Zsw1};
+use crate::dpm::host::{Host, Transport};
+use crate::dpm::layout::operate_mode;
+use crate::dpm::{DriveCommandImage, DriveStateImage, PzdWords};
+use crate::profile::drive_if::{CommandFlags, DriveCommand, DriveStatus, StatusFlags};
+use crate::time::Instant;
+use model::{DriveModel, N2_100};
+use params::{sim_drive_table, DriveTable};
 
-/// 100 % speed in the N2 coding.
-pub const SPEED_100: i32 = 0x4000;
+pub use model::ModelConfig as DriveConfig;
 
-/// Micro-units per speed count (the ramp integrates in these, so no step is lost to rounding).
-const MICRO: i64 = 1_000_000;
+/// The drive fault codes the GSD's device-related diagnosis names (`Unit_Diag_Area` 16–23):
+/// code → value. Other codes report 255 "other fault (see drive)".
+pub const DIAG_FAULTS: [(u16, u8); 6] = [
+    (0x2310, 1), // overcurrent
+    (0x3210, 2), // DC link overvoltage
+    (0x3220, 3), // DC link undervoltage
+    (0x4310, 4), // motor overtemperature
+    (0x4210, 5), // drive overtemperature
+    (0x2330, 6), // earth fault
+];
 
-/// Settings of the simulated drive.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct DriveConfig {
-    /// Ramp-function generator: time from 0 to 100 % (also 100 % → 0 for OFF1). Zero = jump.
-    pub ramp_time: Duration,
-    /// Quick stop (OFF3, STW1 b4 = 0): time from 100 % to 0. Zero = jump.
-    pub quick_stop_time: Duration,
-    /// ZSW1 b8 "at setpoint": largest |actual − target| in N2 counts (default 1 % = 0x00A4).
-    pub setpoint_tolerance: u16,
-    /// ZSW1 b10 "f/n reached": the comparison speed in N2 counts (default 100 % = 0x4000).
-    pub compare_speed: u16,
-}
-
-impl DriveConfig {
-    /// 2 s ramp, 0.5 s quick stop, 1 % tolerance, comparison speed 100 %.
-    pub const DEFAULT: DriveConfig = DriveConfig {
-        ramp_time: Duration::from_millis(2000),
-        quick_stop_time: Duration::from_millis(500),
-        setpoint_tolerance: 0x00A4,
-        compare_speed: 0x4000,
-    };
-}
-
-impl Default for DriveConfig {
-    fn default() -> Self {
-        Self::DEFAULT
+/// The device-related diagnosis block of the GSD (`gsd/ODCP0F11.gsd`): header 0x03, drive
+/// status bits (b0 fault, b1 warning), fault value.
+pub fn diag_block(status: &DriveStatus) -> [u8; 3] {
+    let mut bits = 0u8;
+    if status.flags.contains(StatusFlags::FAULT) {
+        bits |= 1;
     }
+    if status.flags.contains(StatusFlags::WARNING) {
+        bits |= 2;
+    }
+    let value = match status.fault_code {
+        0 => 0,
+        c => DIAG_FAULTS.iter().find(|(k, _)| *k == c).map_or(255, |(_, v)| *v),
+    };
+    [0x03, bits, value]
 }
 
-/// Why the simulated drive is in fault.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// Counters of the simulated drive.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
-pub enum FaultCause {
-    /// STW1 b10 "control by PLC" dropped while the motor was powered (watchdog, Clear, PLC).
-    ControlLost,
-    /// [`SimDrive::inject_fault`].
-    Injected,
+pub struct SimStats {
+    /// Steps run.
+    pub steps: u32,
+    /// DRIVE_CMD reads that failed (torn on every attempt, transport error).
+    pub command_errors: u32,
+    /// DRIVE_STATE / DRIVE writes that failed.
+    pub write_errors: u32,
 }
 
-/// The simulated drive.
+/// The simulated drive's control board (module docs).
 #[derive(Debug, Clone)]
 pub struct SimDrive {
-    config: DriveConfig,
-    state: DriveState,
-    fault: Option<FaultCause>,
-    warning: bool,
-    /// Actual speed in N2 counts × [`MICRO`].
-    speed: i64,
-    /// The last control word with b10 set (the one in force).
-    stw1: Stw1,
-    /// The setpoint in force (N2).
-    setpoint: i16,
-    outputs: ProcessData,
-    last_step: Option<Instant>,
-    /// OUTPUTS sequence answered last, and the image written then.
-    answered_seq: u16,
-    last_inputs: Option<ProcessData>,
-    torn_reads: u32,
+    model: DriveModel,
+    table: DriveTable,
+    serve_parameters: bool,
+    image: DriveCommandImage,
+    command: DriveCommand,
+    status: DriveStatus,
+    bypass_cw: u16,
+    bypass_resets: u8,
+    diag: [u8; 3],
+    stats: SimStats,
 }
 
 impl SimDrive {
-    /// A drive at standstill in S1, no telegram.
+    /// A drive at standstill, ready, with its factory parameter table.
     pub fn new(config: DriveConfig) -> Self {
         SimDrive {
-            config,
-            state: DriveState::SwitchingOnInhibited,
-            fault: None,
-            warning: false,
-            speed: 0,
-            stw1: Stw1::empty(),
-            setpoint: 0,
-            outputs: ProcessData::new(Telegram::None, PdFlags::empty(), &[]),
-            last_step: None,
-            answered_seq: 0,
-            last_inputs: None,
-            torn_reads: 0,
+            model: DriveModel::new(config),
+            table: sim_drive_table(),
+            serve_parameters: true,
+            image: DriveCommandImage::EMPTY,
+            command: DriveCommand::default(),
+            status: DriveStatus::default(),
+            bypass_cw: 0,
+            bypass_resets: 0,
+            diag: [0; 3],
+            stats: SimStats::default(),
         }
     }
 
-    /// Settings.
-    pub fn config(&self) -> &DriveConfig {
-        &self.config
+    /// The drive model.
+    pub fn model(&self) -> &DriveModel {
+        &self.model
     }
-    /// State of the general state diagram.
-    pub fn state(&self) -> DriveState {
-        self.state
+    /// The drive model, mutable (inject a fault, a warning, change its settings).
+    pub fn model_mut(&mut self) -> &mut DriveModel {
+        &mut self.model
     }
-    /// Why it is in fault.
-    pub fn fault(&self) -> Option<FaultCause> {
-        self.fault
+    /// The last DRIVE_CMD read.
+    pub fn image(&self) -> &DriveCommandImage {
+        &self.image
     }
-    /// Actual speed NIST_A (N2).
+    /// The command in force (from DRIVE_CMD, or decoded from the raw words in Bypass).
+    pub fn command(&self) -> &DriveCommand {
+        &self.command
+    }
+    /// The status written last.
+    pub fn status(&self) -> &DriveStatus {
+        &self.status
+    }
+    /// Actual speed (N2).
     pub fn actual_speed(&self) -> i16 {
-        (self.speed / MICRO).clamp(i16::MIN as i64, i16::MAX as i64) as i16
+        self.status.speed
     }
-    /// The setpoint in force NSOLL_A (N2).
-    pub fn setpoint(&self) -> i16 {
-        self.setpoint
+    /// The parameter table.
+    pub fn params(&self) -> &DriveTable {
+        &self.table
     }
-    /// The raw control word the master sends now (b10 may be 0).
-    pub fn control_word(&self) -> u16 {
-        self.outputs.word(self.outputs.telegram.pkw_words())
+    /// The parameter table, mutable.
+    pub fn params_mut(&mut self) -> &mut DriveTable {
+        &mut self.table
     }
-    /// The telegram the drive answers.
-    pub fn telegram(&self) -> Telegram {
-        self.outputs.telegram
+    /// Whether the drive answers the parameter mailbox (default yes; off: a control board
+    /// that does not answer — fault injection).
+    pub fn set_serve_parameters(&mut self, on: bool) {
+        self.serve_parameters = on;
     }
-    /// OUTPUTS reads that saw a write in progress.
-    pub fn torn_reads(&self) -> u32 {
-        self.torn_reads
-    }
-
-    /// ZSW1 as it is now.
-    pub fn status_word(&self) -> u16 {
-        let mut z = self.state.zsw1() | Zsw1::CONTROL_REQUESTED;
-        z.set(Zsw1::NO_COAST_STOP, self.stw1.contains(Stw1::NO_COAST_STOP));
-        z.set(Zsw1::NO_QUICK_STOP, self.stw1.contains(Stw1::NO_QUICK_STOP));
-        z.set(Zsw1::WARNING, self.warning);
-        let n = self.actual_speed() as i32;
-        let at = (n - self.target() as i32).unsigned_abs() <= self.config.setpoint_tolerance as u32;
-        z.set(Zsw1::AT_SETPOINT, self.state == DriveState::Operation && at);
-        z.set(Zsw1::SPEED_REACHED, n.unsigned_abs() >= self.config.compare_speed as u32);
-        z.bits()
+    /// Counters.
+    pub fn stats(&self) -> SimStats {
+        self.stats
     }
 
-    /// Put the drive in fault (coast to standstill).
-    pub fn inject_fault(&mut self) {
-        self.enter_fault(FaultCause::Injected);
+    /// Trip with `code` (see [`DIAG_FAULTS`]) and MELD_NAMUR bits `namur`.
+    pub fn inject_fault(&mut self, code: u16, namur: u16) {
+        self.model.inject_fault(code, namur);
     }
 
-    /// Set or clear the simulated warning (ZSW1 b7).
-    pub fn set_warning(&mut self, on: bool) {
-        self.warning = on;
-    }
-
-    /// One step at `now`: read OUTPUTS, run the state machine and the ramp, write INPUTS when
-    /// the master sent new outputs or the answer changed.
-    pub fn step(&mut self, now: Instant, dpm: &mut HostSide<'_>) {
-        let dt = self.last_step.map_or(Duration::ZERO, |t| now - t);
-        self.last_step = Some(now);
-        match dpm.read_outputs() {
-            Ok(pd) => self.outputs = pd,
-            Err(_) => self.torn_reads = self.torn_reads.wrapping_add(1),
+    /// One drive cycle at `now` through `host`.
+    pub fn step<T: Transport>(&mut self, now: Instant, host: &mut Host<T>) {
+        self.stats.steps = self.stats.steps.wrapping_add(1);
+        host.poll(now);
+        match host.read_command() {
+            Ok((_, img)) => self.image = img,
+            Err(_) => self.stats.command_errors = self.stats.command_errors.wrapping_add(1),
         }
-        self.control();
-        self.ramp(dt);
-        // S5 ends at standstill.
-        self.state = profidrive::settle(self.state, self.command(false));
-        self.answer(dpm);
-    }
-
-    /// The speed the ramp heads for.
-    fn target(&self) -> i16 {
-        match self.state {
-            DriveState::Operation
-                if self.stw1.contains(Stw1::ENABLE_RAMP) && self.stw1.contains(Stw1::ENABLE_SETPOINT) =>
-            {
-                self.setpoint
+        let bypass = self.image.operate_mode == operate_mode::BYPASS;
+        self.command = if bypass { self.bypass_command() } else { self.image.command };
+        self.status = self.model.step(now, &self.command);
+        let extra = if bypass { self.bypass_words() } else { self.image.extra };
+        let state = DriveStateImage { status: self.status, inputs_seq: 0, extra };
+        if host.write_state(&state).is_err() {
+            self.stats.write_errors = self.stats.write_errors.wrapping_add(1);
+        }
+        if host.drive_report().fault_code != self.status.fault_code {
+            host.set_fault(self.status.fault_code);
+        }
+        if host.drive_report().warning_code != self.status.warning_code {
+            host.set_warning(self.status.warning_code);
+        }
+        let diag = diag_block(&self.status);
+        if diag != self.diag {
+            let blocks: &[u8] = if diag[1] == 0 { &[] } else { &diag };
+            if host.set_ext_diag(blocks).is_ok() {
+                self.diag = diag;
             }
-            _ => 0,
+        }
+        if self.serve_parameters {
+            let _ = host.serve_parameters(&mut crate::dpm::host::Table(&mut self.table));
         }
     }
 
-    fn command(&self, fault_ack: bool) -> Command {
-        Command { stw1: self.stw1, fault_ack, standstill: self.speed == 0 }
-    }
-
-    fn enter_fault(&mut self, cause: FaultCause) {
-        self.state = DriveState::Fault;
-        self.fault = Some(cause);
-        self.speed = 0;
-    }
-
-    /// Evaluate the control word and the setpoint.
-    fn control(&mut self) {
-        let pkw = self.outputs.telegram.pkw_words();
-        let stw1 = Stw1::from_bits_retain(self.outputs.word(pkw));
-        if !stw1.contains(Stw1::CONTROL_BY_PLC) {
-            // The words are not valid: keep the last ones; a powered motor faults.
-            if self.state.is_running() {
-                self.enter_fault(FaultCause::ControlLost);
-            }
-            return;
+    /// Bypass: FBFixedControlWord (word 1) and the 0..10000 setpoint (word 2).
+    fn bypass_command(&mut self) -> DriveCommand {
+        let w = self.image.extra.words();
+        let cw = w.first().copied().unwrap_or(0);
+        let sp = w.get(1).copied().unwrap_or(0).min(10_000) as i32;
+        if cw & 0x0004 != 0 && self.bypass_cw & 0x0004 == 0 {
+            self.bypass_resets = self.bypass_resets.wrapping_add(1);
         }
-        let ack = stw1.contains(Stw1::FAULT_ACK) && !self.stw1.contains(Stw1::FAULT_ACK);
-        self.stw1 = stw1;
-        self.setpoint = self.outputs.word(pkw + 1) as i16;
-        let before = self.state;
-        self.state = profidrive::settle(self.state, self.command(ack));
-        if before == DriveState::Fault && self.state != DriveState::Fault {
-            self.fault = None;
-        }
-        if !self.state.is_running() {
-            // Pulses off: coast (S1, S2, S3 and fault have no speed).
-            self.speed = 0;
+        self.bypass_cw = cw;
+        let mut flags = CommandFlags::FIELDBUS_CONTROL;
+        flags.set(CommandFlags::RUN, cw & 0x0001 != 0);
+        flags.set(CommandFlags::REVERSE, cw & 0x0002 != 0);
+        // The card's communication-loss flag stays valid in Bypass.
+        flags |= self.image.command.flags & CommandFlags::COMM_LOSS;
+        DriveCommand {
+            flags,
+            speed_setpoint: (sp * N2_100 / 10_000) as i16,
+            fault_resets: self.bypass_resets,
+            comm_loss_reaction: self.image.command.comm_loss_reaction,
         }
     }
 
-    /// Move the actual speed toward the target along the ramp in force.
-    fn ramp(&mut self, dt: Duration) {
-        if !self.state.is_running() {
-            return;
+    /// Bypass: FBFixedStatusWord, the actual speed 0..10000, the other words echoed.
+    fn bypass_words(&self) -> PzdWords {
+        let s = &self.status;
+        let f = s.flags;
+        let bits = [
+            StatusFlags::READY,
+            StatusFlags::RUNNING,
+            StatusFlags::REVERSE,
+            StatusFlags::FAULT,
+            StatusFlags::WARNING,
+            StatusFlags::AT_REFERENCE,
+            StatusFlags::ZERO_SPEED,
+            StatusFlags::FLUX_READY,
+        ];
+        let sw = bits.iter().enumerate().fold(0u16, |a, (i, b)| a | (u16::from(f.contains(*b)) << i));
+        let actual = ((s.speed as i32).unsigned_abs() * 10_000 / N2_100 as u32).min(10_000) as u16;
+        let mut words = [0u16; crate::dpm::layout::EXTRA_WORDS];
+        let n = self.image.extra.words().len();
+        words[..n].copy_from_slice(self.image.extra.words());
+        if n >= 2 {
+            words[0] = sw;
+            words[1] = actual;
         }
-        let quick = self.state == DriveState::SwitchingOff(StopKind::Quick)
-            || (self.state == DriveState::Operation && !self.stw1.contains(Stw1::ENABLE_RAMP));
-        if self.state == DriveState::Operation && !quick && !self.stw1.contains(Stw1::UNFREEZE_RAMP) {
-            return; // STW1 b5 = 0: hold the ramp-function generator.
-        }
-        let time = if quick { self.config.quick_stop_time } else { self.config.ramp_time };
-        let target = self.target() as i64 * MICRO;
-        let dt_us = dt.as_micros().min(10_000_000) as i64;
-        let step = match time.as_micros() {
-            0 => i64::MAX,
-            t => (SPEED_100 as i64 * MICRO).saturating_mul(dt_us) / t as i64,
-        };
-        self.speed = if self.speed < target {
-            self.speed.saturating_add(step).min(target)
-        } else {
-            self.speed.saturating_sub(step).max(target)
-        };
-    }
-
-    /// Write INPUTS for the telegram of the outputs.
-    fn answer(&mut self, dpm: &mut HostSide<'_>) {
-        let t = self.outputs.telegram;
-        if !t.is_known() {
-            return;
-        }
-        let (pkw, pzd) = (t.pkw_words(), t.pzd_words());
-        let mut bytes = [0u8; crate::dpm::layout::PD_CAPACITY];
-        let put = |bytes: &mut [u8], i: usize, w: u16| bytes[2 * i..2 * i + 2].copy_from_slice(&w.to_be_bytes());
-        put(&mut bytes, pkw, self.status_word());
-        put(&mut bytes, pkw + 1, self.actual_speed() as u16);
-        for i in pkw + 2..pkw + pzd {
-            put(&mut bytes, i, self.outputs.word(i));
-        }
-        let pd = ProcessData::new(t, PdFlags::empty(), &bytes[..2 * (pkw + pzd)]);
-        if self.outputs.seq != self.answered_seq || self.last_inputs.as_ref() != Some(&pd) {
-            dpm.write_inputs(&pd);
-            self.answered_seq = self.outputs.seq;
-            self.last_inputs = Some(pd);
-        }
+        PzdWords::new(&words[..n]).unwrap_or(PzdWords::EMPTY)
     }
 }
 
 #[cfg(test)]
-mod tests;
+mod tests {
+    use super::*;
+
+    #[test]
+    fn diag_block_follows_the_gsd() {
+        let mut s = DriveStatus::default();
+        assert_eq!(diag_block(&s), [0x03, 0, 0]);
+        s.flags = StatusFlags::FAULT;
+        s.fault_code = 0x3210;
+        assert_eq!(diag_block(&s), [0x03, 1, 2]);
+        s.fault_code = 0x1234;
+        s.flags |= StatusFlags::WARNING;
+        assert_eq!(diag_block(&s), [0x03, 3, 255]);
+    }
+}

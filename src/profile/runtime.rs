@@ -274,7 +274,13 @@ impl Runtime {
     /// One cycle: `outputs` = a new output image from Data_Exchange (else the last one is
     /// evaluated again), `lost` = the communication is lost (watchdog, Clear, master gone),
     /// `drive` = the drive's latest status and raw words. `None` without an engine.
-    pub fn cycle(&mut self, outputs: Option<&[u8]>, lost: bool, drive: &DriveStatus, words: &[u16]) -> Option<Exchange<'_>> {
+    pub fn cycle(
+        &mut self,
+        outputs: Option<&[u8]>,
+        lost: bool,
+        drive: &DriveStatus,
+        words: &[u16],
+    ) -> Option<Exchange<'_>> {
         self.track_faults(drive);
         let (engine, profile) = (self.engine.as_mut()?, self.profile.as_mut()?);
         let side = DriveSide { status: drive, words, pkw_response: self.pkw.response() };

@@ -311,7 +311,7 @@ pub struct HostStats {
 /// host.write_process_data(&inputs, &state)   // INPUTS, then DRIVE_STATE
 /// host.serve_parameters(&mut table)   // a new mailbox request, if any
 /// ```
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub struct Host<T> {
     transport: T,
     header: Header,
