@@ -28,8 +28,8 @@ use std::time::{Duration, Instant};
 
 use pbcard::card;
 use pbcard::dpm::Telegram;
-use pbcard::drive::profidrive::{Stw1, Zsw1};
 use pbcard::fdl::telegram::{self, FunctionCode, Header};
+use pbcard::profile::profidrive::{Stw1, Zsw1};
 use profirust::dp::{DpMaster, Peripheral, PeripheralEvent, PeripheralHandle, PeripheralOptions};
 use profirust::fdl::FdlActiveStation;
 
@@ -543,7 +543,7 @@ pub fn percent(n2: i16) -> f64 {
     f64::from(n2) * 100.0 / f64::from(SPEED_100)
 }
 
-/// What a control word asks the drive for (PROFIdrive, `pbcard::drive::profidrive`).
+/// What a control word asks the drive for (PROFIdrive, `pbcard::profile::profidrive`).
 pub fn stw1_meaning(stw1: u16) -> &'static str {
     let s = Stw1::from_bits_retain(stw1);
     if !s.contains(Stw1::CONTROL_BY_PLC) {

@@ -438,23 +438,31 @@ fn judge_rejects_early_answer() {
 // Every module of the GSD with the simulated drive behind the DPM
 // ---------------------------------------------------------------------------------------------
 
-/// The card's DPM with the simulated drive (`pbcard::drive::SimDrive`) behind it: every new
-/// output image goes into the DPM's OUTPUTS block tagged with the module's telegram, the drive
-/// runs one step and its INPUTS block becomes the next input image (as `Link` does).
+/// The card's profile layer (`pbcard::profile::runtime::Runtime`: the module's cyclic
+/// engine, its control profile, the PKW server) with the drive model
+/// (`pbcard::drive::model::DriveModel`) behind the drive-neutral interface, run on every new
+/// output image: what the card's `Application` does through the DPM, without the DPM.
 struct DriveApp {
-    dpm: pbcard::dpm::Dpm,
-    drive: pbcard::drive::SimDrive,
-    telegram: pbcard::dpm::Telegram,
-    /// Input images the drive answered, in order.
+    rt: pbcard::profile::runtime::Runtime,
+    model: pbcard::drive::model::DriveModel,
+    status: pbcard::profile::drive_if::DriveStatus,
+    words: Vec<u16>,
+    last_command: pbcard::profile::drive_if::DriveCommand,
     answers: usize,
 }
 
 impl DriveApp {
-    fn new(module: &card::Module) -> Self {
+    fn new() -> Self {
+        let cfg = pbcard::drive::model::ModelConfig {
+            ramp_time: pbcard::time::Duration::from_millis(40),
+            ..pbcard::drive::model::ModelConfig::DEFAULT
+        };
         DriveApp {
-            dpm: pbcard::dpm::Dpm::new(),
-            drive: pbcard::drive::SimDrive::new(pbcard::drive::DriveConfig::DEFAULT),
-            telegram: pbcard::dpm::Telegram::of_module(module).expect("every GSD module has a telegram"),
+            rt: pbcard::profile::runtime::Runtime::default(),
+            model: pbcard::drive::model::DriveModel::new(cfg),
+            status: Default::default(),
+            words: vec![],
+            last_command: Default::default(),
             answers: 0,
         }
     }
@@ -462,19 +470,25 @@ impl DriveApp {
 
 impl SlaveApp for DriveApp {
     fn on_frame(&mut self, now: pbcard::time::Instant, slave: &mut pbcard::dp::DpSlave, f: FrameInfo<'_>) {
-        use pbcard::dpm::{PdFlags, ProcessData};
+        use pbcard::profile::cyclic::OperateMode;
+        use pbcard::profile::runtime::Selection;
         if !f.data_exchange || f.retry {
             return;
         }
-        let pd = ProcessData::new(self.telegram, PdFlags::DATA_EXCHANGE, slave.outputs());
-        self.dpm.card().write_outputs(&pd);
-        self.drive.step(now, &mut self.dpm.host());
-        if let Ok(inputs) = self.dpm.card().read_inputs() {
-            if inputs.telegram == self.telegram && inputs.seq != 0 {
-                slave.set_inputs(inputs.bytes());
-                self.answers += 1;
-            }
-        }
+        let telegram = slave.module().and_then(pbcard::dpm::Telegram::of_module).unwrap();
+        self.rt.select(Selection {
+            telegram,
+            mode: OperateMode::Profidrive,
+            data: pbcard::profile::telegram::DataProfile::Manufacturer,
+            comm_loss_reaction: 0,
+        });
+        let x = self.rt.cycle(Some(slave.outputs()), false, &self.status, &self.words).unwrap();
+        slave.set_inputs(x.inputs);
+        self.last_command = x.command.unwrap_or_default();
+        // The drive echoes the programmable words.
+        self.words = x.words.to_vec();
+        self.status = self.model.step(now, &self.last_command);
+        self.answers += 1;
     }
 }
 
@@ -482,30 +496,53 @@ fn words_of(b: &[u8]) -> Vec<u16> {
     b.chunks(2).map(|w| u16::from_be_bytes([w[0], w[1]])).collect()
 }
 
-/// PI_Q of cycle `k` for `module`: PKW request words 0xA000.., STW1 0x047E (S1 → S2), NSOLL_A
-/// 0x1000, then programmable words 0x1100 + position + 0x10·k (every cycle differs).
+/// The control word and 25 % setpoint of a module's control profile: (ready, run, setpoint,
+/// the 25 % actual value the drive must reach) — PROFIdrive 4.1 / 2.0 0x047E → 0x047F (N2
+/// 0x1000; PPO: bypass scale 2500 of 10000), WEG manufacturer P0684 general enable + remote +
+/// direction, then run (13-bit scale: 2048 of 8192), INVT command 0 → 1 forward run (0.01 Hz:
+/// 1250 of 50.00 Hz).
+fn family_words(t: pbcard::dpm::Telegram) -> (u16, u16, u16) {
+    use pbcard::dpm::{Family, Telegram};
+    match t {
+        Telegram::Ppo(_) => (0x047E, 0x047F, 2500),
+        Telegram::Vendor(Family::WegCfw500 | Family::WegCfw11, _) => (0x0016, 0x0017, 2048),
+        Telegram::Vendor(Family::Invt, _) => (0, 1, 1250),
+        _ => (0x047E, 0x047F, 0x1000),
+    }
+}
+
+/// PI_Q of cycle `k` for `module`: PKW 0 (no request), the family's ready word for 4 cycles
+/// then its run word, the 25 % setpoint, then programmable words 0x1100 + position + 0x10·k
+/// (every cycle differs).
 fn drive_outputs(module: &card::Module, k: usize) -> Vec<u8> {
     let t = pbcard::dpm::Telegram::of_module(module).unwrap();
+    let (ready, run, sp) = family_words(t);
     let pkw = t.pkw_words();
     (0..module.outputs as usize / 2)
         .map(|i| match i {
-            i if i < pkw => 0xA000 + i as u16,
-            i if i == pkw => 0x047E,
-            i if i == pkw + 1 => 0x1000,
+            i if i < pkw => 0,
+            i if i == pkw => {
+                if k < 4 {
+                    ready
+                } else {
+                    run
+                }
+            }
+            i if i == pkw + 1 => sp,
             i => 0x1100 + i as u16 + 0x10 * k as u16,
         })
         .flat_map(u16::to_be_bytes)
         .collect()
 }
 
-/// (m) profirust brings the card up with every module's Chk_Cfg bytes and exchanges data with
-/// the simulated drive: ZSW1 (S2, "ready to switch on") in the status position, NIST_A 0 at
-/// standstill, the PKW answered with zeros (the PKW server is a later piece), and every word
-/// after ZSW/HIW the echo of the same position of the previous cycle's outputs (ST20: its four
-/// extra input words have no output counterpart and read 0 until the drive-neutral path
-/// fills them).
+/// (m) profirust brings the card up with every module's Chk_Cfg bytes and runs the drive
+/// through the module's control profile: the drive receives the run command and the 25 %
+/// setpoint (N2 0x1000), ramps, and the master reads the profile's status word for a running
+/// drive, the 25 % actual value in the profile's scale, the programmable words echoed (the
+/// outputs of two cycles before), ST20's current / torque / power words live, and PKW 0.
 #[test]
-fn m_every_module_exchanges_with_the_drive() {
+fn m_every_module_runs_the_drive() {
+    use pbcard::profile::drive_if::{CommandFlags, ControlProfile, StatusFlags};
     let rate = Baudrate::B1500k;
     for module in card::MODULES {
         let t = pbcard::dpm::Telegram::of_module(module).unwrap();
@@ -513,27 +550,39 @@ fn m_every_module_exchanges_with_the_drive() {
         let mut bus = SimBus::new(
             MasterConfig::new(rate).watchdog_ms(watchdog_ms(rate)),
             &[PeripheralConfig::card(SLAVE, module, rate)],
-            vec![(SLAVE, DriveApp::new(module))],
+            vec![(SLAVE, DriveApp::new())],
         );
         bus.bring_up(SLAVE, Duration::from_millis(2_000));
         assert_eq!(bus.slave(SLAVE).slave.module(), Some(module), "{}", module.name);
-        let log = bus.exchange(SLAVE, 12, Duration::from_millis(2_000), |k| drive_outputs(module, k));
+        let log = bus.exchange(SLAVE, 400, Duration::from_millis(5_000), |k| drive_outputs(module, k));
         let ep = bus.slave(SLAVE);
         assert_eq!(ep.slave.outputs(), &log.last().unwrap().q_sent[..], "{}", module.name);
-        assert_eq!(ep.app.drive.telegram(), t, "{}: the drive sees the telegram", module.name);
-        assert!(ep.app.answers >= log.len(), "{}: the drive answered every image", module.name);
-        assert_eq!(ep.app.drive.control_word(), 0x047E, "{}: STW1 at the control position", module.name);
-        assert_eq!(ep.app.drive.setpoint(), 0x1000, "{}: NSOLL_A at the setpoint position", module.name);
-        for k in 2..log.len() {
-            let i = words_of(&log[k].i_received);
-            let q = words_of(&log[k - 1].q_sent);
-            assert_eq!(i.len(), module.inputs as usize / 2, "{} cycle {k}", module.name);
-            assert!(i[..pkw].iter().all(|&w| w == 0), "{} cycle {k}: PKW {:04X?}", module.name, &i[..pkw]);
-            assert_eq!(i[pkw] & 0x0277, 0x0231, "{} cycle {k}: ZSW1 S2 in {:04X?}", module.name, i);
-            assert_eq!(i[pkw + 1], 0, "{} cycle {k}: NIST_A at standstill", module.name);
+        assert!(ep.app.answers >= log.len(), "{}: every image reached the profile", module.name);
+        let cmd = ep.app.last_command;
+        assert!(cmd.flags.contains(CommandFlags::RUN), "{}: run command {:?}", module.name, cmd.flags);
+        assert_eq!(cmd.speed_setpoint, 0x1000, "{}: 25 % setpoint in N2", module.name);
+        assert!(ep.app.status.flags.contains(StatusFlags::RUNNING | StatusFlags::AT_REFERENCE), "{}", module.name);
+        let (_, _, sp) = family_words(t);
+        let last = log.len() - 1;
+        let i = words_of(&log[last].i_received);
+        // Pipelined: the inputs of cycle n were staged after cycle n - 1 and carry the words
+        // the drive echoed from cycle n - 2.
+        let q = words_of(&log[last - 2].q_sent);
+        assert_eq!(i.len(), module.inputs as usize / 2, "{}", module.name);
+        assert!(i[..pkw].iter().all(|&w| w == 0), "{}: PKW {:04X?}", module.name, &i[..pkw]);
+        let profile = ep.app.rt.profile().unwrap();
+        assert_eq!(i[pkw], profile.status_word(&ep.app.status), "{}: status word", module.name);
+        if matches!(profile, pbcard::profile::runtime::AnyProfile::Profidrive(_)) {
+            assert_eq!(i[pkw] & 0x0007, 0x0007, "{}: ZSW1 S4 in {:04X?}", module.name, i);
+        }
+        assert!(i[pkw + 1].abs_diff(sp) <= 1, "{}: actual {:04X} for {sp:04X}", module.name, i[pkw + 1]);
+        if t == pbcard::dpm::Telegram::Standard(20) {
+            assert!(i[pkw + 2] > 0 && i[pkw + 3] > 0 && i[pkw + 4] > 0, "ST20 current/torque/power {:04X?}", i);
+            assert_eq!(i[pkw + 5], 0, "ST20 MELD_NAMUR without fault");
+        } else {
             for (p, &got) in i.iter().enumerate().take(pkw + pzd_in).skip(pkw + 2) {
                 let want = q.get(p).copied().unwrap_or(0);
-                assert_eq!(got, want, "{} cycle {k}: PZD{} echoed", module.name, p - pkw + 1);
+                assert_eq!(got, want, "{}: PZD{} echoed", module.name, p - pkw + 1);
             }
         }
         assert!(!bus.events_for(SLAVE).contains(&PeripheralEvent::Offline), "{}", module.name);

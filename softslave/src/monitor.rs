@@ -7,7 +7,6 @@ use pbcard::card;
 use pbcard::dp::prm::{PrmError, SetPrm, StationStatus};
 use pbcard::dp::{sap, DpState, Events};
 use pbcard::dpm::{CommState, ProcessData, Telegram};
-use pbcard::drive::profidrive::DriveState;
 use pbcard::fdl::telegram::{self, Decoded, RequestFunction, Telegram as Frame};
 use pbcard::node::Node;
 
@@ -66,7 +65,7 @@ pub struct Monitor {
     diag_logged_in: Option<DpState>,
     seen_masters: Vec<u8>,
     comm: CommState,
-    drive: DriveState,
+    drive: String,
     dx_at_last_pd: u32,
     sync: bool,
     freeze: bool,
@@ -83,7 +82,7 @@ impl Monitor {
             diag_logged_in: None,
             seen_masters: Vec::new(),
             comm: CommState::Inactive,
-            drive: DriveState::SwitchingOnInhibited,
+            drive: String::new(),
             dx_at_last_pd: 0,
             sync: false,
             freeze: false,
@@ -205,15 +204,14 @@ impl Monitor {
                 log(format!("P0740 = {} ({})", s.comm.code(), s.comm.text()));
             }
         }
-        let d = app.drive().state();
+        let d = drive_summary(app);
         if d != self.drive {
-            let cause = app.drive().fault().map(|c| format!(", {c:?}")).unwrap_or_default();
+            let cmd = app.drive().command();
             log(format!(
-                "drive: {} → {} (STW1 {:04X}, ZSW1 {:04X}{cause})",
-                self.drive.name(),
-                d.name(),
-                app.drive().control_word(),
-                app.drive().status_word()
+                "drive: {} → {d} (command {:?}, setpoint {:04X})",
+                if self.drive.is_empty() { "-" } else { &self.drive },
+                cmd.flags,
+                cmd.speed_setpoint as u16
             ));
             self.drive = d;
         }
@@ -227,14 +225,31 @@ impl Monitor {
         if node.slave().state() != DpState::DataExch {
             return;
         }
-        let (Ok(out), Ok(inp)) = (app.dpm().outputs(), app.dpm().inputs()) else { return };
+        let Ok(out) = app.dpm().outputs() else { return };
+        let inp = ProcessData::new(out.telegram, pbcard::dpm::PdFlags::empty(), node.slave().inputs());
         log(format!(
             "PD out {} | in {} | drive {} | {rate:.0} Data_Exchange/s",
             words(&out, true),
             words(&inp, false),
-            app.drive().state().name()
+            drive_summary(app)
         ));
     }
+}
+
+/// The card's profile state (PROFIdrive S1..S5 / fault) and the drive's: "S4 operation,
+/// running" / "-, fault 2310".
+fn drive_summary(app: &Application) -> String {
+    let profile = app.profidrive_state().map_or("-", |s| s.name());
+    let st = app.drive().status();
+    let f = st.flags;
+    let drive = if f.contains(pbcard::profile::drive_if::StatusFlags::FAULT) {
+        format!("fault {:04X}", st.fault_code)
+    } else if f.contains(pbcard::profile::drive_if::StatusFlags::RUNNING) {
+        "running".to_string()
+    } else {
+        "stopped".to_string()
+    };
+    format!("{profile}, drive {drive}")
 }
 
 /// "STW1 047F NSOLL_A 2000 (+50.0 %)" / PPO: "PKW 0000 … STW 047F HSW 2000 (+50.0 %) PZD3 …".
