@@ -15,7 +15,7 @@
 //! control board would.
 
 use crate::dp::Events;
-use crate::dpm::{Dpm, Link, MailboxParams, MailboxServer, ParamCache};
+use crate::dpm::{Dpm, Link, MailboxParams, MailboxServer, ParamCache, PdFlags, ProcessData, Telegram as DpmTelegram};
 use crate::drive::params::{sim_drive_table, DriveTable};
 use crate::drive::{DriveConfig, SimDrive};
 use crate::node::Node;
@@ -79,14 +79,55 @@ impl Application {
     /// telegram if the platform can): the answer to Data_Exchange *n* carries the drive's
     /// reaction to the outputs of an earlier cycle.
     pub fn step(&mut self, now: Instant, node: &mut Node) -> Events {
+        let events = self.step_publish(now, node);
+        self.step_drive(now);
+        self.step_collect(now, node);
+        events
+    }
+
+    /// The first third of [`step`](Self::step), the part that needs the node: its timers and
+    /// [`Link::publish`] (status, outputs, events into the DPM). A firmware that must keep
+    /// the node's lock short calls the three parts with the lock held only for this one and
+    /// [`step_collect`](Self::step_collect).
+    pub fn step_publish(&mut self, now: Instant, node: &mut Node) -> Events {
         let events = node.poll(now);
         self.link.publish(node, events, &mut self.dpm);
+        events
+    }
+
+    /// The middle of [`step`](Self::step), without the node: the simulated drive reads the
+    /// DPM outputs, runs, writes its inputs and serves the parameter mailbox.
+    pub fn step_drive(&mut self, now: Instant) {
         self.drive.step(now, &mut self.dpm.host());
         if self.serve_parameters {
             self.server.serve(&mut self.dpm.host(), &mut self.drive_params);
         }
+    }
+
+    /// The last part of [`step`](Self::step), with the node: [`Link::collect`] (drive
+    /// supervision, configuration takeover, mailbox, new inputs to the DP slave).
+    pub fn step_collect(&mut self, now: Instant, node: &mut Node) {
         self.link.collect(now, node, &self.dpm);
-        events
+    }
+
+    /// The panic / hard-fault path (ARCHITECTURE §2 "supervision"): the DPM OUTPUTS block to
+    /// the safe state (all zero, neither DATA_EXCHANGE nor CLEAR flagged, no telegram), the
+    /// card fault flag set and the `CARD.EVENTS` "card fault" counter (index 6) raised, so
+    /// the drive sees the failure in the image the transport moves next. Bounded, no
+    /// allocation, no node needed: callable from a panic handler on a possibly corrupt state.
+    pub fn fail_safe(&mut self) {
+        self.link.set_init_error(true);
+        let mut card = self.dpm.card();
+        card.write_outputs(&ProcessData::new(DpmTelegram::None, PdFlags::empty(), &[]));
+        card.write_card_report(self.link.card_report());
+    }
+
+    /// After a reset that followed [`fail_safe`](Self::fail_safe) (the board keeps a flag in
+    /// RAM that survives the reset): raise the "card fault" event once more in the fresh
+    /// image, without keeping P0740 at "initialization error".
+    pub fn report_recovered_fault(&mut self) {
+        self.link.set_init_error(true);
+        self.link.set_init_error(false);
     }
 
     /// The DPM image.
@@ -229,6 +270,55 @@ mod tests {
 
     fn words(b: &[u8]) -> Vec<u16> {
         b.chunks(2).map(|w| u16::from_be_bytes([w[0], w[1]])).collect()
+    }
+
+    #[test]
+    fn split_step_is_the_same_step() {
+        let mut a = Bench::new();
+        let mut b = Bench::new();
+        a.bring_up(&card::MODULES[0]);
+        b.bring_up(&card::MODULES[0]);
+        let q = [0x04, 0x7E, 0x20, 0x00];
+        for _ in 0..5 {
+            let ia = a.cycle(&q, 5);
+            // The same cycle, the step in three parts (the firmware's short node locks).
+            let rb = b.srd(None, &q);
+            b.now = b.now + Duration::from_millis(5);
+            let ev = b.app.step_publish(b.now, &mut b.node);
+            b.app.step_drive(b.now);
+            b.app.step_collect(b.now, &mut b.node);
+            let _ = ev;
+            let ib = rb[telegram::pdu_range(rb.len(), b.node.slave().input_len())].to_vec();
+            assert_eq!(ia, ib);
+        }
+        assert_eq!(a.app.drive().state(), b.app.drive().state());
+        assert_eq!(a.app.dpm().as_bytes()[..], b.app.dpm().as_bytes()[..]);
+    }
+
+    #[test]
+    fn fail_safe_clears_outputs_and_raises_the_card_fault_event() {
+        use crate::dpm::{CardEvent, CardFlags};
+        let mut b = Bench::new();
+        b.bring_up(&card::MODULES[0]);
+        b.cycle(&[0x04, 0x7F, 0x30, 0x00], 5);
+        let out = b.app.dpm().outputs().unwrap();
+        assert!(out.bytes().iter().any(|&x| x != 0));
+        let before = b.app.dpm().card_report().unwrap().events[CardEvent::CardFault as usize];
+        b.app.fail_safe();
+        let out = b.app.dpm().outputs().unwrap();
+        assert!(out.bytes().iter().all(|&x| x == 0), "outputs cleared: {:02X?}", out.bytes());
+        assert!(!out.flags.contains(PdFlags::DATA_EXCHANGE));
+        let r = b.app.dpm().card_report().unwrap();
+        assert_eq!(r.events[CardEvent::CardFault as usize], before.wrapping_add(1));
+        assert!(r.flags.contains(CardFlags::CARD_FAULT));
+        // After the reset: a fresh image shows the event once more, P0740 is not stuck.
+        let mut fresh = Bench::new();
+        fresh.app.report_recovered_fault();
+        fresh.step(1);
+        let r = fresh.app.dpm().card_report().unwrap();
+        assert_eq!(r.events[CardEvent::CardFault as usize], 1);
+        assert!(!r.flags.contains(CardFlags::CARD_FAULT));
+        assert_ne!(fresh.app.dpm().status().unwrap().comm, CommState::InitError);
     }
 
     #[test]
