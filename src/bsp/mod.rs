@@ -2,16 +2,16 @@
 //! `unsafe` (ARCHITECTURE §3). The RTIC app in `main.rs` talks to the board only through the
 //! small traits below, so that the later boards implement the same shape:
 //!
-//! * this issue: [`f411::Usart1Port`] — USART1 with one interrupt per byte (RXNE/TXE/TC),
-//!   min_TSDR by busy-waiting on the [`Clock`], DE on a GPIO;
-//! * board-support issue: USART1 + DMA2 (RX circular buffer, TX DMA), a 32-bit bit timer for
-//!   TSYN / min_TSDR / timestamps, autobaud through [`BusPort::set_baud`];
-//! * [`qemu::QemuUsart1`] (feature `qemu`) — QEMU netduinoplus2: per-byte interrupts like
-//!   here, no IDLE flag, no DMA, no line timing, HSI clock.
+//! * [`f411::DmaLine`] (feature `board-f411`) — USART1 + DMA2 (circular receive ring cut into
+//!   telegrams at IDLE, transmit DMA), TIM5 as the bit timer (T_SYN proof, min_TSDR start by
+//!   compare), DE on PA8, autobaud through [`f411::DmaLine::set_baud`]; the address journal's
+//!   flash ([`flash`]), LEDs and IWDG, and the panic / HardFault path ([`fault`]);
+//! * [`qemu::QemuUsart1`] (feature `qemu`) — QEMU netduinoplus2: one interrupt per byte (a
+//!   [`BusPort`]), no IDLE flag, no DMA, no line timing, HSI clock.
 //!
-//! Each board module offers the same bring-up shape, re-exported as [`board`]: `NAME`,
-//! `Port` (its [`BusPort`]), `Board { port, clock }` and `init(device, SYST, rate) -> Board`.
-//! The RTIC application in `main.rs` is the same for every board.
+//! Each board module offers `NAME`, `Board` and `init(device, SYST, rate) -> Board`; the
+//! line differs (per byte on QEMU, per telegram on the F411), so `main.rs` has one line
+//! block per board and shares everything above the line (node, application, DP-V1 task).
 //!
 //! Only `main.rs` declares this module: it is never compiled for the host.
 
@@ -19,6 +19,10 @@ pub mod clock;
 pub mod divisor;
 #[cfg(feature = "board-f411")]
 pub mod f411;
+#[cfg(feature = "board-f411")]
+pub mod fault;
+#[cfg(feature = "board-f411")]
+pub mod flash;
 #[cfg(feature = "qemu")]
 pub mod qemu;
 
@@ -47,7 +51,8 @@ pub trait DriverEnable {
     fn disable(&mut self);
 }
 
-/// What went wrong with one received character; the character is dropped.
+/// What went wrong with one received character; the character is dropped (per-byte ports).
+#[cfg_attr(feature = "board-f411", allow(dead_code))]
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, defmt::Format)]
 pub struct LineError {
     /// Even parity did not match (PE).
@@ -61,6 +66,7 @@ pub struct LineError {
 }
 
 /// What a [`BusPort`] has to report, in line order.
+#[cfg_attr(feature = "board-f411", allow(dead_code))]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub enum LineEvent {
     /// One error-free character.
@@ -82,6 +88,7 @@ pub enum LineEvent {
 }
 
 /// Why a response could not be started.
+#[cfg_attr(feature = "board-f411", allow(dead_code))]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub enum TxError {
     /// A response is still being sent.
@@ -94,7 +101,9 @@ pub enum TxError {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub struct UnsupportedRate(pub Baudrate);
 
-/// The PROFIBUS line: an 11-bit-character UART (8 data, even parity, 1 stop) on RS485.
+/// The PROFIBUS line: an 11-bit-character UART (8 data, even parity, 1 stop) on RS485, one
+/// character at a time (the QEMU board; the F411's DMA line works per telegram).
+#[cfg_attr(feature = "board-f411", allow(dead_code))]
 ///
 /// Interrupt-driven ports are serviced from their interrupt handler by calling
 /// [`poll_event`](BusPort::poll_event) until it returns `None`.
