@@ -449,35 +449,16 @@ mod app {
             let now = clock.now();
             let rate = line.lock(|l| l.baud());
             let max_tsdr = pbcard::time::BitTimes(u32::from(pbcard::card::max_tsdr(rate)));
-            node.lock(|n| {
+            (&mut node, &mut baud).lock(|n, b| {
                 // min_TSDR as it was before this request (a Set_Prm that changes it applies
                 // from the next response on).
                 let min_tsdr = n.min_tsdr();
                 let dx_before = n.slave().stats().data_exchanges;
-                match n.on_frame(now, frame.bytes()) {
-                    Some(resp) => {
-                        // A valid request to us (the station answers nothing else): it locks
-                        // the search and retriggers Baud_Control.
-                        let locked = baud.lock(|b| {
-                            b.on_frame(now, true, true);
-                            b.detected().is_some()
-                        });
-                        if locked {
-                            line.lock(|l| {
-                                let _ = l.respond(&frame, resp, min_tsdr, max_tsdr);
-                            });
-                        }
-                    }
-                    None => {
-                        let c = phy_line::classify(frame.bytes(), n.slave().address());
-                        baud.lock(|b| {
-                            if c.invalid {
-                                b.on_garbage(now);
-                            } else {
-                                b.on_frame(now, c.ok_sd123, c.to_us);
-                            }
-                        });
-                    }
+                // The library decides (own valid request, rate locked); the line obeys.
+                if let Some(resp) = phy_line::answer(n, b, now, frame.bytes()) {
+                    line.lock(|l| {
+                        let _ = l.respond(&frame, resp, min_tsdr, max_tsdr);
+                    });
                 }
                 // A DP-V1 request was acknowledged; the middle-priority task works on it (if it
                 // is still running, the spawn fails and the next housekeeping step spawns it).

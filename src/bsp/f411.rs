@@ -588,12 +588,14 @@ impl Iwdg {
 
     /// Start the watchdog (it cannot be stopped again until reset).
     pub fn start(iwdg: IWDG) -> Self {
-        iwdg.kr().write(|w| unsafe { w.bits(0x5555) }); // enable register access
+        // RM0383 §17.3: start (also starts the LSI), unlock PR/RLR, program, wait until both
+        // are taken over in the LSI domain, reload.
+        iwdg.kr().write(|w| unsafe { w.bits(0xCCCC) });
+        iwdg.kr().write(|w| unsafe { w.bits(0x5555) });
         iwdg.pr().write(|w| unsafe { w.bits(0b100) }); // /64
         iwdg.rlr().write(|w| unsafe { w.bits(Self::RELOAD) });
         while iwdg.sr().read().bits() != 0 {}
         iwdg.kr().write(|w| unsafe { w.bits(0xAAAA) });
-        iwdg.kr().write(|w| unsafe { w.bits(0xCCCC) }); // start
         Iwdg(iwdg)
     }
 

@@ -34,8 +34,10 @@
 //! Back-to-back telegrams without that gap would break the standard; they are still cut
 //! correctly by length.
 
+use super::autobaud::Autobaud;
 use crate::fdl::telegram::{self, Decoded, Telegram};
-use crate::time::{Baudrate, BitTimes};
+use crate::node::Node;
+use crate::time::{Baudrate, BitTimes, Instant};
 
 /// Bit times of idle line after the last stop bit at which the USART raises IDLE (one idle
 /// 11-bit character).
@@ -149,13 +151,15 @@ impl Receiver {
     /// return value says how the segment ended. Anything but [`SegmentEnd::Clean`] drops the
     /// rest and waits for T_SYN.
     pub fn segment(&mut self, bytes: &[u8], corrupt: bool, mut on_frame: impl FnMut(&[u8])) -> SegmentEnd {
-        if bytes.is_empty() {
-            return SegmentEnd::Clean;
-        }
+        // A character error counts even when no byte of the segment reached the buffer (the
+        // error handling may have taken the only one).
         if corrupt {
             self.stats.corrupt = self.stats.corrupt.wrapping_add(1);
             self.synced = false;
             return SegmentEnd::Corrupt;
+        }
+        if bytes.is_empty() {
+            return SegmentEnd::Clean;
         }
         if !self.synced {
             self.stats.unsynced = self.stats.unsynced.wrapping_add(1);
@@ -314,6 +318,54 @@ pub fn classify(frame: &[u8], own: u8) -> FrameClass {
     }
 }
 
+/// The rate control a telegram is reported to: the ASIC-style search and supervision
+/// ([`Autobaud`]) on a real line, a fixed rate where there is no line timing (QEMU).
+pub trait RateControl {
+    /// A telegram at the current rate (see [`Autobaud::on_frame`]).
+    fn on_frame(&mut self, now: Instant, ok_sd123: bool, to_us: bool);
+    /// A character error or an invalid telegram (see [`Autobaud::on_garbage`]).
+    fn on_garbage(&mut self, now: Instant);
+    /// The locked rate; responses go out only while there is one.
+    fn detected(&self) -> Option<Baudrate>;
+}
+
+impl RateControl for Autobaud {
+    fn on_frame(&mut self, now: Instant, ok_sd123: bool, to_us: bool) {
+        Autobaud::on_frame(self, now, ok_sd123, to_us);
+    }
+    fn on_garbage(&mut self, now: Instant) {
+        Autobaud::on_garbage(self, now);
+    }
+    fn detected(&self) -> Option<Baudrate> {
+        Autobaud::detected(self)
+    }
+}
+
+/// The decision for one telegram the line delimited, as the firmware's decision task runs
+/// it: the node decides ([`Node::on_frame`]: no answer for other stations, broadcasts,
+/// tokens, corrupt frames); an answered request is a valid SD1/SD2/SD3 telegram to us, which
+/// locks the search and retriggers Baud_Control; every other telegram is classified for the
+/// rate control ([`classify`]). The answer is returned only while the rate is locked — the
+/// driver sends exactly that, after min_TSDR ([`tx_plan`]).
+pub fn answer<'n>(node: &'n mut Node, rate: &mut impl RateControl, now: Instant, frame: &[u8]) -> Option<&'n [u8]> {
+    let own = node.slave().address();
+    match node.on_frame(now, frame) {
+        Some(resp) => {
+            rate.on_frame(now, true, true);
+            rate.detected().map(|_| resp)
+        }
+        None => {
+            let c = classify(frame, own);
+            if c.invalid {
+                rate.on_garbage(now);
+            } else {
+                rate.on_frame(now, c.ok_sd123, c.to_us);
+            }
+            None
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -401,6 +453,9 @@ mod tests {
         r.on_tsyn();
         assert_eq!(cut(&mut r, &f, false).0, vec![f.clone()]);
         assert_eq!(r.stats().corrupt, 1);
+        // An error whose only character never reached the ring still desynchronises.
+        assert_eq!(cut(&mut r, &[], true), (vec![], SegmentEnd::Corrupt));
+        assert!(!r.is_synced());
     }
 
     #[test]
@@ -552,5 +607,111 @@ mod tests {
         bad[n - 2] ^= 1;
         assert_eq!(classify(&bad, 5), FrameClass { ok_sd123: false, to_us: false, invalid: true });
         assert!(classify(&f[..n - 1], 5).invalid);
+    }
+
+    fn sd1(da: u8, fc: u8) -> Vec<u8> {
+        let mut out = [0u8; MAX_FRAME_LEN];
+        let hdr = Header { da, sa: 2, fc: FunctionCode(fc), dsap: None, ssap: None };
+        let n = emit(&mut out, &hdr, &[]).unwrap();
+        out[..n].to_vec()
+    }
+
+    #[test]
+    fn answers_only_own_valid_requests_and_only_while_locked() {
+        use crate::dp::DpSlave;
+        use crate::phy::autobaud::Supervision;
+        let t0 = Instant::from_millis(0);
+        let mut node = Node::new(DpSlave::new(5));
+        let mut ab = Autobaud::new(t0);
+        let fdl_status = sd1(5, 0x49);
+        // Traffic for others, a token, SC, a broadcast: never an answer.
+        assert!(answer(&mut node, &mut ab, t0, &[SD4, 3, 2]).is_none());
+        assert!(answer(&mut node, &mut ab, t0, &[SC]).is_none());
+        assert_eq!(ab.state(), Supervision::BaudSearch, "tokens and SC do not lock");
+        let mut bad = fdl_status.clone();
+        bad[4] ^= 0x40;
+        assert!(answer(&mut node, &mut ab, t0, &bad).is_none(), "corrupt: no answer");
+        assert_eq!(ab.stats().garbage, 1);
+        assert_eq!(ab.state(), Supervision::BaudSearch);
+        assert!(answer(&mut node, &mut ab, t0, &sd1(127, 0x46)).is_none(), "broadcast SDN: no answer");
+        assert_eq!(ab.state(), Supervision::BaudControl, "a valid SD1 to anyone locks");
+        // Locked: FDL_Status to us is answered.
+        let t1 = Instant::from_millis(1000);
+        let r = answer(&mut node, &mut ab, t1, &fdl_status).map(|r| r.to_vec());
+        assert_eq!(r.as_deref().map(|r| r[0]), Some(SD1));
+        // Baud_Control expires without own frames: searching, nothing is answered until a
+        // frame relocks — and an own request relocks and is answered at once.
+        let late = Instant::from_millis(1000 + 2560 + 1);
+        assert_eq!(ab.poll(late), None);
+        assert_eq!(ab.detected(), None);
+        assert!(answer(&mut node, &mut ab, late, &sd1(9, 0x49)).is_none());
+        assert_eq!(ab.detected(), Some(Baudrate::B12M), "relocked by a valid frame for another station");
+        let late2 = Instant::from_millis(1000 + 2 * 2560 + 2);
+        assert_eq!(ab.poll(late2), None);
+        assert_eq!(ab.detected(), None);
+        assert!(answer(&mut node, &mut ab, late2, &fdl_status).is_some(), "own request: lock + answer");
+    }
+
+    /// A rate control that never locks: the answer is withheld (the node still decided).
+    struct NeverLocked;
+    impl RateControl for NeverLocked {
+        fn on_frame(&mut self, _: Instant, _: bool, _: bool) {}
+        fn on_garbage(&mut self, _: Instant) {}
+        fn detected(&self) -> Option<Baudrate> {
+            None
+        }
+    }
+
+    #[test]
+    fn nothing_is_sent_without_a_rate() {
+        use crate::dp::DpSlave;
+        let mut node = Node::new(DpSlave::new(5));
+        assert!(answer(&mut node, &mut NeverLocked, Instant::from_millis(0), &sd1(5, 0x49)).is_none());
+        assert_eq!(node.station().stats().fdl_status, 1, "the station saw the request");
+    }
+
+    /// The DMA receiver's path on a simulated line for every rate: segments cut at IDLE,
+    /// garbage and corrupt segments while listening at a wrong rate, then the autobaud locks
+    /// on the first clean telegram after T_SYN at the right rate.
+    #[test]
+    fn dma_receiver_and_autobaud_lock_on_every_rate() {
+        use crate::dp::DpSlave;
+        for (k, right) in Baudrate::ALL.iter().enumerate() {
+            let mut now = Instant::from_millis(0);
+            let mut ab = Autobaud::new(now);
+            let mut rx = Receiver::new();
+            let mut node = Node::new(DpSlave::new(5));
+            let req = sd1(5, 0x49);
+            let mut answered = false;
+            // A full scan lasts 1.533 s: every rate is reached within it.
+            for _ in 0..1600 {
+                let at_right_rate = ab.rate() == *right;
+                // One bus cycle as the receiver sees it: garbage with errors at a wrong rate,
+                // the telegram at the right one, then a T_SYN gap.
+                let mut frames = Vec::new();
+                if at_right_rate {
+                    rx.segment(&req, false, |f| frames.push(f.to_vec()));
+                } else {
+                    rx.segment(&[0xFF, 0x00, 0x13], true, |f| frames.push(f.to_vec()));
+                    ab.on_garbage(now);
+                }
+                rx.on_tsyn();
+                for f in &frames {
+                    if answer(&mut node, &mut ab, now, f).is_some() {
+                        answered = true;
+                    }
+                }
+                if answered {
+                    break;
+                }
+                now = now + crate::time::Duration::from_millis(1);
+                if ab.poll(now).is_some() {
+                    rx.reset();
+                }
+            }
+            assert!(answered, "{right:?}: locked and answered");
+            assert_eq!(ab.detected(), Some(*right));
+            assert_eq!(ab.stats().search_steps as usize % Baudrate::ALL.len(), k);
+        }
     }
 }
