@@ -328,6 +328,8 @@ mod app {
     struct Local {
         acyclic_clock: SysTickClock,
         decide_clock: SysTickClock,
+        /// The telegram the decision works on (copied out of the line's queue).
+        decide_buf: [u8; pbcard::fdl::telegram::MAX_FRAME_LEN],
         supervisor: board::Supervisor,
     }
 
@@ -346,7 +348,7 @@ mod app {
         housekeeping::spawn().ok();
         (
             Shared { node, line, baud: board::FixedRate(LINE_RATE), drive: Drive::new(clock, Some(LINE_RATE)) },
-            Local { acyclic_clock: clock, decide_clock: clock, supervisor: board::Supervisor },
+            Local { acyclic_clock: clock, decide_clock: clock, decide_buf: [0; 255], supervisor: board::Supervisor },
         )
     }
 
@@ -395,6 +397,7 @@ mod app {
             Local {
                 acyclic_clock: b.clock,
                 decide_clock: b.clock,
+                decide_buf: [0; 255],
                 supervisor: board::Supervisor::new(b.leds, store, b.iwdg, (address, no_add_chg)),
             },
         )
@@ -441,11 +444,13 @@ mod app {
     /// the line's `respond` (F411: keeps min_TSDR / max_TSDR by TIM5 and drops it when the
     /// line moved on) only while the rate is locked; every telegram is accounted to the rate
     /// control (autobaud: lock, Baud_Control, garbage).
-    #[task(binds = SDIO, priority = 15, shared = [line, node, baud], local = [decide_clock])]
+    #[task(binds = SDIO, priority = 15, shared = [line, node, baud], local = [decide_clock, decide_buf])]
     fn decide(cx: decide::Context) {
         let decide::SharedResources { mut line, mut node, mut baud, .. } = cx.shared;
         let clock = cx.local.decide_clock;
-        while let Some(frame) = line.lock(|l| l.take_frame()) {
+        let buf = cx.local.decide_buf;
+        while let Some((len, meta)) = line.lock(|l| l.take_frame(buf)) {
+            let frame = &buf[..len];
             let now = clock.now();
             let rate = line.lock(|l| l.baud());
             let max_tsdr = pbcard::time::BitTimes(u32::from(pbcard::card::max_tsdr(rate)));
@@ -455,9 +460,9 @@ mod app {
                 let min_tsdr = n.min_tsdr();
                 let dx_before = n.slave().stats().data_exchanges;
                 // The library decides (own valid request, rate locked); the line obeys.
-                if let Some(resp) = phy_line::answer(n, b, now, frame.bytes()) {
+                if let Some(resp) = phy_line::answer(n, b, now, frame) {
                     line.lock(|l| {
-                        let _ = l.respond(&frame, resp, min_tsdr, max_tsdr);
+                        let _ = l.respond(&meta, resp, min_tsdr, max_tsdr);
                     });
                 }
                 // A DP-V1 request was acknowledged; the middle-priority task works on it (if it

@@ -42,7 +42,6 @@
 
 use core::ptr::addr_of_mut;
 
-use heapless::Deque;
 use pbcard::fdl::telegram::MAX_FRAME_LEN;
 use pbcard::phy::line::{self, BitClock, Receiver, RxStats, TxDrop, TxPlan};
 use pbcard::time::{Baudrate, BitTimes};
@@ -51,7 +50,7 @@ use stm32f4xx_hal::pac::{DMA2, IWDG, RCC, TIM5, USART1};
 use stm32f4xx_hal::rcc::{Enable, Reset};
 
 use super::divisor::usart_brr;
-use super::{DriverEnable, UnsupportedRate};
+use super::{DriverEnable, FrameQueue, UnsupportedRate};
 
 /// USART1 TX pin (AF7).
 pub type TxPin = PA9<stm32f4xx_hal::gpio::Alternate<7>>;
@@ -75,8 +74,6 @@ impl DriverEnable for DePin {
 /// Bytes of the circular receive buffer: two longest telegrams, so a segment is never
 /// overwritten before its IDLE is handled.
 pub const RX_RING: usize = 512;
-/// Telegrams waiting for the decision task.
-pub const RX_QUEUE: usize = 4;
 
 /// DMA2 stream / channel numbers (RM0383 Table 28: USART1_RX on stream 2 or 5, USART1_TX on
 /// stream 7, channel 4).
@@ -107,11 +104,9 @@ const SR_TC: u16 = 1 << 6;
 const TIM_CC1: u32 = 1 << 1;
 const TIM_CC2: u32 = 1 << 2;
 
-/// One telegram cut from the ring, for the decision task.
-#[derive(Clone)]
-pub struct RxFrame {
-    buf: [u8; MAX_FRAME_LEN],
-    len: u8,
+/// What the line keeps with each telegram it cut from the ring.
+#[derive(Debug, Clone, Copy)]
+pub struct FrameMeta {
     /// The request ends with its segment: characters after it mean the line is busy again.
     last_of_segment: bool,
     /// Ring write position at the segment's IDLE.
@@ -120,13 +115,6 @@ pub struct RxFrame {
     seg: u32,
     /// TIM5 value read after the IDLE flag.
     idle_seen: u32,
-}
-
-impl RxFrame {
-    /// The telegram's bytes.
-    pub fn bytes(&self) -> &[u8] {
-        &self.buf[..usize::from(self.len)]
-    }
 }
 
 /// Why a telegram was lost before the decision, and what the transmitter did.
@@ -176,7 +164,7 @@ pub struct DmaLine {
     /// A character error since the last IDLE.
     corrupt: bool,
     receiver: Receiver,
-    queue: Deque<RxFrame, RX_QUEUE>,
+    queue: FrameQueue<FrameMeta>,
     segments: u32,
     /// Ring position the T_SYN check compares with.
     tsyn_pos: Option<u16>,
@@ -235,7 +223,7 @@ impl DmaLine {
             seg_buf: [0; MAX_FRAME_LEN],
             corrupt: false,
             receiver: Receiver::new(),
-            queue: Deque::new(),
+            queue: FrameQueue::new(),
             segments: 0,
             tsyn_pos: None,
             tx: Tx::Idle,
@@ -353,13 +341,13 @@ impl DmaLine {
         }
     }
 
-    /// The next telegram for the decision task.
-    pub fn take_frame(&mut self) -> Option<RxFrame> {
-        self.queue.pop_front()
+    /// The next telegram for the decision task: its bytes into `buf`, its length and data.
+    pub fn take_frame(&mut self, buf: &mut [u8; MAX_FRAME_LEN]) -> Option<(usize, FrameMeta)> {
+        self.queue.pop_into(buf)
     }
 
     /// Whether no character has arrived since `frame`'s IDLE (its response may still go out).
-    fn quiet_since(&self, frame: &RxFrame) -> bool {
+    fn quiet_since(&self, frame: &FrameMeta) -> bool {
         frame.last_of_segment && frame.seg == self.segments && self.ring_pos() == usize::from(frame.seg_end)
     }
 
@@ -411,26 +399,16 @@ impl DmaLine {
         let seg_end = write as u16;
         let (queue, stats, seg_buf) = (&mut self.queue, &mut self.stats, &self.seg_buf);
         let mut queued = 0usize;
+        let meta = FrameMeta { last_of_segment: false, seg_end, seg, idle_seen };
         self.receiver.segment(&seg_buf[..take], corrupt, |f| {
-            let mut frame = RxFrame {
-                buf: [0; MAX_FRAME_LEN],
-                len: f.len() as u8,
-                last_of_segment: false,
-                seg_end,
-                seg,
-                idle_seen,
-            };
-            frame.buf[..f.len()].copy_from_slice(f);
-            if queue.is_full() {
-                queue.pop_front();
+            if !queue.push(f, meta) {
                 stats.queue_full = stats.queue_full.wrapping_add(1);
             }
-            let _ = queue.push_back(frame);
             queued += 1;
         });
         if queued > 0 {
-            if let Some(f) = self.queue.back_mut() {
-                f.last_of_segment = true;
+            if let Some(m) = self.queue.back_meta_mut() {
+                m.last_of_segment = true;
             }
         }
         self.arm_tsyn_check(idle_seen);
@@ -475,7 +453,7 @@ impl DmaLine {
     /// Send `bytes` as the response to `request` (the decision task's answer), no earlier
     /// than `min_tsdr` after its last stop bit and no later than `max_tsdr` — or not at all
     /// ([`line::tx_plan`]). Returns what was done.
-    pub fn respond(&mut self, request: &RxFrame, bytes: &[u8], min_tsdr: BitTimes, max_tsdr: BitTimes) -> TxPlan {
+    pub fn respond(&mut self, request: &FrameMeta, bytes: &[u8], min_tsdr: BitTimes, max_tsdr: BitTimes) -> TxPlan {
         if bytes.is_empty() || bytes.len() > self.tx_buf.len() {
             self.stats.dropped_bad_length = self.stats.dropped_bad_length.wrapping_add(1);
             return TxPlan::Drop(TxDrop::Busy);

@@ -28,7 +28,6 @@
 use core::sync::atomic::{AtomicBool, Ordering};
 
 use cortex_m::peripheral::SYST;
-use heapless::Deque;
 use pbcard::fdl::framer::{Framer, FramerStats, Push};
 use pbcard::fdl::telegram::MAX_FRAME_LEN;
 use pbcard::time::{Baudrate, BitTimes, Instant};
@@ -37,7 +36,7 @@ use stm32f4xx_hal::rcc::{self, Enable, RccExt, Reset};
 
 use super::clock::{self, SysTickClock};
 use super::divisor::usart_brr;
-use super::{BusPort, Clock, LineError, LineEvent, TxError, UnsupportedRate};
+use super::{BusPort, Clock, FrameQueue, LineError, LineEvent, TxError, UnsupportedRate};
 
 /// Board name for the boot log.
 pub const NAME: &str = "QEMU netduinoplus2 (STM32F405), USART1 per byte, no line timing";
@@ -73,24 +72,15 @@ pub fn init(dp: pac::Peripherals, syst: SYST, rate: Baudrate) -> Board {
     Board { line: QemuLine::new(port), clock }
 }
 
-/// Telegrams waiting for the decision task.
-pub const RX_QUEUE: usize = 4;
-
-/// One telegram the framer completed, for the decision task.
-#[derive(Clone)]
-pub struct RxFrame {
-    buf: [u8; MAX_FRAME_LEN],
-    len: u8,
+/// What the line keeps with each telegram.
+#[derive(Debug, Clone, Copy)]
+pub struct FrameMeta {
     /// TIM2 at the entry of the interrupt that took the last byte (benchmark build).
     #[cfg(feature = "bench")]
     entry: u32,
-}
-
-impl RxFrame {
-    /// The telegram's bytes.
-    pub fn bytes(&self) -> &[u8] {
-        &self.buf[..usize::from(self.len)]
-    }
+    /// The telegram's length (benchmark log).
+    #[cfg(feature = "bench")]
+    len: usize,
 }
 
 /// Line-level counters of the per-byte port (shown in the log).
@@ -116,13 +106,13 @@ pub struct LineStats {
 pub struct QemuLine {
     port: Port,
     framer: Framer,
-    queue: Deque<RxFrame, RX_QUEUE>,
+    queue: FrameQueue<FrameMeta>,
     stats: LineStats,
 }
 
 impl QemuLine {
     fn new(port: Port) -> Self {
-        QemuLine { port, framer: Framer::new(), queue: Deque::new(), stats: LineStats::default() }
+        QemuLine { port, framer: Framer::new(), queue: FrameQueue::new(), stats: LineStats::default() }
     }
 
     /// The USART1 interrupt: take every character, send the next response character.
@@ -134,19 +124,16 @@ impl QemuLine {
         while let Some(ev) = self.port.poll_event() {
             match ev {
                 LineEvent::Byte { byte, .. } => {
-                    if let Push::Frame(n) = self.framer.push(byte) {
-                        let mut f = RxFrame {
-                            buf: [0; MAX_FRAME_LEN],
-                            len: n as u8,
+                    if let Push::Frame(_) = self.framer.push(byte) {
+                        let meta = FrameMeta {
                             #[cfg(feature = "bench")]
                             entry,
+                            #[cfg(feature = "bench")]
+                            len: self.framer.frame().len(),
                         };
-                        f.buf[..n].copy_from_slice(self.framer.frame());
-                        if self.queue.is_full() {
-                            self.queue.pop_front();
+                        if !self.queue.push(self.framer.frame(), meta) {
                             self.stats.queue_full = self.stats.queue_full.wrapping_add(1);
                         }
-                        let _ = self.queue.push_back(f);
                         queued = true;
                     }
                 }
@@ -168,15 +155,15 @@ impl QemuLine {
         queued
     }
 
-    /// The next telegram for the decision task.
-    pub fn take_frame(&mut self) -> Option<RxFrame> {
-        self.queue.pop_front()
+    /// The next telegram for the decision task: its bytes into `buf`, its length and data.
+    pub fn take_frame(&mut self, buf: &mut [u8; MAX_FRAME_LEN]) -> Option<(usize, FrameMeta)> {
+        self.queue.pop_into(buf)
     }
 
     /// Send the response to `request` at once (no line timing under QEMU); `true` when it
     /// was started. The bench build logs the instructions from the interrupt entry of the
     /// request's last byte to the first response byte in DR.
-    pub fn respond(&mut self, request: &RxFrame, bytes: &[u8], min_tsdr: BitTimes, _max_tsdr: BitTimes) -> bool {
+    pub fn respond(&mut self, request: &FrameMeta, bytes: &[u8], min_tsdr: BitTimes, _max_tsdr: BitTimes) -> bool {
         let _ = request;
         match self.port.start_tx(bytes, min_tsdr) {
             Ok(()) => {
@@ -184,7 +171,7 @@ impl QemuLine {
                 #[cfg(feature = "bench")]
                 defmt::info!(
                     "BENCH req {=usize} resp {=usize} instr {=u32}",
-                    request.bytes().len(),
+                    request.len,
                     bytes.len(),
                     self.port.tx_first_count().wrapping_sub(request.entry)
                 );
