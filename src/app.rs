@@ -25,11 +25,12 @@ use crate::card;
 use crate::dp::{DpState, Events};
 use crate::dpm::host::{DpmTransport, Host, Options};
 use crate::dpm::layout::operate_mode;
-use crate::dpm::{Dpm, DriveCommandImage, Link, MailboxParams, ParamCache, PzdWords, Telegram};
+use crate::dpm::{Dpm, DriveCommandImage, Link, MailboxParams, ParamCache, PdFlags, ProcessData, PzdWords, Telegram};
 use crate::drive::params::DriveTable;
 use crate::drive::{DriveConfig, SimDrive};
 use crate::node::Node;
 use crate::profile::cyclic::OperateMode;
+use crate::profile::drive_if::CommandFlags;
 use crate::profile::profidrive::State;
 use crate::profile::runtime::{AnyProfile, Runtime, Scales, Selection};
 use crate::profile::telegram::DataProfile;
@@ -45,6 +46,8 @@ pub struct Application {
     pkw_params: ParamCache,
     runtime: Runtime,
     drive: SimDrive,
+    /// Events of [`Self::step_publish`] for [`Self::step_collect`].
+    events: Events,
 }
 
 impl Application {
@@ -63,6 +66,7 @@ impl Application {
             pkw_params: ParamCache::new(),
             runtime: Runtime::new(Scales::DEFAULT),
             drive: SimDrive::new(drive),
+            events: Events::empty(),
         }
     }
 
@@ -97,13 +101,63 @@ impl Application {
     /// (every few ms, and after each received telegram if the platform can): the answer to
     /// Data_Exchange *n* carries the drive's reaction to the outputs of an earlier cycle.
     pub fn step(&mut self, now: Instant, node: &mut Node) -> Events {
+        let events = self.step_publish(now, node);
+        self.step_drive(now);
+        self.step_collect(now, node);
+        events
+    }
+
+    /// The first third of [`step`](Self::step), the part that needs the node: its timers and
+    /// [`Link::publish`] (status, outputs, events into the DPM). A firmware that must keep
+    /// the node's lock short calls the three parts with the lock held only for this one and
+    /// [`step_collect`](Self::step_collect).
+    pub fn step_publish(&mut self, now: Instant, node: &mut Node) -> Events {
         let events = node.poll(now);
         self.link.publish(node, events, self.host.transport_mut().dpm_mut());
+        self.events |= events;
+        events
+    }
+
+    /// The middle of [`step`](Self::step), without the node: the simulated drive reads
+    /// DRIVE_CMD, runs, writes DRIVE_STATE and serves the parameter mailbox.
+    pub fn step_drive(&mut self, now: Instant) {
         self.drive.step(now, &mut self.host);
+    }
+
+    /// The last part of [`step`](Self::step), with the node: [`Link::collect`] (drive
+    /// supervision, configuration takeover, mailbox), the profile layer (DRIVE_STATE → the
+    /// next input image, the outputs → DRIVE_CMD) and a waiting PKW job.
+    pub fn step_collect(&mut self, now: Instant, node: &mut Node) {
         self.link.collect(now, node, self.host.transport().dpm());
+        let events = core::mem::replace(&mut self.events, Events::empty());
         self.run_profile(node, events);
         self.service_pkw(now);
-        events
+    }
+
+    /// The panic / hard-fault path (ARCHITECTURE §2 "supervision"): the DPM OUTPUTS block to
+    /// the safe state (all zero, neither DATA_EXCHANGE nor CLEAR flagged, no telegram), the
+    /// command to the drive a coast stop with the communication lost, the card fault flag set
+    /// and the `CARD.EVENTS` "card fault" counter (index 6) raised, so the drive sees the
+    /// failure in the image the transport moves next. Bounded, no allocation, no node needed:
+    /// callable from a panic handler on a possibly corrupt state.
+    pub fn fail_safe(&mut self) {
+        self.link.set_init_error(true);
+        let mut safe = DriveCommandImage::EMPTY;
+        safe.command.flags = CommandFlags::COAST | CommandFlags::COMM_LOSS;
+        let dpm = self.host.transport_mut().dpm_mut();
+        let mut card = dpm.card();
+        card.write_outputs(&ProcessData::new(Telegram::None, PdFlags::empty(), &[]));
+        card.write_card_report(self.link.card_report());
+        self.link.publish_command(&safe, dpm);
+    }
+
+    /// After a reset that followed [`fail_safe`](Self::fail_safe) (the board keeps a flag in
+    /// RAM that survives the reset): raise the "card fault" event once more in the fresh
+    /// image, without keeping P0740 at "initialization error".
+    pub fn report_recovered_fault(&mut self) {
+        self.link.set_init_error(true);
+        self.link.set_init_error(false);
+    }
     }
 
     /// The profile layer: select the engine for the active telegram, run one cycle with the
@@ -323,6 +377,55 @@ mod tests {
 
     fn words(b: &[u8]) -> Vec<u16> {
         b.chunks(2).map(|w| u16::from_be_bytes([w[0], w[1]])).collect()
+    }
+
+    #[test]
+    fn split_step_is_the_same_step() {
+        let mut a = Bench::new();
+        let mut b = Bench::new();
+        a.bring_up(&card::MODULES[0]);
+        b.bring_up(&card::MODULES[0]);
+        let q = [0x04, 0x7E, 0x20, 0x00];
+        for _ in 0..5 {
+            let ia = a.cycle(&q, 5);
+            // The same cycle, the step in three parts (the firmware's short node locks).
+            let rb = b.srd(None, &q);
+            b.now = b.now + Duration::from_millis(5);
+            let ev = b.app.step_publish(b.now, &mut b.node);
+            b.app.step_drive(b.now);
+            b.app.step_collect(b.now, &mut b.node);
+            let _ = ev;
+            let ib = rb[telegram::pdu_range(rb.len(), b.node.slave().input_len())].to_vec();
+            assert_eq!(ia, ib);
+        }
+        assert_eq!(a.app.profidrive_state(), b.app.profidrive_state());
+        assert_eq!(a.app.dpm().as_bytes()[..], b.app.dpm().as_bytes()[..]);
+    }
+
+    #[test]
+    fn fail_safe_clears_outputs_and_raises_the_card_fault_event() {
+        use crate::dpm::{CardEvent, CardFlags};
+        let mut b = Bench::new();
+        b.bring_up(&card::MODULES[0]);
+        b.cycle(&[0x04, 0x7F, 0x30, 0x00], 5);
+        let out = b.app.dpm().outputs().unwrap();
+        assert!(out.bytes().iter().any(|&x| x != 0));
+        let before = b.app.dpm().card_report().unwrap().events[CardEvent::CardFault as usize];
+        b.app.fail_safe();
+        let out = b.app.dpm().outputs().unwrap();
+        assert!(out.bytes().iter().all(|&x| x == 0), "outputs cleared: {:02X?}", out.bytes());
+        assert!(!out.flags.contains(PdFlags::DATA_EXCHANGE));
+        let r = b.app.dpm().card_report().unwrap();
+        assert_eq!(r.events[CardEvent::CardFault as usize], before.wrapping_add(1));
+        assert!(r.flags.contains(CardFlags::CARD_FAULT));
+        // After the reset: a fresh image shows the event once more, P0740 is not stuck.
+        let mut fresh = Bench::new();
+        fresh.app.report_recovered_fault();
+        fresh.step(1);
+        let r = fresh.app.dpm().card_report().unwrap();
+        assert_eq!(r.events[CardEvent::CardFault as usize], 1);
+        assert!(!r.flags.contains(CardFlags::CARD_FAULT));
+        assert_ne!(fresh.app.dpm().status().unwrap().comm, CommState::InitError);
     }
 
     #[test]

@@ -12,28 +12,26 @@
 //!
 //! | priority | task | does |
 //! |---|---|---|
-//! | 16 (highest) | `usart1` (USART1 interrupt) | per character: `Node::on_byte` → response; after a Data_Exchange spawns `app_step`, after a DP-V1 request `acyclic` |
+//! | 16 (highest) | F411: `line_usart1` (USART1: IDLE, PE/FE/NF/ORE, TC), `line_tim5` (TIM5 compares: T_SYN proof, delayed response start) | the DMA line (`bsp/f411.rs`): cut telegrams into the queue, release DE on TC; never touches the `Node` |
+//! | 16 | QEMU: `usart1` (USART1 interrupt per character) | `Node::on_byte` → response; after a Data_Exchange spawns `app_step`, after a DP-V1 request `acyclic` |
+//! | 15 | F411: `decide` (bound to the unused SDIO interrupt, pended by `line_usart1`) | per telegram: `Node::on_frame` → `DmaLine::respond` (min_TSDR by TIM5 compare); autobaud frame accounting; spawns as above |
 //! | 8 | `acyclic` (software task) | `Node::process_acyclic`: DP-V1 records at slot 0, PROFIdrive parameter access (card PNUs, then the drive's through the DPM parameter mailbox, `Application::parameters`; a job waiting for the drive is retried on the next spawn) |
-//! | 1 | `housekeeping` (async, every 1 ms) | `Application::step` (node timers, DPM status/outputs, drive, inputs), events, logs |
+//! | 1 | `housekeeping` (QEMU) / `housekeeping_board` (F411) (async, every 1 ms) | `Application::step` in three parts (node timers + DPM publish / drive / collect), events, logs; F411: autobaud poll and rate switch, LEDs, IWDG, address journal |
 //! | 1 | `app_step` (software task) | one `Application::step` right after a Data_Exchange (the drive sees new outputs at once) |
 //! | – | `idle` | WFI |
 //!
-//! The `Node` is shared by all of them; the lower tasks lock it (which masks USART1) only for
-//! one `Application::step` or one `Node::process_acyclic` call — still up to ≈ 68 µs at
-//! 96 MHz for the step (the `bench` build logs the counts, README "Benchmark"), longer than
-//! the per-character receiver of this edition can bridge at 1.5 Mbit/s (`bsp/f411.rs`).
+//! The `Node` is shared by all of them but the F411 line interrupts; the lower tasks lock it
+//! only for the parts of a step that need it (`Application::step_publish`, `step_collect`;
+//! the simulated drive runs outside the lock) or one `Node::process_acyclic` call (README
+//! "Benchmark").
 //!
-//! The board is chosen by cargo feature; only `bsp::board` differs between the builds:
+//! The board is chosen by cargo feature; only `bsp::board` and the line block below differ:
 //!
 //! | feature | board | build |
 //! |---|---|---|
-//! | `board-f411` (default) | STM32F411 reference board (`bsp/f411.rs`), logs over RTT | `cargo build --release` |
-//! | `qemu` | QEMU netduinoplus2 = STM32F405 (`bsp/qemu.rs`), defmt over semihosting | `cargo build --release --no-default-features --features qemu` |
+//! | `board-f411` (default) | STM32F411 reference board (`bsp/f411.rs`): DMA line, autobaud, address journal in flash, LEDs, IWDG, own panic path; logs over RTT | `cargo build --release` |
+//! | `qemu` | QEMU netduinoplus2 = STM32F405 (`bsp/qemu.rs`), per-byte line at a fixed rate, defmt over semihosting | `cargo build --release --no-default-features --features qemu` |
 //! | `bench` (+ `qemu`) | the same, logging TIM2 instruction counts per response and under the Node lock | `... --features bench` |
-//!
-//! This edition is interrupt-per-character at a fixed rate ([`LINE_RATE`]); DMA, the bit
-//! timer and autobaud come with the board-support issue (see `bsp/f411.rs` for the
-//! shortcuts this implies, notably min_TSDR by busy-waiting).
 //!
 //! On the host this file compiles to an empty `main` (the bin target is firmware only).
 #![cfg_attr(target_os = "none", no_std)]
@@ -52,17 +50,19 @@ compile_error!(
 #[cfg(all(target_os = "none", not(any(feature = "board-f411", feature = "qemu"))))]
 compile_error!("choose a board: feature `board-f411` (default) or `qemu`");
 
+#[cfg(all(target_os = "none", feature = "board-f411"))]
+use defmt_rtt as _;
 #[cfg(all(target_os = "none", feature = "qemu"))]
 use defmt_semihosting as _;
-#[cfg(all(target_os = "none", feature = "board-f411"))]
-use {defmt_rtt as _, panic_probe as _};
 
-/// The PROFIBUS line rate until autobaud exists (also shown as P0963 / PNU 963).
-#[cfg(target_os = "none")]
+/// The PROFIBUS line rate of the QEMU board (also shown as P0963 / PNU 963); the F411
+/// searches it (autobaud).
+#[cfg(all(target_os = "none", feature = "qemu"))]
 const LINE_RATE: pbcard::time::Baudrate = pbcard::time::Baudrate::B1500k;
 
-/// The station address until the address store is wired (126 = the factory default of DP
-/// slaves, changeable at run time by Set_Slave_Add). A build can choose another one:
+/// The station address of a card whose address journal is empty (126 = the factory default
+/// of DP slaves, changeable at run time by Set_Slave_Add, which the F411 stores in flash; the
+/// QEMU board has no store). A build can choose another one:
 /// `PBCARD_STATION_ADDRESS=5 bash scripts/qemu.sh build` (0..=125; anything else → 126).
 #[cfg(target_os = "none")]
 const STATION_ADDRESS: u8 = station_address(option_env!("PBCARD_STATION_ADDRESS"));
@@ -95,44 +95,26 @@ const fn station_address(s: Option<&str>) -> u8 {
 #[cfg_attr(feature = "board-f411", rtic::app(device = stm32f4xx_hal::pac, dispatchers = [SPI4, SPI5]))]
 #[cfg_attr(feature = "qemu", rtic::app(device = stm32f4xx_hal::pac, dispatchers = [SPI2, SPI3]))]
 mod app {
-    use crate::bsp::board::{self, Port};
+    use crate::bsp::board;
     use crate::bsp::clock::{Mono, SysTickClock};
-    use crate::bsp::{BusPort, Clock, LineError, LineEvent, TxError};
-    use crate::{LINE_RATE, STATION_ADDRESS};
+    use crate::bsp::Clock;
+    use crate::STATION_ADDRESS;
 
     use pbcard::app::Application;
     use pbcard::dp::{DpSlave, DpState, Events};
     use pbcard::dpm::CommState;
-    use pbcard::drive::profidrive::DriveState;
     use pbcard::drive::DriveConfig;
     use pbcard::led::{LedInputs, Leds};
     use pbcard::node::Node;
+    use pbcard::profile::profidrive::State as DriveState;
     use rtic::Mutex;
     use rtic_monotonics::systick::prelude::*;
 
-    /// Line-level counters (shown in the log; later in the DPM status block).
-    #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, defmt::Format)]
-    pub struct LineCounters {
-        pub parity: u32,
-        pub framing: u32,
-        pub noise: u32,
-        pub overrun: u32,
-        /// A response was due while the previous one was still being sent.
-        pub tx_busy: u32,
-        /// The station returned a response the port could not take (length).
-        pub tx_bad_length: u32,
-        pub responses: u32,
-    }
-
-    impl LineCounters {
-        fn count(&mut self, e: LineError) {
-            let inc = |c: &mut u32, on: bool| *c = c.wrapping_add(u32::from(on));
-            inc(&mut self.parity, e.parity);
-            inc(&mut self.framing, e.framing);
-            inc(&mut self.noise, e.noise);
-            inc(&mut self.overrun, e.overrun);
-        }
-    }
+    #[cfg(feature = "qemu")]
+    use crate::LINE_RATE;
+    #[cfg(feature = "board-f411")]
+    use pbcard::phy::autobaud::Autobaud;
+    use pbcard::phy::line as phy_line;
 
     /// What the log reports after a step, read while the node was locked.
     struct NodeView {
@@ -140,10 +122,18 @@ mod app {
         state: DpState,
         master: Option<u8>,
         address: u8,
+        no_add_chg: bool,
         acyclic_work: bool,
         /// Requests addressed to us so far (FDL station counter).
         requests: u32,
         watchdog: Option<pbcard::time::Duration>,
+    }
+
+    impl NodeView {
+        /// The DP watchdog supervises the master (autobaud's DP_Control).
+        fn dp_watchdog_active(&self) -> bool {
+            self.watchdog.is_some() && self.state != DpState::WaitPrm
+        }
     }
 
     /// The application behind the DPM (image, link, simulated drive) and what the log has
@@ -152,21 +142,25 @@ mod app {
         app: Application,
         clock: SysTickClock,
         comm: Option<CommState>,
-        state: DriveState,
+        state: Option<DriveState>,
         led_requests: u32,
         led_last_frame: Option<pbcard::time::Instant>,
         led_was_dx: bool,
         led_shown: Option<Leds>,
-        /// Largest instruction count of one `Application::step` under the Node lock.
+        /// The last reset came from the fault path: BS shows "card fault" until data exchange.
+        card_fault: bool,
+        /// The pattern for the LED pins.
+        leds: Option<Leds>,
+        /// Largest instruction count of one part of `Application::step` under the Node lock.
         #[cfg(feature = "bench")]
         max_step: u32,
     }
 
     impl Drive {
-        fn new(clock: SysTickClock) -> Self {
+        fn new(clock: SysTickClock, rate: Option<pbcard::time::Baudrate>) -> Self {
             let mut app = Application::new(DriveConfig::DEFAULT);
-            app.set_baudrate(Some(LINE_RATE));
-            let state = app.drive().state();
+            app.set_baudrate(rate);
+            let state = app.profidrive_state();
             Drive {
                 app,
                 clock,
@@ -176,54 +170,78 @@ mod app {
                 led_last_frame: None,
                 led_was_dx: false,
                 led_shown: None,
+                card_fault: false,
+                leds: None,
                 #[cfg(feature = "bench")]
                 max_step: 0,
             }
         }
 
-        /// One [`Application::step`] now (node timers, DPM, drive, inputs), the node locked
-        /// for just that call; then the log of what changed.
-        fn step(&mut self, node: &mut impl Mutex<T = Node>) {
+        /// One application step now, the node locked only for the two parts that need it
+        /// (`step_publish`: node timers + DPM status/outputs/events; `step_collect`: DPM
+        /// inputs/config/mailbox → node); the simulated drive runs between them, unlocked.
+        fn step(&mut self, node: &mut impl Mutex<T = Node>) -> NodeView {
             let now = self.clock.now();
             let app = &mut self.app;
             #[cfg(feature = "bench")]
-            let mut instr = 0u32;
-            // Masks the USART1 interrupt (ceiling = highest priority) for one step.
-            let v = node.lock(|n| {
+            let mut instr = [0u32; 2];
+            let events = node.lock(|n| {
                 #[cfg(feature = "bench")]
                 let t0 = board::bench::count();
-                let events = app.step(now, n);
+                let events = app.step_publish(now, n);
                 #[cfg(feature = "bench")]
                 {
-                    instr = board::bench::count().wrapping_sub(t0);
+                    instr[0] = board::bench::count().wrapping_sub(t0);
+                }
+                events
+            });
+            app.step_drive(now);
+            let mut v = node.lock(|n| {
+                #[cfg(feature = "bench")]
+                let t0 = board::bench::count();
+                app.step_collect(now, n);
+                #[cfg(feature = "bench")]
+                {
+                    instr[1] = board::bench::count().wrapping_sub(t0);
                 }
                 let s = n.slave();
                 NodeView {
-                    events,
+                    events: Events::empty(),
                     state: s.state(),
                     master: s.master_address(),
                     address: s.address(),
+                    no_add_chg: s.no_add_chg(),
                     acyclic_work: n.has_acyclic_work(),
                     requests: n.station().stats().requests,
                     watchdog: s.watchdog_time(),
                 }
             });
+            v.events = events;
             #[cfg(feature = "bench")]
-            if instr > self.max_step {
-                self.max_step = instr;
-                defmt::info!("LOCK app.step {=u32} instructions (new maximum)", instr);
+            {
+                let m = instr[0].max(instr[1]);
+                if m > self.max_step {
+                    self.max_step = m;
+                    defmt::info!(
+                        "LOCK app.step {=u32} instructions (new maximum; publish {=u32}, collect {=u32})",
+                        m,
+                        instr[0],
+                        instr[1]
+                    );
+                }
             }
-            // The ISR spawns the DP-V1 task; this catches a request that arrived while the
+            // The line spawns the DP-V1 task; this catches a request that arrived while the
             // task was finishing (its spawn failed then).
             if v.acyclic_work {
                 acyclic::spawn().ok();
             }
             self.log(&v);
             self.leds(now, &v);
+            v
         }
 
         /// The PS / BS / FS LED pattern (OPTE3/E5 §4.3, `pbcard::led`); logged when it
-        /// changes. Driving the board's LED pins is the board-support issue's.
+        /// changes, shown on the pins by the F411.
         fn leds(&mut self, now: pbcard::time::Instant, v: &NodeView) {
             if v.requests != self.led_requests {
                 self.led_requests = v.requests;
@@ -232,12 +250,13 @@ mod app {
             let dx = v.state == DpState::DataExch;
             if dx {
                 self.led_was_dx = true;
+                self.card_fault = false;
             }
             let inputs = LedInputs {
                 data_exchange: dx,
                 // The simulated drive is part of the firmware: always there.
                 drive_active: true,
-                card_fault: false,
+                card_fault: self.card_fault,
                 last_frame_for_us: self.led_last_frame,
                 watchdog: v.watchdog,
                 lost_after_data_exchange: self.led_was_dx && !dx,
@@ -247,6 +266,7 @@ mod app {
                 defmt::info!("LEDs: PS {} BS {} FS {}", leds.ps, leds.bs, leds.fs);
                 self.led_shown = Some(leds);
             }
+            self.leds = Some(leds);
         }
 
         fn log(&mut self, v: &NodeView) {
@@ -261,9 +281,9 @@ mod app {
                 defmt::warn!("DP watchdog expired: outputs cleared");
             }
             if events.contains(Events::ADDRESS_CHANGED) {
-                // Node::poll has reset the FCB memory of the old address. Persisting the
-                // address is the address-store issue.
-                defmt::warn!("station address changed to {=u8} (not stored yet)", v.address);
+                // Node::poll has reset the FCB memory of the old address; the F411's
+                // housekeeping stores it.
+                defmt::warn!("station address changed to {=u8}", v.address);
             }
             if !events.is_empty() {
                 defmt::debug!("DP events {=u16:#06x}", events.bits());
@@ -275,27 +295,34 @@ mod app {
                     self.comm = Some(status.comm);
                 }
             }
-            let drive = self.app.drive();
-            if drive.state() != self.state {
+            let state = self.app.profidrive_state();
+            if state != self.state {
+                let drive = self.app.drive();
                 defmt::info!(
-                    "drive: {=str} -> {=str} (STW1 {=u16:#06x}, ZSW1 {=u16:#06x}, NSOLL_A {=i16}, NIST_A {=i16})",
-                    self.state.name(),
-                    drive.state().name(),
-                    drive.control_word(),
-                    drive.status_word(),
-                    drive.setpoint(),
+                    "profile: {=str} -> {=str} (drive command {=u16:#06x}, setpoint {=i16}, status {=u16:#06x}, speed {=i16})",
+                    self.state.map_or("-", |s| s.name()),
+                    state.map_or("-", |s| s.name()),
+                    drive.command().flags.bits(),
+                    drive.command().speed_setpoint,
+                    drive.status().flags.bits(),
                     drive.actual_speed()
                 );
-                self.state = drive.state();
+                self.state = state;
             }
         }
     }
 
+    /// Runs of the DP-V1 task (its liveness for the IWDG).
+    static ACYCLIC_RUNS: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(0);
+
     #[shared]
     struct Shared {
         node: Node,
-        line: LineCounters,
         drive: Drive,
+        /// The PROFIBUS line (F411: USART1 + DMA2 + TIM5; QEMU: USART1 per byte + framer).
+        line: board::Line,
+        /// The rate control (F411: autobaud; QEMU: fixed).
+        baud: board::Baud,
         // DPM SPI transport: see the block "DPM SPI transport" below.
         spi: DpmSpiPort,
         spi_slave: pbcard::dpm::spi::SpiSlave,
@@ -303,34 +330,102 @@ mod app {
 
     #[local]
     struct Local {
-        port: Port,
         acyclic_clock: SysTickClock,
+        decide_clock: SysTickClock,
+        /// The telegram the decision works on (copied out of the line's queue).
+        decide_buf: [u8; pbcard::fdl::telegram::MAX_FRAME_LEN],
+        supervisor: board::Supervisor,
     }
 
     #[init]
     fn init(cx: init::Context) -> (Shared, Local) {
-        let board::Board { port, clock } = board::init(cx.device, cx.core.SYST, LINE_RATE);
+        init_board(cx.device, cx.core.SYST)
+    }
+
+    #[cfg(feature = "qemu")]
+    fn init_board(device: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYST) -> (Shared, Local) {
+        let board::Board { line, clock } = board::init(device, syst, LINE_RATE);
         defmt::info!("pbcard: station {=u8}, {=str}", STATION_ADDRESS, board::NAME);
+        log_drive();
+        let mut node = Node::new(DpSlave::new(STATION_ADDRESS));
+        node.set_baudrate(Some(LINE_RATE));
+        housekeeping::spawn().ok();
+        (
+            Shared {
+                node,
+                line,
+                baud: board::FixedRate(LINE_RATE),
+                drive: Drive::new(clock, Some(LINE_RATE)),
+                spi: start_dpm_spi(),
+                spi_slave: pbcard::dpm::spi::SpiSlave::new(),
+            },
+            Local { acyclic_clock: clock, decide_clock: clock, decide_buf: [0; 255], supervisor: board::Supervisor },
+        )
+    }
+
+    #[cfg(feature = "board-f411")]
+    fn init_board(device: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYST) -> (Shared, Local) {
+        use pbcard::store::Flash as _;
+        let recovered = crate::bsp::fault::take_recovered_fault();
+        // Autobaud from power-up: listen at the first search rate (12 Mbit/s).
+        let baud = Autobaud::new(pbcard::time::Instant::from_micros(0));
+        let b = board::init(device, syst, baud.rate());
+        let store = pbcard::store::JournalStore::new(b.flash);
+        let (address, no_add_chg) = match store.latest() {
+            Some(r) => (r.address, r.no_add_chg),
+            None => (STATION_ADDRESS, false),
+        };
+        defmt::info!(
+            "pbcard: station {=u8} ({=str}, No_Add_Chg {=bool}), {=str}",
+            address,
+            if store.latest().is_some() { "stored" } else { "default" },
+            no_add_chg,
+            board::NAME
+        );
+        defmt::info!(
+            "address journal: {=u32} records of 16 bytes in 2 × {=u32} bytes at {=u32:#010x}",
+            pbcard::store::JournalStore::<crate::bsp::flash::JournalFlash>::SLOTS,
+            crate::bsp::flash::JournalFlash::SECTOR_SIZE,
+            crate::bsp::flash::JOURNAL_BASE
+        );
+        if recovered {
+            defmt::error!("restarted after a card fault (panic or HardFault)");
+        }
+        log_drive();
+        defmt::warn!("drive: the simulated drive stands in for the DPM transport to the drive (issue 7)");
+        let mut node = Node::new(DpSlave::with_address_lock(address, no_add_chg));
+        node.set_baudrate(None);
+        let mut drive = Drive::new(b.clock, None);
+        drive.card_fault = recovered;
+        if recovered {
+            drive.app.report_recovered_fault();
+        }
+        // The Baud_Search starts now (the SysTick clock starts at 0 in `board::init`).
+        let baud = Autobaud::new(b.clock.now());
+        housekeeping::spawn().ok();
+        (
+            Shared {
+                node,
+                drive,
+                line: b.line,
+                baud,
+                spi: start_dpm_spi(),
+                spi_slave: pbcard::dpm::spi::SpiSlave::new(),
+            },
+            Local {
+                acyclic_clock: b.clock,
+                decide_clock: b.clock,
+                decide_buf: [0; 255],
+                supervisor: board::Supervisor::new(b.leds, store, b.iwdg, (address, no_add_chg)),
+            },
+        )
+    }
+
+    fn log_drive() {
         defmt::info!(
             "drive: simulated behind the DPM (PROFIdrive STW1/ZSW1, NSOLL_A/NIST_A 0x4000 = 100 %, ramp {=u64} ms)",
             DriveConfig::DEFAULT.ramp_time.as_millis()
         );
-        #[cfg(feature = "board-f411")]
-        defmt::warn!("drive: the simulated drive stands in for the DPM transport to the drive (issue 7)");
-        let mut node = Node::new(DpSlave::new(STATION_ADDRESS));
-        node.set_baudrate(Some(LINE_RATE));
-        housekeeping::spawn().ok();
-        let spi = start_dpm_spi();
-        (
-            Shared {
-                node,
-                line: LineCounters::default(),
-                drive: Drive::new(clock),
-                spi,
-                spi_slave: pbcard::dpm::spi::SpiSlave::new(),
-            },
-            Local { port, acyclic_clock: clock },
-        )
     }
 
     #[idle]
@@ -341,73 +436,69 @@ mod app {
         }
     }
 
-    /// The PROFIBUS line, one interrupt per character (and per TXE/TC while responding).
-    #[task(binds = USART1, priority = 16, local = [port], shared = [node, line])]
-    fn usart1(cx: usart1::Context) {
-        // Benchmark: instruction count at handler entry (then after each handled event).
-        #[cfg(feature = "bench")]
-        let mut entry = board::bench::count();
-        let port = cx.local.port;
-        // Top priority: these locks only mask interrupts (cpsid), which changes nothing here.
-        (cx.shared.node, cx.shared.line).lock(|node, line| {
-            while let Some(ev) = port.poll_event() {
-                match ev {
-                    LineEvent::Byte { byte, at, idle_before } => {
-                        if idle_before.0 > 0 {
-                            node.on_idle(idle_before);
-                        }
-                        // min_TSDR as it was before this request (a Set_Prm that changes it
-                        // applies from the next response on).
-                        let min_tsdr = node.min_tsdr();
-                        let dx_before = node.slave().stats().data_exchanges;
-                        if let Some(resp) = node.on_byte(at, byte) {
-                            #[cfg(feature = "bench")]
-                            let resp_len = resp.len();
-                            let started = port.start_tx(resp, min_tsdr);
-                            match started {
-                                Ok(()) => line.responses = line.responses.wrapping_add(1),
-                                Err(TxError::Busy) => line.tx_busy = line.tx_busy.wrapping_add(1),
-                                Err(TxError::BadLength) => line.tx_bad_length = line.tx_bad_length.wrapping_add(1),
-                            }
-                            // After the measurement: request length, response length, instructions
-                            // from the handler entry (of the request's last byte) to the first
-                            // response byte written to DR.
-                            #[cfg(feature = "bench")]
-                            if started.is_ok() {
-                                defmt::info!(
-                                    "BENCH req {=usize} resp {=usize} instr {=u32}",
-                                    node.framer().frame().len(),
-                                    resp_len,
-                                    port.tx_first_count().wrapping_sub(entry)
-                                );
-                            }
-                            // A DP-V1 request was acknowledged; the middle-priority task works
-                            // on it (if it is still running, the spawn fails and the next
-                            // housekeeping step spawns it again).
-                            if node.has_acyclic_work() {
-                                acyclic::spawn().ok();
-                            }
-                        }
-                        if node.slave().stats().data_exchanges != dx_before {
-                            // New outputs: the drive sees them now, not at the next millisecond.
-                            app_step::spawn().ok();
-                        }
-                    }
-                    LineEvent::Error(e) => {
-                        // The telegram this character belonged to is lost: the framer drops it
-                        // and resynchronises on the next start delimiter.
-                        line.count(e);
-                        node.on_line_error();
-                    }
-                    LineEvent::TxDone => {}
-                }
-                #[cfg(feature = "bench")]
-                {
-                    entry = board::bench::count();
-                }
-            }
-        });
+    // =========================================================================================
+    // The line: the interrupt(s) at the top priority, the decision one below
+    // =========================================================================================
+
+    /// USART1. F411: IDLE (a segment is complete → telegrams queued), character errors, TC
+    /// (DE off). QEMU: one interrupt per character into the framer, and the response's next
+    /// character. Pends the decision when telegrams are queued; never touches the `Node`.
+    #[task(binds = USART1, priority = 16, shared = [line])]
+    fn usart1(mut cx: usart1::Context) {
+        if cx.shared.line.lock(|l| l.on_usart()) {
+            rtic::pend(stm32f4xx_hal::pac::Interrupt::SDIO);
+        }
     }
+
+    /// F411 TIM5 compares: the T_SYN proof and the response start at min_TSDR.
+    #[cfg(feature = "board-f411")]
+    #[task(binds = TIM5, priority = 16, shared = [line])]
+    fn tim5(mut cx: tim5::Context) {
+        cx.shared.line.lock(|l| l.on_timer());
+    }
+
+    /// The FDL/DP decision for every telegram the line delimited (bound to SDIO, which the
+    /// card does not use, pended by `usart1`): `Node::on_frame` on each; a response goes to
+    /// the line's `respond` (F411: keeps min_TSDR / max_TSDR by TIM5 and drops it when the
+    /// line moved on) only while the rate is locked; every telegram is accounted to the rate
+    /// control (autobaud: lock, Baud_Control, garbage).
+    #[task(binds = SDIO, priority = 15, shared = [line, node, baud], local = [decide_clock, decide_buf])]
+    fn decide(cx: decide::Context) {
+        let decide::SharedResources { mut line, mut node, mut baud, .. } = cx.shared;
+        let clock = cx.local.decide_clock;
+        let buf = cx.local.decide_buf;
+        while let Some((len, meta)) = line.lock(|l| l.take_frame(buf)) {
+            let frame = &buf[..len];
+            let now = clock.now();
+            let rate = line.lock(|l| l.baud());
+            let max_tsdr = pbcard::time::BitTimes(u32::from(pbcard::card::max_tsdr(rate)));
+            (&mut node, &mut baud).lock(|n, b| {
+                // min_TSDR as it was before this request (a Set_Prm that changes it applies
+                // from the next response on).
+                let min_tsdr = n.min_tsdr();
+                let dx_before = n.slave().stats().data_exchanges;
+                // The library decides (own valid request, rate locked); the line obeys.
+                if let Some(resp) = phy_line::answer(n, b, now, frame) {
+                    line.lock(|l| {
+                        let _ = l.respond(&meta, resp, min_tsdr, max_tsdr);
+                    });
+                }
+                // A DP-V1 request was acknowledged; the middle-priority task works on it (if it
+                // is still running, the spawn fails and the next housekeeping step spawns it).
+                if n.has_acyclic_work() {
+                    acyclic::spawn().ok();
+                }
+                if n.slave().stats().data_exchanges != dx_before {
+                    // New outputs: the drive sees them now, not at the next millisecond.
+                    app_step::spawn().ok();
+                }
+            });
+        }
+    }
+
+    // =========================================================================================
+    // Shared above the line
+    // =========================================================================================
 
     /// DP-V1: data records at slot 0 (PROFIdrive parameter access, WEG record 48) for MSAC_C1
     /// and MSAC_C2. The master polls until the response is there ("not ready" meanwhile). The
@@ -421,7 +512,7 @@ mod app {
         #[cfg(feature = "bench")]
         let mut instr = 0u32;
         // The application (priority ceiling 8) for the DPM mailbox, the node (masks the
-        // USART1 interrupt) for one pass over the waiting requests.
+        // line's decision) for one pass over the waiting requests.
         drive.lock(|d| {
             let mut params = d.app.parameters(now);
             node.lock(|n| {
@@ -434,6 +525,7 @@ mod app {
                 }
             });
         });
+        ACYCLIC_RUNS.fetch_add(1, core::sync::atomic::Ordering::Relaxed);
         #[cfg(feature = "bench")]
         defmt::info!("LOCK process_acyclic {=u32} instructions", instr);
     }
@@ -443,32 +535,90 @@ mod app {
     async fn app_step(cx: app_step::Context) {
         let app_step::SharedResources { mut node, mut drive, .. } = cx.shared;
         // Same priority as housekeeping: this lock costs nothing.
-        drive.lock(|d| d.step(&mut node));
+        drive.lock(|d| {
+            d.step(&mut node);
+        });
     }
 
-    /// The application and the node's timers every millisecond, and the log.
-    #[task(priority = 1, shared = [node, line, drive])]
+    const STATS_PERIOD_MS: u32 = 10_000;
+
+    /// Every millisecond: the application step and the node's timers, the rate control's
+    /// timers (F411: search step → new divisor, Baud_Control / DP_Control; P0963), the
+    /// board's supervision (F411: LED pins, the address journal after a Set_Slave_Add, the
+    /// IWDG), and the log.
+    #[task(priority = 1, shared = [node, drive, line, baud], local = [supervisor])]
     async fn housekeeping(cx: housekeeping::Context) {
-        const STATS_PERIOD_MS: u32 = 10_000;
-        let housekeeping::SharedResources { mut node, mut line, mut drive, .. } = cx.shared;
+        let housekeeping::SharedResources { mut node, mut drive, mut line, mut baud, .. } = cx.shared;
+        let sup = cx.local.supervisor;
         let mut next = Mono::now();
         let mut ms: u32 = 0;
         let mut last_stats = None;
+        let mut shown_rate = baud.lock(|b| b.detected());
+        let mut acyclic_wait: Option<(u32, pbcard::time::Instant)> = None;
         let state = node.lock(|n| n.slave().state());
         defmt::info!("DP state {}", state);
+        // The application is in its final place now: the fault path may write its DPM.
+        drive.lock(|d| board::register_application(&mut d.app));
         loop {
             next += 1.millis();
             Mono::delay_until(next).await;
-            drive.lock(|d| d.step(&mut node));
+            let (v, now, leds) = drive.lock(|d| {
+                let v = d.step(&mut node);
+                (v, d.clock.now(), d.leds)
+            });
+
+            // Rate control: the DP watchdog state, the timers, a new rate for the USART.
+            let (switch, detected) = baud.lock(|b| {
+                b.dp_watchdog_active(now, v.dp_watchdog_active());
+                (b.poll(now), b.detected())
+            });
+            if let Some(rate) = switch {
+                if line.lock(|l| l.set_baud(rate)).is_err() {
+                    defmt::error!("rate {} not reachable", rate);
+                }
+            }
+            if detected != shown_rate {
+                shown_rate = detected;
+                match detected {
+                    Some(r) => defmt::info!("baud rate locked: {} (P0963 = {=u8})", r, r.p0963_code()),
+                    None => defmt::warn!("baud rate search (P0963 = 5)"),
+                }
+                node.lock(|n| n.set_baudrate(detected));
+                drive.lock(|d| d.app.set_baudrate(detected));
+            }
+
+            // Supervision: alive = the line hardware runs and the DP-V1 task does not leave
+            // work waiting for more than 100 ms.
+            let runs = ACYCLIC_RUNS.load(core::sync::atomic::Ordering::Relaxed);
+            acyclic_wait = match (v.acyclic_work, acyclic_wait) {
+                (false, _) => None,
+                (true, Some((r, since))) if r == runs => Some((r, since)),
+                (true, _) => Some((runs, now)),
+            };
+            let acyclic_alive = acyclic_wait
+                .is_none_or(|(_, since)| now.saturating_since(since) < pbcard::time::Duration::from_millis(100));
+            let alive = acyclic_alive && line.lock(|l| l.is_healthy());
+            if sup.tick(now, leds, (v.address, v.no_add_chg), alive) {
+                line.lock(|l| l.restart_rx());
+            }
 
             ms = ms.wrapping_add(1);
             if ms.is_multiple_of(STATS_PERIOD_MS) {
-                let line = line.lock(|l| *l);
-                let (framer, station, dp) = node.lock(|n| (n.framer().stats(), n.station().stats(), n.slave().stats()));
+                let (ls, rx) = line.lock(|l| (l.stats(), l.rx_stats()));
+                let ab = baud.lock(|b| b.stats());
+                let (station, dp) = node.lock(|n| (n.station().stats(), n.slave().stats()));
                 let link = drive.lock(|d| d.app.link().stats());
-                let stats = (line, framer, station, dp, link);
+                let stats = (ls, rx, ab, station, dp, link);
                 if last_stats != Some(stats) {
-                    defmt::info!("line {}, framer {}, station {}, dp {}, dpm link {}", line, framer, station, dp, link);
+                    defmt::info!(
+                        "line {}, rx {}, rate {}, station {}, dp {}, dpm link {}",
+                        ls,
+                        rx,
+                        ab,
+                        station,
+                        dp,
+                        link
+                    );
                     last_stats = Some(stats);
                 }
             }

@@ -9,7 +9,7 @@
 //! The SysTick exception keeps its reset priority 0, i.e. the same hardware priority as the
 //! highest RTIC task (the USART1 handler): neither preempts the other.
 //!
-//! The board-support issue replaces the byte timestamps by a 32-bit bit timer (TIM2/TIM5);
+//! On the F411 the line times itself with TIM5 (`bsp/f411.rs`); this clock serves the protocol timers;
 //! under QEMU the SysTick runs at 168 MHz whatever RCC says: pass that as `sysclk_hz`.
 
 use core::cell::Cell;

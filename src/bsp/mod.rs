@@ -2,16 +2,16 @@
 //! `unsafe` (ARCHITECTURE §3). The RTIC app in `main.rs` talks to the board only through the
 //! small traits below, so that the later boards implement the same shape:
 //!
-//! * this issue: [`f411::Usart1Port`] — USART1 with one interrupt per byte (RXNE/TXE/TC),
-//!   min_TSDR by busy-waiting on the [`Clock`], DE on a GPIO;
-//! * board-support issue: USART1 + DMA2 (RX circular buffer, TX DMA), a 32-bit bit timer for
-//!   TSYN / min_TSDR / timestamps, autobaud through [`BusPort::set_baud`];
-//! * [`qemu::QemuUsart1`] (feature `qemu`) — QEMU netduinoplus2: per-byte interrupts like
-//!   here, no IDLE flag, no DMA, no line timing, HSI clock.
+//! * [`f411::DmaLine`] (feature `board-f411`) — USART1 + DMA2 (circular receive ring cut into
+//!   telegrams at IDLE, transmit DMA), TIM5 as the bit timer (T_SYN proof, min_TSDR start by
+//!   compare), DE on PA8, autobaud through [`f411::DmaLine::set_baud`]; the address journal's
+//!   flash ([`flash`]), LEDs and IWDG, and the panic / HardFault path ([`fault`]);
+//! * [`qemu::QemuUsart1`] (feature `qemu`) — QEMU netduinoplus2: one interrupt per byte (a
+//!   [`BusPort`]), no IDLE flag, no DMA, no line timing, HSI clock.
 //!
-//! Each board module offers the same bring-up shape, re-exported as [`board`]: `NAME`,
-//! `Port` (its [`BusPort`]), `Board { port, clock }` and `init(device, SYST, rate) -> Board`.
-//! The RTIC application in `main.rs` is the same for every board.
+//! Each board module offers `NAME`, `Board` and `init(device, SYST, rate) -> Board`; the
+//! line differs (per byte on QEMU, per telegram on the F411), so `main.rs` has one line
+//! block per board and shares everything above the line (node, application, DP-V1 task).
 //!
 //! Only `main.rs` declares this module: it is never compiled for the host.
 
@@ -19,6 +19,10 @@ pub mod clock;
 pub mod divisor;
 #[cfg(feature = "board-f411")]
 pub mod f411;
+#[cfg(feature = "board-f411")]
+pub mod fault;
+#[cfg(feature = "board-f411")]
+pub mod flash;
 #[cfg(feature = "qemu")]
 pub mod qemu;
 /// The DPM transport to the drive's control board: SPI2 slave + DMA1 (issue 7 item 4).
@@ -32,7 +36,64 @@ pub use f411 as board;
 #[cfg(feature = "qemu")]
 pub use qemu as board;
 
+use heapless::Deque;
+use pbcard::fdl::telegram::MAX_FRAME_LEN;
 use pbcard::time::{Baudrate, BitTimes, Instant};
+
+/// Telegrams a line keeps for the decision task.
+pub const RX_QUEUE: usize = 4;
+
+/// The telegrams a line interrupt delimited, waiting for the decision task: the bytes in
+/// fixed slots (copied once in, once out, only their length), the line's own data `M` beside
+/// them. When full, the oldest telegram gives way (its response would be stale anyway).
+pub struct FrameQueue<M: Copy> {
+    slots: [[u8; MAX_FRAME_LEN]; RX_QUEUE],
+    next: usize,
+    queued: Deque<(u8, u8, M), RX_QUEUE>,
+}
+
+impl<M: Copy> FrameQueue<M> {
+    /// Empty.
+    pub const fn new() -> Self {
+        FrameQueue { slots: [[0; MAX_FRAME_LEN]; RX_QUEUE], next: 0, queued: Deque::new() }
+    }
+
+    /// Queue a telegram (≤ 255 bytes); `false` when the oldest one was dropped for it.
+    pub fn push(&mut self, bytes: &[u8], meta: M) -> bool {
+        let n = bytes.len().min(MAX_FRAME_LEN);
+        let mut kept = true;
+        if self.queued.is_full() {
+            // Slots go round-robin: the next slot is the oldest queued telegram's.
+            self.queued.pop_front();
+            kept = false;
+        }
+        let slot = self.next;
+        self.next = (self.next + 1) % RX_QUEUE;
+        self.slots[slot][..n].copy_from_slice(&bytes[..n]);
+        let _ = self.queued.push_back((slot as u8, n as u8, meta));
+        kept
+    }
+
+    /// The oldest telegram: its bytes copied to `buf`, its length and data.
+    pub fn pop_into(&mut self, buf: &mut [u8; MAX_FRAME_LEN]) -> Option<(usize, M)> {
+        let (slot, len, meta) = self.queued.pop_front()?;
+        let n = usize::from(len);
+        buf[..n].copy_from_slice(&self.slots[usize::from(slot)][..n]);
+        Some((n, meta))
+    }
+
+    /// The data of the newest telegram.
+    #[cfg_attr(not(feature = "board-f411"), allow(dead_code))]
+    pub fn back_meta_mut(&mut self) -> Option<&mut M> {
+        self.queued.back_mut().map(|e| &mut e.2)
+    }
+
+    /// Drop everything.
+    #[cfg_attr(not(feature = "board-f411"), allow(dead_code))]
+    pub fn clear(&mut self) {
+        self.queued.clear();
+    }
+}
 
 /// A monotonic clock in microseconds that does not wrap in the product's lifetime.
 pub trait Clock {
@@ -50,7 +111,8 @@ pub trait DriverEnable {
     fn disable(&mut self);
 }
 
-/// What went wrong with one received character; the character is dropped.
+/// What went wrong with one received character; the character is dropped (per-byte ports).
+#[cfg_attr(feature = "board-f411", allow(dead_code))]
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, defmt::Format)]
 pub struct LineError {
     /// Even parity did not match (PE).
@@ -64,6 +126,7 @@ pub struct LineError {
 }
 
 /// What a [`BusPort`] has to report, in line order.
+#[cfg_attr(feature = "board-f411", allow(dead_code))]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub enum LineEvent {
     /// One error-free character.
@@ -85,6 +148,7 @@ pub enum LineEvent {
 }
 
 /// Why a response could not be started.
+#[cfg_attr(feature = "board-f411", allow(dead_code))]
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub enum TxError {
     /// A response is still being sent.
@@ -97,7 +161,9 @@ pub enum TxError {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub struct UnsupportedRate(pub Baudrate);
 
-/// The PROFIBUS line: an 11-bit-character UART (8 data, even parity, 1 stop) on RS485.
+/// The PROFIBUS line: an 11-bit-character UART (8 data, even parity, 1 stop) on RS485, one
+/// character at a time (the QEMU board; the F411's DMA line works per telegram).
+#[cfg_attr(feature = "board-f411", allow(dead_code))]
 ///
 /// Interrupt-driven ports are serviced from their interrupt handler by calling
 /// [`poll_event`](BusPort::poll_event) until it returns `None`.

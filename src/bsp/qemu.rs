@@ -28,14 +28,15 @@
 use core::sync::atomic::{AtomicBool, Ordering};
 
 use cortex_m::peripheral::SYST;
+use pbcard::fdl::framer::{Framer, FramerStats, Push};
 use pbcard::fdl::telegram::MAX_FRAME_LEN;
-use pbcard::time::{Baudrate, BitTimes};
+use pbcard::time::{Baudrate, BitTimes, Instant};
 use stm32f4xx_hal::pac::{self, RCC, USART1};
 use stm32f4xx_hal::rcc::{self, Enable, RccExt, Reset};
 
 use super::clock::{self, SysTickClock};
 use super::divisor::usart_brr;
-use super::{BusPort, Clock, LineError, LineEvent, TxError, UnsupportedRate};
+use super::{BusPort, Clock, FrameQueue, LineError, LineEvent, TxError, UnsupportedRate};
 
 /// Board name for the boot log.
 pub const NAME: &str = "QEMU netduinoplus2 (STM32F405), USART1 per byte, no line timing";
@@ -45,11 +46,15 @@ pub const SYSTICK_HZ: u32 = 168_000_000;
 
 /// The line port of this board.
 pub type Port = QemuUsart1<SysTickClock>;
+/// The line of this board.
+pub type Line = QemuLine;
+/// The rate control of this board (fixed).
+pub type Baud = FixedRate;
 
 /// What [`init`] hands to the application.
 pub struct Board {
-    /// USART1, receiving.
-    pub port: Port,
+    /// USART1, receiving, with its framer and telegram queue.
+    pub line: QemuLine,
     /// The microsecond clock (SysTick monotonic).
     pub clock: SysTickClock,
 }
@@ -64,8 +69,207 @@ pub fn init(dp: pac::Peripherals, syst: SYST, rate: Baudrate) -> Board {
     bench::start(dp.TIM2, &mut rcc);
     let port = QemuUsart1::new(dp.USART1, clock, pclk2, rate, &mut rcc);
     defmt::info!("USART1 {} (QEMU ignores the rate), HSI {=u32} Hz, SysTick {=u32} Hz", port.baud(), pclk2, SYSTICK_HZ);
-    Board { port, clock }
+    Board { line: QemuLine::new(port), clock }
 }
+
+/// What the line keeps with each telegram.
+#[derive(Debug, Clone, Copy)]
+pub struct FrameMeta {
+    /// TIM2 at the entry of the interrupt that took the last byte (benchmark build).
+    #[cfg(feature = "bench")]
+    entry: u32,
+    /// The telegram's length (benchmark log).
+    #[cfg(feature = "bench")]
+    len: usize,
+}
+
+/// Line-level counters of the per-byte port (shown in the log).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, defmt::Format)]
+pub struct LineStats {
+    pub parity: u32,
+    pub framing: u32,
+    pub noise: u32,
+    pub overrun: u32,
+    /// Telegrams dropped because the decision task had not taken the older ones.
+    pub queue_full: u32,
+    /// A response was due while the previous one was still being sent.
+    pub tx_busy: u32,
+    /// The station returned a response the port could not take (length).
+    pub tx_bad_length: u32,
+    pub responses: u32,
+}
+
+/// The QEMU line with the same shape as the F411's `DmaLine`: the per-byte interrupt feeds a
+/// [`Framer`] (frame ends by length; QEMU reports no gaps), complete telegrams go into a queue
+/// for the decision task, which answers through [`QemuLine::respond`] (at once: no line
+/// timing under QEMU).
+pub struct QemuLine {
+    port: Port,
+    framer: Framer,
+    queue: FrameQueue<FrameMeta>,
+    stats: LineStats,
+}
+
+impl QemuLine {
+    fn new(port: Port) -> Self {
+        QemuLine { port, framer: Framer::new(), queue: FrameQueue::new(), stats: LineStats::default() }
+    }
+
+    /// The USART1 interrupt: take every character, send the next response character.
+    /// Returns `true` when telegrams were queued for the decision task.
+    pub fn on_usart(&mut self) -> bool {
+        #[cfg(feature = "bench")]
+        let mut entry = bench::count();
+        let mut queued = false;
+        while let Some(ev) = self.port.poll_event() {
+            match ev {
+                LineEvent::Byte { byte, .. } => {
+                    if let Push::Frame(_) = self.framer.push(byte) {
+                        let meta = FrameMeta {
+                            #[cfg(feature = "bench")]
+                            entry,
+                            #[cfg(feature = "bench")]
+                            len: self.framer.frame().len(),
+                        };
+                        if !self.queue.push(self.framer.frame(), meta) {
+                            self.stats.queue_full = self.stats.queue_full.wrapping_add(1);
+                        }
+                        queued = true;
+                    }
+                }
+                LineEvent::Error(e) => {
+                    let inc = |c: &mut u32, on: bool| *c = c.wrapping_add(u32::from(on));
+                    inc(&mut self.stats.parity, e.parity);
+                    inc(&mut self.stats.framing, e.framing);
+                    inc(&mut self.stats.noise, e.noise);
+                    inc(&mut self.stats.overrun, e.overrun);
+                    self.framer.line_error();
+                }
+                LineEvent::TxDone => {}
+            }
+            #[cfg(feature = "bench")]
+            {
+                entry = bench::count();
+            }
+        }
+        queued
+    }
+
+    /// The next telegram for the decision task: its bytes into `buf`, its length and data.
+    pub fn take_frame(&mut self, buf: &mut [u8; MAX_FRAME_LEN]) -> Option<(usize, FrameMeta)> {
+        self.queue.pop_into(buf)
+    }
+
+    /// Send the response to `request` at once (no line timing under QEMU); `true` when it
+    /// was started. The bench build logs the instructions from the interrupt entry of the
+    /// request's last byte to the first response byte in DR.
+    pub fn respond(&mut self, request: &FrameMeta, bytes: &[u8], min_tsdr: BitTimes, _max_tsdr: BitTimes) -> bool {
+        let _ = request;
+        match self.port.start_tx(bytes, min_tsdr) {
+            Ok(()) => {
+                self.stats.responses = self.stats.responses.wrapping_add(1);
+                #[cfg(feature = "bench")]
+                defmt::info!(
+                    "BENCH req {=usize} resp {=usize} instr {=u32}",
+                    request.len,
+                    bytes.len(),
+                    self.port.tx_first_count().wrapping_sub(request.entry)
+                );
+                // QEMU raises no interrupt for TXEIE set while TXE is already set (its line has
+                // no bit time): hand over the rest of the response now, as the per-byte
+                // handler's loop does. Telegrams this takes are queued for the running
+                // decision task's next turn.
+                let _ = self.on_usart();
+                true
+            }
+            Err(TxError::Busy) => {
+                self.stats.tx_busy = self.stats.tx_busy.wrapping_add(1);
+                false
+            }
+            Err(TxError::BadLength) => {
+                self.stats.tx_bad_length = self.stats.tx_bad_length.wrapping_add(1);
+                false
+            }
+        }
+    }
+
+    /// The (nominal) line rate.
+    pub fn baud(&self) -> Baudrate {
+        self.port.baud()
+    }
+
+    /// Switch the rate (QEMU ignores it).
+    pub fn set_baud(&mut self, rate: Baudrate) -> Result<(), UnsupportedRate> {
+        self.port.set_baud(rate)
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> LineStats {
+        self.stats
+    }
+
+    /// The framer's counters.
+    pub fn rx_stats(&self) -> FramerStats {
+        self.framer.stats()
+    }
+
+    /// Always: QEMU has no line hardware to supervise.
+    pub fn is_healthy(&self) -> bool {
+        true
+    }
+
+    /// Nothing to restart under QEMU.
+    pub fn restart_rx(&mut self) {}
+}
+
+/// The QEMU board's rate control: the fixed rate (QEMU's line has no bit time to search), with
+/// the calls the F411's `pbcard::phy::autobaud::Autobaud` takes.
+#[derive(Debug, Clone, Copy)]
+pub struct FixedRate(pub Baudrate);
+
+impl pbcard::phy::line::RateControl for FixedRate {
+    fn on_frame(&mut self, _now: Instant, _ok: bool, _to_us: bool) {}
+    fn on_garbage(&mut self, _now: Instant) {}
+    fn detected(&self) -> Option<Baudrate> {
+        Some(self.0)
+    }
+}
+
+impl FixedRate {
+    /// Nothing to supervise.
+    pub fn dp_watchdog_active(&mut self, _now: Instant, _active: bool) {}
+    /// Never a new rate.
+    pub fn poll(&mut self, _now: Instant) -> Option<Baudrate> {
+        None
+    }
+    /// The fixed rate.
+    pub fn detected(&self) -> Option<Baudrate> {
+        Some(self.0)
+    }
+    /// The fixed rate (the log's "rate" field).
+    pub fn stats(&self) -> Baudrate {
+        self.0
+    }
+}
+
+/// The QEMU board's supervision: nothing (no LED pins, no flash journal, no watchdog).
+pub struct Supervisor;
+
+impl Supervisor {
+    /// No LEDs, no journal, no IWDG; never asks for a receiver restart.
+    pub fn tick(
+        &mut self,
+        _now: Instant,
+        _leds: Option<pbcard::led::Leds>,
+        _address: (u8, bool),
+        _alive: bool,
+    ) -> bool {
+        false
+    }
+}
+
+/// No fault path to register with: a panic ends QEMU.
+pub fn register_application(_app: &mut pbcard::app::Application) {}
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Tx {

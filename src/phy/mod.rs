@@ -1,10 +1,13 @@
 //! The physical layer's decisions, without the hardware: which USART divisor produces each
-//! PROFIBUS rate ([`divisor`]) and which rate to listen at — the ASIC-style automatic baud-rate
-//! search and supervision ([`autobaud`], reference §1.6).
+//! PROFIBUS rate ([`divisor`]), which rate to listen at — the ASIC-style automatic baud-rate
+//! search and supervision ([`autobaud`], reference §1.6) — and how a DMA receiver with a bit
+//! timer cuts telegrams, keeps T_SYN, min_TSDR and max_TSDR ([`line`], reference §1.3–1.4).
 //!
 //! The board support code owns the USART; it asks [`autobaud::Autobaud`] for the rate,
-//! programs it with [`divisor::divisor_for`], and reports every frame, every receive error and
-//! the passing of time back.
+//! programs it with [`divisor::divisor_for`], feeds what the DMA received through
+//! [`line::Receiver`], starts responses as [`line::tx_plan`] says, and reports every frame,
+//! every receive error and the passing of time back.
 
 pub mod autobaud;
 pub mod divisor;
+pub mod line;

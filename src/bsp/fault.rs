@@ -1,0 +1,80 @@
+//! The board's panic and HardFault path (ARCHITECTURE §2 "supervision", issue 5 item 6): the
+//! line to the safe state (transmit DMA stopped, DE released), the DPM OUTPUTS block to the
+//! safe state and the "card fault" event raised in `CARD.EVENTS`
+//! ([`pbcard::app::Application::fail_safe`]), a flag in RAM that survives the reset, then a
+//! system reset. After the reset [`take_recovered_fault`] tells the firmware to raise the
+//! event once more in the fresh DPM image (the transport to the drive may not have moved the
+//! old one before the reset) and the BS LED shows "card fault" until data exchange.
+//!
+//! The application registers its [`Application`] once its resource is in place
+//! ([`register_application`]); the fault path then writes through that pointer, aliasing
+//! whatever task was running. That is acceptable only because nothing runs afterwards but the
+//! reset: the write is bounded and the image is rebuilt from scratch at boot.
+
+use core::mem::MaybeUninit;
+use core::ptr::{addr_of, addr_of_mut, null_mut};
+use core::sync::atomic::{AtomicBool, AtomicPtr, Ordering};
+
+use pbcard::app::Application;
+
+/// The value of [`FAULT_FLAG`] after a fault (anything else: a normal power-up).
+const FAULT_MAGIC: u32 = 0xFA17_CA5D;
+
+/// Survives a system reset (not zeroed by the startup code: `.uninit`).
+#[link_section = ".uninit.pbcard_fault"]
+static mut FAULT_FLAG: MaybeUninit<u32> = MaybeUninit::uninit();
+
+static APP: AtomicPtr<Application> = AtomicPtr::new(null_mut());
+static IN_FAULT: AtomicBool = AtomicBool::new(false);
+
+/// Remember where the application lives (call with the RTIC resource locked, once it is in
+/// its final place; calling it again with the same object is harmless).
+pub fn register_application(app: &mut Application) {
+    APP.store(app as *mut Application, Ordering::Release);
+}
+
+/// Whether the last reset came from the fault path (clears the flag).
+pub fn take_recovered_fault() -> bool {
+    // SAFETY: read once in `init` before any interrupt is enabled; a u32 has no invalid values.
+    unsafe {
+        let v = core::ptr::read_volatile(addr_of!(FAULT_FLAG) as *const u32);
+        core::ptr::write_volatile(addr_of_mut!(FAULT_FLAG) as *mut u32, 0);
+        v == FAULT_MAGIC
+    }
+}
+
+fn fail() -> ! {
+    cortex_m::interrupt::disable();
+    // SAFETY: interrupts are off and nothing but the reset follows.
+    unsafe {
+        super::f411::line_safe_state();
+        if !IN_FAULT.swap(true, Ordering::AcqRel) {
+            let app = APP.load(Ordering::Acquire);
+            if !app.is_null() {
+                (*app).fail_safe();
+            }
+        }
+        core::ptr::write_volatile(addr_of_mut!(FAULT_FLAG) as *mut u32, FAULT_MAGIC);
+    }
+    cortex_m::peripheral::SCB::sys_reset()
+}
+
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    if !IN_FAULT.load(Ordering::Acquire) {
+        defmt::error!("panic: {}", defmt::Display2Format(info));
+    }
+    fail()
+}
+
+#[cortex_m_rt::exception]
+unsafe fn HardFault(ef: &cortex_m_rt::ExceptionFrame) -> ! {
+    defmt::error!("HardFault at pc {=u32:#010x}", ef.pc());
+    fail()
+}
+
+#[defmt::panic_handler]
+fn defmt_panic() -> ! {
+    // `defmt::panic!` / `defmt::assert!` have logged already.
+    fail()
+}
