@@ -158,7 +158,6 @@ impl Application {
         self.link.set_init_error(true);
         self.link.set_init_error(false);
     }
-    }
 
     /// The profile layer: select the engine for the active telegram, run one cycle with the
     /// drive's latest state, stage the input image, write DRIVE_CMD.
