@@ -40,6 +40,11 @@ echo "== soft slave: clippy and its own tests (the pty end-to-end run is in host
 cargo clippy -p pbcard-softslave --all-targets --target "$HOST" -- -D warnings
 cargo test -p pbcard-softslave --target "$HOST"
 
+echo "== dpm-host: the host-side reference implementation (std on the host, no_std on the firmware target)"
+cargo clippy -p dpm-host --all-targets --target "$HOST" -- -D warnings
+cargo clippy -p dpm-host --no-default-features -- -D warnings
+cargo test -p dpm-host --target "$HOST"
+
 echo "== benchmark: instructions from the last request byte to the first response byte (QEMU -icount)"
 cargo run -q -p host-tests --bin qemu_bench --target "$HOST"
 

@@ -142,7 +142,7 @@ mod app {
         app: Application,
         clock: SysTickClock,
         comm: Option<CommState>,
-        state: Option<DriveState>,
+        state: DriveState,
         led_requests: u32,
         led_last_frame: Option<pbcard::time::Instant>,
         led_was_dx: bool,
@@ -160,7 +160,7 @@ mod app {
         fn new(clock: SysTickClock, rate: Option<pbcard::time::Baudrate>) -> Self {
             let mut app = Application::new(DriveConfig::DEFAULT);
             app.set_baudrate(rate);
-            let state = app.profidrive_state();
+            let state = app.profidrive_state().unwrap_or(DriveState::SwitchingOnInhibited);
             Drive {
                 app,
                 clock,
@@ -295,13 +295,14 @@ mod app {
                     self.comm = Some(status.comm);
                 }
             }
-            let state = self.app.profidrive_state();
+            // The card's PROFIdrive state of the drive (S1 before a profile is selected).
+            let state = self.app.profidrive_state().unwrap_or(DriveState::SwitchingOnInhibited);
             if state != self.state {
                 let drive = self.app.drive();
                 defmt::info!(
-                    "profile: {=str} -> {=str} (drive command {=u16:#06x}, setpoint {=i16}, status {=u16:#06x}, speed {=i16})",
-                    self.state.map_or("-", |s| s.name()),
-                    state.map_or("-", |s| s.name()),
+                    "drive: {=str} -> {=str} (command {=u16:#06x}, setpoint {=i16}, status {=u16:#06x}, speed {=i16})",
+                    self.state.name(),
+                    state.name(),
                     drive.command().flags.bits(),
                     drive.command().speed_setpoint,
                     drive.status().flags.bits(),

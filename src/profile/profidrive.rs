@@ -625,7 +625,12 @@ impl ControlProfile for Profidrive {
             self.last_valid.contains(Stw1::NO_QUICK_STOP) && self.state != State::SwitchingOff(StopKind::Quick),
         );
         z.set(Zsw1::WARNING, f.contains(StatusFlags::WARNING));
-        z.set(Zsw1::AT_SETPOINT, f.contains(StatusFlags::AT_REFERENCE) && f.contains(StatusFlags::RUNNING));
+        // b8 "the drive is operating and the actual speed matches the setpoint" (§6.3.4): S4 only.
+        let operating = self.state == State::Operation;
+        z.set(
+            Zsw1::AT_SETPOINT,
+            operating && f.contains(StatusFlags::AT_REFERENCE) && f.contains(StatusFlags::RUNNING),
+        );
         z.set(Zsw1::CONTROL_REQUESTED, f.contains(StatusFlags::FIELDBUS_CONTROL));
         z.set(Zsw1::SPEED_REACHED, f.contains(StatusFlags::SPEED_REACHED));
         if self.config.st20 {
