@@ -9,6 +9,7 @@ use pbcard::dp::{sap, DpState, Events};
 use pbcard::dpm::{CommState, ProcessData, Telegram};
 use pbcard::fdl::telegram::{self, Decoded, RequestFunction, Telegram as Frame};
 use pbcard::node::Node;
+use pbcard::profile::profidrive::State;
 
 /// Hex dump `10 02 08 49 53 16`.
 pub fn hex(bytes: &[u8]) -> String {
@@ -204,14 +205,22 @@ impl Monitor {
                 log(format!("P0740 = {} ({})", s.comm.code(), s.comm.text()));
             }
         }
-        let d = drive_summary(app);
+        // The card's PROFIdrive state of the drive (S1 before a profile is selected).
+        let d = app.profidrive_state().unwrap_or(State::SwitchingOnInhibited).name().to_string();
         if d != self.drive {
-            let cmd = app.drive().command();
+            let (stw, zsw) = match app.dpm().outputs() {
+                Ok(out) => {
+                    let pkw = out.telegram.pkw_words();
+                    let inputs = node.slave().inputs();
+                    let z = inputs.get(2 * pkw..2 * pkw + 2).map_or(0, |w| u16::from_be_bytes([w[0], w[1]]));
+                    (out.word(pkw), z)
+                }
+                Err(_) => (0, 0),
+            };
             log(format!(
-                "drive: {} → {d} (command {:?}, setpoint {:04X})",
-                if self.drive.is_empty() { "-" } else { &self.drive },
-                cmd.flags,
-                cmd.speed_setpoint as u16
+                "drive: {} → {d} (STW1 {stw:04X}, ZSW1 {zsw:04X}, {})",
+                if self.drive.is_empty() { State::SwitchingOnInhibited.name() } else { &self.drive },
+                drive_summary(app)
             ));
             self.drive = d;
         }
@@ -236,20 +245,21 @@ impl Monitor {
     }
 }
 
-/// The card's profile state (PROFIdrive S1..S5 / fault) and the drive's: "S4 operation,
-/// running" / "-, fault 2310".
+/// The drive's own state from DRIVE_STATE: "drive running, speed +8192" / "drive fault 2310".
 fn drive_summary(app: &Application) -> String {
-    let profile = app.profidrive_state().map_or("-", |s| s.name());
     let st = app.drive().status();
     let f = st.flags;
-    let drive = if f.contains(pbcard::profile::drive_if::StatusFlags::FAULT) {
-        format!("fault {:04X}", st.fault_code)
+    if f.contains(pbcard::profile::drive_if::StatusFlags::FAULT) {
+        format!(
+            "drive fault {:04X}{}",
+            st.fault_code,
+            if st.fault_code == pbcard::drive::model::FAULT_FIELDBUS { " (fieldbus: communication lost)" } else { "" }
+        )
     } else if f.contains(pbcard::profile::drive_if::StatusFlags::RUNNING) {
-        "running".to_string()
+        format!("drive running, speed {:+}", st.speed)
     } else {
-        "stopped".to_string()
-    };
-    format!("{profile}, drive {drive}")
+        "drive stopped".to_string()
+    }
 }
 
 /// "STW1 047F NSOLL_A 2000 (+50.0 %)" / PPO: "PKW 0000 … STW 047F HSW 2000 (+50.0 %) PZD3 …".
