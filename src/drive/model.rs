@@ -508,7 +508,7 @@ mod tests {
                 r.cmd = DriveCommand { flags: CommandFlags::from_bits_retain(flags), speed_setpoint: sp, fault_resets: resets, comm_loss_reaction: reaction };
                 let s = r.run(ms);
                 proptest::prop_assert!(!(s.flags.contains(StatusFlags::FAULT) && s.flags.contains(StatusFlags::RUNNING)));
-                proptest::prop_assert!(!s.flags.contains(StatusFlags::RUNNING) || !s.flags.contains(StatusFlags::FAULT));
+                proptest::prop_assert_eq!(s.flags.contains(StatusFlags::ZERO_SPEED), s.speed == 0);
                 if !s.flags.contains(StatusFlags::RUNNING) && !s.flags.contains(StatusFlags::FLUX_READY) {
                     proptest::prop_assert_eq!((s.current, s.torque, s.power), (0, 0, 0));
                 }
