@@ -235,6 +235,21 @@ impl<S: std::io::Read + std::io::Write> Dpv1Master<S> {
         }
     }
 
+    /// DS_Read of record 47 until the parameter response is there: PROFIdrive answers
+    /// `DE 80 B5 00` (state conflict, "response not yet available") while the drive behind
+    /// the DPM mailbox is still working on the request; a PROFIdrive master repeats the read
+    /// (reference §5.1, VACON OPTE3/E5 Table 45/46).
+    fn read47(&mut self, sa: u8, dsap: u8, ssap: u8) -> Result<Vec<u8>, String> {
+        let deadline = Instant::now() + PHASE;
+        loop {
+            let r = self.transact(sa, dsap, ssap, &[0x5E, 0, 47, 240])?;
+            if r != [0xDE, 0x80, 0xB5, 0x00] || Instant::now() >= deadline {
+                return Ok(r);
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+
     /// Read PNUs 918 (station address) and 963 (baud rate) through record 47 on `dsap`;
     /// returns the two values.
     fn read_918_963(&mut self, sa: u8, dsap: u8, ssap: u8, reference: u8) -> Result<(u16, u16), String> {
@@ -243,7 +258,7 @@ impl<S: std::io::Read + std::io::Write> Dpv1Master<S> {
         if w != [0x5F, 0, 47, 16] {
             return Err(format!("DS_Write response {}", host_tests::hex(&w)));
         }
-        let r = self.transact(sa, dsap, ssap, &[0x5E, 0, 47, 240])?;
+        let r = self.read47(sa, dsap, ssap)?;
         match r.as_slice() {
             [0x5E, 0, 47, 12, rf, 0x01, 1, 2, 0x42, 1, a, b, 0x42, 1, c, d] if *rf == reference => {
                 Ok((u16::from_be_bytes([*a, *b]), u16::from_be_bytes([*c, *d])))
@@ -305,19 +320,19 @@ fn dpv1_card_and_drive_parameters_through_msac_c1_and_c2() {
         if w != [0x5F, 0, 47, 14] {
             return Err(format!("P100 change: DS_Write response {}", host_tests::hex(&w)));
         }
-        let r = m.transact(qemu::MASTER, 51, 51, &[0x5E, 0, 47, 240])?;
+        let r = m.read47(qemu::MASTER, 51, 51)?;
         if r != [0x5E, 0, 47, 4, 0x23, 0x02, 1, 1] {
             return Err(format!("P100 change: response {}", host_tests::hex(&r)));
         }
         let read = [0x5F, 0, 47, 10, 0x24, 0x01, 1, 1, 0x10, 1, 0, 100, 0, 0];
         m.transact(10, sap, 50, &read)?;
-        let r = m.transact(10, sap, 50, &[0x5E, 0, 47, 240])?;
+        let r = m.read47(10, sap, 50)?;
         if r != [0x5E, 0, 47, 8, 0x24, 0x01, 1, 1, 0x42, 1, 0, 123] {
             return Err(format!("P100 read over MSAC_C2: {}", host_tests::hex(&r)));
         }
         let too_big = [0x5F, 0, 47, 14, 0x25, 0x02, 1, 1, 0x10, 1, 0, 100, 0, 0, 0x42, 1, 0x27, 0x10];
         m.transact(qemu::MASTER, 51, 51, &too_big)?;
-        let r = m.transact(qemu::MASTER, 51, 51, &[0x5E, 0, 47, 240])?;
+        let r = m.read47(qemu::MASTER, 51, 51)?;
         if r != [0x5E, 0, 47, 8, 0x25, 0x82, 1, 1, 0x44, 1, 0, 0x02] {
             return Err(format!("P100 = 10000: response {}", host_tests::hex(&r)));
         }
