@@ -196,6 +196,14 @@ impl Cyclic {
         self.run(profile, drive, true)
     }
 
+    /// The master's outputs are held back (the I/O update delay after going online, CFW-11
+    /// P0799): the inputs from the drive's latest status as in [`Self::comm_lost`] (the
+    /// profile keeps its state), the last output words stay with the drive, no PKW request,
+    /// not counted as a loss. The caller chooses the command.
+    pub fn hold(&mut self, profile: &mut impl ControlProfile, drive: DriveSide<'_>) -> Cycle {
+        self.run(profile, drive, true)
+    }
+
     fn run(&mut self, profile: &mut impl ControlProfile, drive: DriveSide<'_>, lost: bool) -> Cycle {
         let l = self.layout;
         let out = &self.last[..l.output_bytes()];

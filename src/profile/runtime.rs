@@ -14,8 +14,21 @@
 //! The operate mode comes from the master (Set_Prm user parameter
 //! [`crate::card::PRM_OPERATE_MODE`], 1..=3 "remote") or, with 0 "local", from the drive's
 //! configuration (DPM CONFIG.OPERATE_MODE, OPTE3/E5 §5.1.4); PROFIdrive when neither says.
+//!
+//! **I/O update delay (CFW-11 P0799 "Atraso Atualização I/O", 0.0…999.0, default 0.0):**
+//! after the transition offline → online (the first cycle of data exchange, and every cycle
+//! that follows one with the communication lost: the master back after a watchdog expiry or
+//! out of Clear), the data the master writes are not taken for [`Runtime::io_update_delay`]:
+//! the drive keeps the command it had before going online (after a loss: the
+//! communication-loss command; at power-up: none), no PKW request is taken and the output
+//! words do not move. The manual delays only the *write* words (the data the drive receives,
+//! CFW-11 §3 P0799, Figure 3.1): the master's inputs (status word, actual values) stay live
+//! during the delay. The newest output image received meanwhile is applied when the delay
+//! ends. The DPM CONFIG block has no field for it: it is a card parameter
+//! ([`Runtime::set_io_update_delay`]), default 0 (no delay, as P0799's factory setting), and
+//! needs the time ([`Runtime::cycle_at`]; [`Runtime::cycle`] runs without it).
 
-use super::cyclic::{Cycle, Cyclic, CyclicError, DriveSide, OperateMode};
+use super::cyclic::{Cycle, Cyclic, CyclicError, DriveSide, OperateMode, MAX_IMAGE};
 use super::drive_if::{ControlProfile, DriveCommand, DriveStatus};
 use super::faults::FaultBuffer;
 use super::invt::Invt;
@@ -25,6 +38,7 @@ use super::profidrive::{Profidrive, SpeedScale};
 use super::telegram::{DataProfile, Layout, ProfileFamily};
 use super::weg::{weg_profidrive, WegManufacturer, WegModel};
 use crate::dpm::{Family, Telegram};
+use crate::time::{Duration, Instant};
 
 /// The physical references of the speed scales (one unit for all: 0.01 Hz by default).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -170,6 +184,24 @@ pub struct RuntimeStats {
     pub selections: u32,
     /// Selections refused ([`CyclicError`]): the card serves the ZSW1 fault image.
     pub refused: u32,
+    /// Offline → online transitions that started the I/O update delay (P0799).
+    pub delays_started: u32,
+    /// Output images held back by the I/O update delay (P0799).
+    pub held_outputs: u32,
+}
+
+/// The I/O update delay's bookkeeping (CFW-11 P0799, module docs).
+#[derive(Debug, Clone, Copy)]
+struct UpdateDelay {
+    /// The card parameter (0 = off).
+    delay: Duration,
+    /// The previous cycle had the communication (`false` after a selection and while lost).
+    online: bool,
+    /// The master's outputs are held until this time.
+    until: Option<Instant>,
+    /// The newest output image received while held.
+    pending: [u8; MAX_IMAGE],
+    pending_len: Option<usize>,
 }
 
 /// The card's profile layer (module docs).
@@ -184,6 +216,7 @@ pub struct Runtime {
     faults: FaultBuffer,
     drive_fault: u16,
     last: Option<Cycle>,
+    delay: UpdateDelay,
     stats: RuntimeStats,
 }
 
@@ -206,8 +239,30 @@ impl Runtime {
             faults: FaultBuffer::new(),
             drive_fault: 0,
             last: None,
+            delay: UpdateDelay {
+                delay: Duration::ZERO,
+                online: false,
+                until: None,
+                pending: [0; MAX_IMAGE],
+                pending_len: None,
+            },
             stats: RuntimeStats::default(),
         }
+    }
+
+    /// The I/O update delay after going online (CFW-11 P0799-style, module docs); a card
+    /// parameter, default 0 = the master's outputs are taken at once. Takes effect at the
+    /// next offline → online transition.
+    pub fn set_io_update_delay(&mut self, delay: Duration) {
+        self.delay.delay = delay;
+    }
+    /// See [`Self::set_io_update_delay`].
+    pub fn io_update_delay(&self) -> Duration {
+        self.delay.delay
+    }
+    /// Whether the I/O update delay holds the master's outputs back at `now`.
+    pub fn io_update_held(&self, now: Instant) -> bool {
+        self.delay.until.is_some_and(|t| now < t)
     }
 
     /// Select telegram / mode / data profile / reaction; a change rebuilds the engine. A
@@ -220,6 +275,9 @@ impl Runtime {
         self.selection = Some(sel);
         self.stats.selections = self.stats.selections.wrapping_add(1);
         self.last = None;
+        self.delay.online = false;
+        self.delay.until = None;
+        self.delay.pending_len = None;
         let dialect = match sel.telegram {
             Telegram::Vendor(Family::Invt, _) => PkwDialect::Invt,
             _ => PkwDialect::Profidrive2,
@@ -273,9 +331,36 @@ impl Runtime {
 
     /// One cycle: `outputs` = a new output image from Data_Exchange (else the last one is
     /// evaluated again), `lost` = the communication is lost (watchdog, Clear, master gone),
-    /// `drive` = the drive's latest status and raw words. `None` without an engine.
+    /// `drive` = the drive's latest status and raw words. `None` without an engine. Without
+    /// the time, no I/O update delay applies ([`Self::cycle_at`]).
     pub fn cycle(
         &mut self,
+        outputs: Option<&[u8]>,
+        lost: bool,
+        drive: &DriveStatus,
+        words: &[u16],
+    ) -> Option<Exchange<'_>> {
+        self.run(None, outputs, lost, drive, words)
+    }
+
+    /// [`Self::cycle`] at `now`, with the I/O update delay after going online (P0799-style,
+    /// module docs): while it runs, the master's outputs are kept back (the newest one is
+    /// applied when it ends), the drive keeps the command it had before going online, the
+    /// master's inputs stay live.
+    pub fn cycle_at(
+        &mut self,
+        now: Instant,
+        outputs: Option<&[u8]>,
+        lost: bool,
+        drive: &DriveStatus,
+        words: &[u16],
+    ) -> Option<Exchange<'_>> {
+        self.run(Some(now), outputs, lost, drive, words)
+    }
+
+    fn run(
+        &mut self,
+        now: Option<Instant>,
         outputs: Option<&[u8]>,
         lost: bool,
         drive: &DriveStatus,
@@ -284,7 +369,51 @@ impl Runtime {
         self.track_faults(drive);
         let (engine, profile) = (self.engine.as_mut()?, self.profile.as_mut()?);
         let side = DriveSide { status: drive, words, pkw_response: self.pkw.response() };
-        let cycle = if lost {
+        let d = &mut self.delay;
+        if lost {
+            d.online = false;
+            d.until = None;
+            d.pending_len = None;
+        } else if !d.online {
+            d.online = true;
+            if let Some(now) = now.filter(|_| d.delay > Duration::ZERO) {
+                d.until = Some(now + d.delay);
+                self.stats.delays_started = self.stats.delays_started.wrapping_add(1);
+            }
+        }
+        let mut pending = [0u8; MAX_IMAGE];
+        let mut pending_len = None;
+        let held = match (d.until, now) {
+            (Some(t), Some(now)) if now < t => true,
+            (Some(_), _) => {
+                // The delay is over: the newest image held back is taken now.
+                d.until = None;
+                if let Some(n) = d.pending_len.take() {
+                    pending[..n].copy_from_slice(&d.pending[..n]);
+                    pending_len = Some(n);
+                }
+                false
+            }
+            _ => false,
+        };
+        let outputs = outputs.or(pending_len.map(|n| &pending[..n]));
+        let cycle = if held {
+            if let Some(out) = outputs {
+                let n = out.len().min(MAX_IMAGE);
+                d.pending[..n].copy_from_slice(&out[..n]);
+                d.pending_len = Some(n);
+                self.stats.held_outputs = self.stats.held_outputs.wrapping_add(1);
+            }
+            // The drive keeps the command it had before going online; the inputs are live.
+            let before = self.last.as_ref().map(|c| c.command);
+            let mut c = engine.hold(profile, side);
+            c.command = match before {
+                Some(cmd) => cmd,
+                None if c.command.is_some() => Some(DriveCommand::default()),
+                None => None,
+            };
+            c
+        } else if lost {
             engine.comm_lost(profile, side)
         } else if let Some(out) = outputs {
             match engine.exchange(profile, out, side) {
@@ -294,6 +423,9 @@ impl Runtime {
         } else {
             engine.step(profile, side)
         };
+        if !held {
+            self.delay.pending_len = None;
+        }
         if let Some(req) = cycle.pkw_request {
             self.pkw.on_request(req);
         }
@@ -402,5 +534,86 @@ mod tests {
         r.cycle(None, false, &d, &[]);
         assert_eq!(r.faults().situation(1).unwrap()[..2], [0x2310, 0]);
         assert_eq!(r.faults().counter(), 2);
+    }
+
+    fn at(ms: u64) -> Instant {
+        Instant::from_millis(ms)
+    }
+
+    /// CFW-11 P0799: after going online the master's outputs wait for the delay; the drive
+    /// keeps the pre-online command (at power-up: none), the master's inputs are live, the
+    /// newest image held back is applied when the delay ends.
+    #[test]
+    fn io_update_delay_holds_the_outputs_after_going_online() {
+        let mut r = Runtime::default();
+        assert_eq!(r.io_update_delay(), Duration::ZERO, "default 0 like P0799's factory setting");
+        r.set_io_update_delay(Duration::from_millis(500));
+        r.select(sel(Telegram::Standard(1), OperateMode::Profidrive));
+        let mut d = ready();
+        d.speed = 0x1000;
+        let e = r.cycle_at(at(0), Some(&[0x04, 0x7E, 0x20, 0x00]), false, &d, &[]).unwrap();
+        assert_eq!(e.command, Some(DriveCommand::default()), "power-up: no command before online");
+        assert_eq!(&e.inputs[2..4], &[0x10, 0x00], "the actual value is live during the delay");
+        assert!(r.io_update_held(at(499)));
+        let e = r.cycle_at(at(499), Some(&[0x04, 0x7F, 0x30, 0x00]), false, &d, &[]).unwrap();
+        assert!(!e.command.unwrap().flags.contains(CommandFlags::RUN), "still held at 499 ms");
+        assert_eq!(r.stats().held_outputs, 2);
+        // The delay is over: the newest held image is taken without a new Data_Exchange.
+        let e = r.cycle_at(at(500), None, false, &d, &[]).unwrap();
+        let cmd = e.command.unwrap();
+        assert!(!r.io_update_held(at(500)));
+        assert_eq!(cmd.speed_setpoint, 0x3000, "the newest held setpoint");
+        assert!(cmd.flags.contains(CommandFlags::FIELDBUS_CONTROL));
+        // Run the state machine to S4.
+        for t in [510, 520, 530] {
+            r.cycle_at(at(t), Some(&[0x04, 0x7E, 0x30, 0x00]), false, &d, &[]);
+        }
+        let e = r.cycle_at(at(540), Some(&[0x04, 0x7F, 0x30, 0x00]), false, &d, &[]).unwrap();
+        assert!(e.command.unwrap().flags.contains(CommandFlags::RUN));
+        // Communication lost, then back: the comm-loss command stays for the delay.
+        let lost = r.cycle_at(at(600), None, true, &d, &[]).unwrap().command.unwrap();
+        assert!(lost.flags.contains(CommandFlags::COMM_LOSS));
+        let e = r.cycle_at(at(700), Some(&[0x04, 0x7F, 0x10, 0x00]), false, &d, &[]).unwrap();
+        assert_eq!(e.command, Some(lost), "the pre-online (communication-loss) command is kept");
+        let e = r.cycle_at(at(1199), Some(&[0x04, 0x7F, 0x10, 0x00]), false, &d, &[]).unwrap();
+        assert_eq!(e.command, Some(lost));
+        let e = r.cycle_at(at(1200), Some(&[0x04, 0x7F, 0x10, 0x00]), false, &d, &[]).unwrap();
+        let cmd = e.command.unwrap();
+        assert!(!cmd.flags.contains(CommandFlags::COMM_LOSS));
+        assert_eq!(cmd.speed_setpoint, 0x1000);
+        assert_eq!(r.stats().delays_started, 2);
+    }
+
+    #[test]
+    fn without_a_delay_the_outputs_are_taken_at_once() {
+        let mut r = Runtime::default();
+        r.select(sel(Telegram::Standard(1), OperateMode::Profidrive));
+        let e = r.cycle_at(at(0), Some(&[0x04, 0x7E, 0x20, 0x00]), false, &ready(), &[]).unwrap();
+        assert!(e.command.unwrap().flags.contains(CommandFlags::FIELDBUS_CONTROL));
+        assert_eq!(e.command.unwrap().speed_setpoint, 0x2000);
+        assert_eq!(r.stats().delays_started, 0);
+        // `cycle` without the time never delays.
+        r.set_io_update_delay(Duration::from_millis(100));
+        r.cycle(None, true, &ready(), &[]);
+        let e = r.cycle(Some(&[0x04, 0x7E, 0x10, 0x00]), false, &ready(), &[]).unwrap();
+        assert_eq!(e.command.unwrap().speed_setpoint, 0x1000);
+    }
+
+    /// The PKW channel is part of the write words: no request is taken during the delay.
+    #[test]
+    fn io_update_delay_holds_the_pkw_request_and_the_raw_words() {
+        let mut r = Runtime::default();
+        r.set_io_update_delay(Duration::from_millis(100));
+        r.select(sel(Telegram::Ppo(2), OperateMode::Profidrive));
+        let mut out = [0u8; 20];
+        out[..2].copy_from_slice(&[0x10, 100]);
+        out[8..10].copy_from_slice(&[0x04, 0x7E]);
+        out[12..14].copy_from_slice(&[0x12, 0x34]);
+        let e = r.cycle_at(at(0), Some(&out), false, &ready(), &[]).unwrap();
+        assert!(e.words.iter().all(|&w| w == 0), "the drive keeps the pre-online words");
+        assert!(!r.has_pkw_work());
+        let e = r.cycle_at(at(100), None, false, &ready(), &[]).unwrap();
+        assert_eq!(e.words[0], 0x1234);
+        assert!(r.has_pkw_work(), "the held PKW request is taken when the delay ends");
     }
 }
