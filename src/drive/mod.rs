@@ -10,6 +10,28 @@
 //! the DRIVE block (with the GSD's device-related diagnosis block), keeps its heartbeat
 //! going, and serves the parameter mailbox from its parameter table ([`params`]).
 //!
+//! **Communication errors (WEG CFW500 §4 P0313 and §6, CFW-11 §3 P0313 and §5):** the drive
+//! watches the card through [`Host::poll`] (the `CARD.EVENTS` counters, the STATUS block's
+//! communication state, the card's heartbeat) and raises the manuals' alarms ([`CommAlarms`]):
+//!
+//! * **A138** "PROFIBUS DP interface in Clear mode" — event 0 (`CardEvent::ClearMode`) or the
+//!   STATUS state "Clear"; gone when the master leaves Clear (STATUS "online").
+//! * **A139** "PROFIBUS DP interface offline" — event 1 (`Offline`, the card left data
+//!   exchange) or 3 (`Watchdog`, the DP watchdog expired); like the manuals, only after an
+//!   online → offline transition (not at power-up); gone when the cyclic exchange is back.
+//! * **A140** "PROFIBUS DP module access error" — the card's heartbeat stopped
+//!   ([`crate::dpm::host::Poll::card_lost`]); gone when it beats again (the WEG drives need a
+//!   power cycle for a new attempt; this drive keeps trying).
+//!
+//! While an alarm is active the drive applies its communication-error action
+//! ([`model::CommLossAction`], P0313-style: none, ramp stop, coast, quick stop, fault, keep
+//! the last setpoint): the command gets [`CommandFlags::COMM_LOSS`] even before the card's
+//! next DRIVE_CMD carries it, and with A140 (the card is gone, its DRIVE_CMD is stale) the
+//! drive's own setting decides rather than the card's Set_Prm reaction. With the action
+//! "fault" the drive trips ([`model::FAULT_FIELDBUS`], F238/F239/F240-style, kept until a
+//! fault reset); otherwise it reports the alarm as its warning code ([`ALARM_CLEAR_MODE`],
+//! [`ALARM_OFFLINE`], [`ALARM_ACCESS_ERROR`]), which disappears with the alarm.
+//!
 //! Programmable PZD words are echoed (each input word = the output word of the same
 //! position), so a PLC program can check its word mapping. In the Bypass operate mode
 //! (OPTE3/E5 §5.1.2, §6.7) the card passes the raw words: the drive reads word 1 as its
@@ -20,12 +42,12 @@
 pub mod model;
 pub mod params;
 
-use crate::dpm::host::{Host, Transport};
+use crate::dpm::host::{Host, Poll, Transport};
 use crate::dpm::layout::operate_mode;
-use crate::dpm::{DriveCommandImage, DriveStateImage, PzdWords};
+use crate::dpm::{CardEvent, CommState, DriveCommandImage, DriveStateImage, PzdWords};
 use crate::profile::drive_if::{CommandFlags, DriveCommand, DriveStatus, StatusFlags};
 use crate::time::Instant;
-use model::{DriveModel, N2_100};
+use model::{CommLossAction, DriveModel, N2_100};
 use params::{sim_drive_table, DriveTable};
 
 pub use model::ModelConfig as DriveConfig;
@@ -58,6 +80,41 @@ pub fn diag_block(status: &DriveStatus) -> [u8; 3] {
     [0x03, bits, value]
 }
 
+/// Warning code of alarm A138 "PROFIBUS DP interface in Clear mode" (CFW500 §6).
+pub const ALARM_CLEAR_MODE: u16 = 138;
+/// Warning code of alarm A139 "PROFIBUS DP interface offline" (CFW500 §6).
+pub const ALARM_OFFLINE: u16 = 139;
+/// Warning code of alarm A140 "PROFIBUS DP module access error" (CFW500 §6).
+pub const ALARM_ACCESS_ERROR: u16 = 140;
+
+bitflags::bitflags! {
+    /// The drive's communication alarms (module docs; CFW500 §6, CFW-11 §5).
+    #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+    pub struct CommAlarms: u8 {
+        /// A138: the master is in Clear (CARD event 0, STATUS "Clear").
+        const CLEAR_MODE = 1 << 0;
+        /// A139: the card went offline (CARD event 1 "offline" or 3 "watchdog").
+        const OFFLINE = 1 << 1;
+        /// A140: the card's heartbeat stopped (the drive cannot reach the card).
+        const ACCESS_ERROR = 1 << 2;
+    }
+}
+
+impl CommAlarms {
+    /// The warning code of the most severe active alarm (A140 over A139 over A138), 0 for none.
+    pub fn warning_code(self) -> u16 {
+        if self.contains(CommAlarms::ACCESS_ERROR) {
+            ALARM_ACCESS_ERROR
+        } else if self.contains(CommAlarms::OFFLINE) {
+            ALARM_OFFLINE
+        } else if self.contains(CommAlarms::CLEAR_MODE) {
+            ALARM_CLEAR_MODE
+        } else {
+            0
+        }
+    }
+}
+
 /// Counters of the simulated drive.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
@@ -68,6 +125,8 @@ pub struct SimStats {
     pub command_errors: u32,
     /// DRIVE_STATE / DRIVE writes that failed.
     pub write_errors: u32,
+    /// Communication alarms raised (A138 / A139 / A140, each counted).
+    pub comm_alarms: u32,
 }
 
 /// The simulated drive's control board (module docs).
@@ -82,6 +141,7 @@ pub struct SimDrive {
     bypass_cw: u16,
     bypass_resets: u8,
     diag: [u8; 3],
+    alarms: CommAlarms,
     stats: SimStats,
 }
 
@@ -98,6 +158,7 @@ impl SimDrive {
             bypass_cw: 0,
             bypass_resets: 0,
             diag: [0; 3],
+            alarms: CommAlarms::empty(),
             stats: SimStats::default(),
         }
     }
@@ -139,6 +200,10 @@ impl SimDrive {
     pub fn set_serve_parameters(&mut self, on: bool) {
         self.serve_parameters = on;
     }
+    /// The active communication alarms (A138 / A139 / A140, module docs).
+    pub fn comm_alarms(&self) -> CommAlarms {
+        self.alarms
+    }
     /// Counters.
     pub fn stats(&self) -> SimStats {
         self.stats
@@ -152,14 +217,30 @@ impl SimDrive {
     /// One drive cycle at `now` through `host`.
     pub fn step<T: Transport>(&mut self, now: Instant, host: &mut Host<T>) {
         self.stats.steps = self.stats.steps.wrapping_add(1);
-        host.poll(now);
+        let poll = host.poll(now);
+        let comm = host.status().ok().map(|s| s.comm);
+        self.track_alarms(&poll, comm);
         match host.read_command() {
             Ok((_, img)) => self.image = img,
             Err(_) => self.stats.command_errors = self.stats.command_errors.wrapping_add(1),
         }
         let bypass = self.image.operate_mode == operate_mode::BYPASS;
         self.command = if bypass { self.bypass_command() } else { self.image.command };
+        if !self.alarms.is_empty() {
+            // The communication error: the drive's P0313-style action, at once.
+            self.command.flags |= CommandFlags::COMM_LOSS;
+            if self.alarms.contains(CommAlarms::ACCESS_ERROR) {
+                // The card is gone: its DRIVE_CMD (and Set_Prm reaction) is stale.
+                self.command.comm_loss_reaction = 0;
+            }
+        }
         self.status = self.model.step(now, &self.command);
+        let action = CommLossAction::from_reaction(self.command.comm_loss_reaction)
+            .unwrap_or(self.model.config().comm_loss_action);
+        if !self.alarms.is_empty() && action != CommLossAction::Fault && self.status.warning_code == 0 {
+            self.status.warning_code = self.alarms.warning_code();
+            self.status.flags |= StatusFlags::WARNING;
+        }
         let extra = if bypass { self.bypass_words() } else { self.image.extra };
         let state = DriveStateImage { status: self.status, inputs_seq: 0, extra };
         if host.write_state(&state).is_err() {
@@ -181,6 +262,32 @@ impl SimDrive {
         if self.serve_parameters {
             let _ = host.serve_parameters(&mut crate::dpm::host::Table(&mut self.table));
         }
+    }
+
+    /// A138 / A139 / A140 from the card's events, communication state and heartbeat
+    /// (module docs).
+    fn track_alarms(&mut self, poll: &Poll, comm: Option<CommState>) {
+        let before = self.alarms;
+        let ev = &poll.events;
+        if ev.contains(CardEvent::ClearMode) || comm == Some(CommState::ClearMode) {
+            self.alarms.insert(CommAlarms::CLEAR_MODE);
+        }
+        if ev.contains(CardEvent::Offline) || ev.contains(CardEvent::Watchdog) {
+            self.alarms.insert(CommAlarms::OFFLINE);
+        }
+        match comm {
+            Some(CommState::Online) => self.alarms.remove(CommAlarms::CLEAR_MODE | CommAlarms::OFFLINE),
+            Some(CommState::ClearMode) => self.alarms.remove(CommAlarms::OFFLINE),
+            _ => {}
+        }
+        if poll.card_lost {
+            self.alarms.insert(CommAlarms::ACCESS_ERROR);
+        }
+        if poll.card_returned {
+            self.alarms.remove(CommAlarms::ACCESS_ERROR);
+        }
+        let new = (self.alarms - before).bits().count_ones();
+        self.stats.comm_alarms = self.stats.comm_alarms.wrapping_add(new);
     }
 
     /// Bypass: FBFixedControlWord (word 1) and the 0..10000 setpoint (word 2).
@@ -246,5 +353,190 @@ mod tests {
         s.fault_code = 0x1234;
         s.flags |= StatusFlags::WARNING;
         assert_eq!(diag_block(&s), [0x03, 3, 255]);
+    }
+
+    use crate::dpm::host::{DpmTransport, Options};
+    use crate::dpm::{CardReport, Dpm, Status};
+    use crate::time::Duration;
+    use model::FAULT_FIELDBUS;
+
+    /// The card's side of the DPM, scripted: heartbeat, event counters, STATUS, DRIVE_CMD.
+    struct Card {
+        report: CardReport,
+        status: Status,
+        command: DriveCommandImage,
+        beating: bool,
+    }
+
+    impl Card {
+        fn new() -> Self {
+            let mut command = DriveCommandImage::EMPTY;
+            command.command = DriveCommand {
+                flags: CommandFlags::RUN | CommandFlags::FIELDBUS_CONTROL,
+                speed_setpoint: 0x2000,
+                ..DriveCommand::default()
+            };
+            let status = Status { comm: CommState::Online, ..Status::INACTIVE };
+            Card { report: CardReport::default(), status, command, beating: true }
+        }
+        fn publish(&mut self, dpm: &mut Dpm) {
+            if self.beating {
+                self.report.heartbeat = self.report.heartbeat.wrapping_add(1).max(1);
+            }
+            let mut card = dpm.card();
+            card.write_status(&self.status);
+            card.write_card_report(&self.report);
+            card.write_drive_command(&self.command);
+        }
+        fn raise(&mut self, e: CardEvent) {
+            self.report.events[e as usize] = self.report.events[e as usize].wrapping_add(1);
+        }
+    }
+
+    struct Rig {
+        card: Card,
+        host: Host<DpmTransport<Dpm>>,
+        drive: SimDrive,
+        now: Instant,
+    }
+
+    impl Rig {
+        fn new(action: CommLossAction) -> Self {
+            let host = Host::open(DpmTransport::new(Dpm::new()), Options::DEFAULT).unwrap();
+            let drive = SimDrive::new(DriveConfig {
+                ramp_time: Duration::from_millis(100),
+                comm_loss_action: action,
+                ..DriveConfig::DEFAULT
+            });
+            let mut r = Rig { card: Card::new(), host, drive, now: Instant::from_millis(0) };
+            r.run(300);
+            assert!(r.drive.actual_speed() > 0x1F00, "running at the setpoint");
+            assert!(r.drive.comm_alarms().is_empty());
+            r
+        }
+        /// Steps of 10 ms for `ms`.
+        fn run(&mut self, ms: u64) {
+            for _ in 0..ms / 10 {
+                self.now = self.now + Duration::from_millis(10);
+                self.card.publish(self.host.transport_mut().dpm_mut());
+                self.drive.step(self.now, &mut self.host);
+            }
+        }
+        /// The card goes online again, its command without COMM_LOSS.
+        fn back_online(&mut self) {
+            self.card.status.comm = CommState::Online;
+            self.card.raise(CardEvent::Online);
+            self.card.command.command.flags.remove(CommandFlags::COMM_LOSS);
+        }
+    }
+
+    /// A138: Clear mode gives the drive's P0313-style action at once (before the card's
+    /// DRIVE_CMD says so) and the alarm as warning; leaving Clear clears it.
+    #[test]
+    fn a138_clear_mode_applies_the_drives_action_and_clears() {
+        let mut r = Rig::new(CommLossAction::RampStop);
+        r.card.raise(CardEvent::ClearMode);
+        r.card.status.comm = CommState::ClearMode;
+        r.run(10);
+        assert_eq!(r.drive.comm_alarms(), CommAlarms::CLEAR_MODE);
+        assert!(r.drive.command().flags.contains(CommandFlags::COMM_LOSS));
+        assert_eq!(r.drive.status().warning_code, ALARM_CLEAR_MODE);
+        assert!(r.drive.status().flags.contains(StatusFlags::WARNING));
+        assert_eq!(r.host.drive_report().warning_code, ALARM_CLEAR_MODE, "reported to the card");
+        r.card.command.command.flags.insert(CommandFlags::COMM_LOSS);
+        r.run(200);
+        assert_eq!(r.drive.actual_speed(), 0, "ramp stop");
+        assert!(!r.drive.model().modulating());
+        // The master leaves Clear: the alarm disappears by itself (an alarm, not a fault).
+        r.card.status.comm = CommState::Online;
+        r.card.command.command.flags.remove(CommandFlags::COMM_LOSS);
+        r.run(10);
+        assert!(r.drive.comm_alarms().is_empty());
+        assert_eq!(r.drive.status().warning_code, 0);
+        r.run(300);
+        assert!(r.drive.actual_speed() > 0x1F00, "runs again with the master's command");
+        assert_eq!(r.drive.stats().comm_alarms, 1);
+    }
+
+    /// A139: the watchdog expiry (event 3) and leaving data exchange (event 1) raise it; the
+    /// "fault" action trips (F239-style) and the fault stays after the alarm is gone.
+    #[test]
+    fn a139_offline_with_the_fault_action_trips_until_reset() {
+        for event in [CardEvent::Watchdog, CardEvent::Offline] {
+            let mut r = Rig::new(CommLossAction::Fault);
+            r.card.raise(event);
+            r.card.status.comm = CommState::Offline;
+            r.run(10);
+            assert_eq!(r.drive.comm_alarms(), CommAlarms::OFFLINE, "{event:?}");
+            assert_eq!(r.drive.status().fault_code, FAULT_FIELDBUS);
+            assert_eq!(r.drive.status().warning_code, 0, "a fault, not an alarm");
+            assert_eq!(r.host.drive_report().fault_code, FAULT_FIELDBUS);
+            r.back_online();
+            r.run(10);
+            assert!(r.drive.comm_alarms().is_empty());
+            assert_eq!(r.drive.status().fault_code, FAULT_FIELDBUS, "kept until a fault reset");
+            r.card.command.command.fault_resets = 1;
+            r.run(10);
+            assert_eq!(r.drive.status().fault_code, 0);
+        }
+    }
+
+    /// A139 at power-up: offline without a transition from online raises nothing.
+    #[test]
+    fn a139_not_at_power_up() {
+        let host = Host::open(DpmTransport::new(Dpm::new()), Options::DEFAULT).unwrap();
+        let mut r =
+            Rig { card: Card::new(), host, drive: SimDrive::new(DriveConfig::DEFAULT), now: Instant::from_millis(0) };
+        r.card.status.comm = CommState::Offline;
+        r.card.command = DriveCommandImage::EMPTY;
+        r.run(100);
+        assert!(r.drive.comm_alarms().is_empty());
+        assert_eq!(r.drive.status().fault_code, 0);
+    }
+
+    /// A140: the card's heartbeat stops; the drive's own action applies even though the
+    /// card's stale DRIVE_CMD asks for another reaction and has no COMM_LOSS; the alarm goes
+    /// when the card beats again.
+    #[test]
+    fn a140_card_lost_applies_the_drives_own_action() {
+        for action in
+            [CommLossAction::Coast, CommLossAction::QuickStop, CommLossAction::KeepLast, CommLossAction::Fault]
+        {
+            let mut r = Rig::new(action);
+            r.card.command.command.comm_loss_reaction = 4; // stale "keep last" from Set_Prm
+            r.card.beating = false;
+            r.run(250);
+            assert_eq!(r.drive.comm_alarms(), CommAlarms::ACCESS_ERROR, "{action:?}");
+            assert_eq!(r.host.stats().card_losses, 1);
+            assert_eq!(r.drive.command().comm_loss_reaction, 0, "the drive's own setting");
+            match action {
+                CommLossAction::Coast => assert!(!r.drive.model().modulating()),
+                CommLossAction::QuickStop => {
+                    r.run(600);
+                    assert_eq!(r.drive.actual_speed(), 0);
+                }
+                CommLossAction::KeepLast => assert!(r.drive.actual_speed() > 0x1F00),
+                _ => assert_eq!(r.drive.status().fault_code, FAULT_FIELDBUS),
+            }
+            if action != CommLossAction::Fault {
+                assert_eq!(r.drive.status().warning_code, ALARM_ACCESS_ERROR);
+            }
+            r.card.beating = true;
+            r.run(20);
+            assert!(r.drive.comm_alarms().is_empty(), "{action:?}: the card beats again");
+            if action != CommLossAction::Fault {
+                assert_eq!(r.drive.status().warning_code, 0);
+                r.run(500);
+                assert!(r.drive.actual_speed() > 0x1F00, "{action:?}: runs again");
+            }
+        }
+    }
+
+    #[test]
+    fn the_most_severe_alarm_is_the_warning() {
+        assert_eq!(CommAlarms::all().warning_code(), ALARM_ACCESS_ERROR);
+        assert_eq!((CommAlarms::CLEAR_MODE | CommAlarms::OFFLINE).warning_code(), ALARM_OFFLINE);
+        assert_eq!(CommAlarms::CLEAR_MODE.warning_code(), ALARM_CLEAR_MODE);
+        assert_eq!(CommAlarms::empty().warning_code(), 0);
     }
 }

@@ -197,11 +197,41 @@ impl Cyclic {
     }
 
     /// The master's outputs are held back (the I/O update delay after going online, CFW-11
-    /// P0799): the inputs from the drive's latest status as in [`Self::comm_lost`] (the
-    /// profile keeps its state), the last output words stay with the drive, no PKW request,
-    /// not counted as a loss. The caller chooses the command.
-    pub fn hold(&mut self, profile: &mut impl ControlProfile, drive: DriveSide<'_>) -> Cycle {
-        self.run(profile, drive, true)
+    /// P0799): a new image of the right length (`outputs`) is only kept for
+    /// [`Self::resume`]; the inputs come from the drive's latest status as in
+    /// [`Self::comm_lost`] (the profile keeps its state); the command and the drive's words
+    /// are those of `before` (the previous cycle; none: no command, zero words); no PKW
+    /// request; not counted as a loss.
+    pub fn hold(
+        &mut self,
+        profile: &mut impl ControlProfile,
+        outputs: Option<&[u8]>,
+        drive: DriveSide<'_>,
+        before: Option<&Cycle>,
+    ) -> Cycle {
+        let mut c = self.run(profile, drive, true);
+        if let Some(out) = outputs.filter(|o| o.len() == self.layout.output_bytes()) {
+            self.last[..out.len()].copy_from_slice(out);
+            self.have_last = true;
+        }
+        match before {
+            Some(b) => {
+                c.command = b.command;
+                c.words = b.words;
+                c.word_count = b.word_count;
+            }
+            None => {
+                c.command = c.command.map(|_| DriveCommand::default());
+                c.words = [0; PZD_SIGNALS];
+            }
+        }
+        c
+    }
+
+    /// The hold is over: the last output image (the newest one kept by [`Self::hold`]) is
+    /// evaluated like a new one, PKW request included.
+    pub fn resume(&mut self, profile: &mut impl ControlProfile, drive: DriveSide<'_>) -> Cycle {
+        self.run(profile, drive, false)
     }
 
     fn run(&mut self, profile: &mut impl ControlProfile, drive: DriveSide<'_>, lost: bool) -> Cycle {

@@ -28,7 +28,7 @@
 //! ([`Runtime::set_io_update_delay`]), default 0 (no delay, as P0799's factory setting), and
 //! needs the time ([`Runtime::cycle_at`]; [`Runtime::cycle`] runs without it).
 
-use super::cyclic::{Cycle, Cyclic, CyclicError, DriveSide, OperateMode, MAX_IMAGE};
+use super::cyclic::{Cycle, Cyclic, CyclicError, DriveSide, OperateMode};
 use super::drive_if::{ControlProfile, DriveCommand, DriveStatus};
 use super::faults::FaultBuffer;
 use super::invt::Invt;
@@ -199,9 +199,6 @@ struct UpdateDelay {
     online: bool,
     /// The master's outputs are held until this time.
     until: Option<Instant>,
-    /// The newest output image received while held.
-    pending: [u8; MAX_IMAGE],
-    pending_len: Option<usize>,
 }
 
 /// The card's profile layer (module docs).
@@ -239,13 +236,7 @@ impl Runtime {
             faults: FaultBuffer::new(),
             drive_fault: 0,
             last: None,
-            delay: UpdateDelay {
-                delay: Duration::ZERO,
-                online: false,
-                until: None,
-                pending: [0; MAX_IMAGE],
-                pending_len: None,
-            },
+            delay: UpdateDelay { delay: Duration::ZERO, online: false, until: None },
             stats: RuntimeStats::default(),
         }
     }
@@ -277,7 +268,6 @@ impl Runtime {
         self.last = None;
         self.delay.online = false;
         self.delay.until = None;
-        self.delay.pending_len = None;
         let dialect = match sel.telegram {
             Telegram::Vendor(Family::Invt, _) => PkwDialect::Invt,
             _ => PkwDialect::Profidrive2,
@@ -373,7 +363,6 @@ impl Runtime {
         if lost {
             d.online = false;
             d.until = None;
-            d.pending_len = None;
         } else if !d.online {
             d.online = true;
             if let Some(now) = now.filter(|_| d.delay > Duration::ZERO) {
@@ -381,38 +370,20 @@ impl Runtime {
                 self.stats.delays_started = self.stats.delays_started.wrapping_add(1);
             }
         }
-        let mut pending = [0u8; MAX_IMAGE];
-        let mut pending_len = None;
-        let held = match (d.until, now) {
-            (Some(t), Some(now)) if now < t => true,
+        let (held, resumed) = match (d.until, now) {
+            (Some(t), Some(now)) if now < t => (true, false),
             (Some(_), _) => {
-                // The delay is over: the newest image held back is taken now.
                 d.until = None;
-                if let Some(n) = d.pending_len.take() {
-                    pending[..n].copy_from_slice(&d.pending[..n]);
-                    pending_len = Some(n);
-                }
-                false
+                (false, true)
             }
-            _ => false,
+            _ => (false, false),
         };
-        let outputs = outputs.or(pending_len.map(|n| &pending[..n]));
         let cycle = if held {
-            if let Some(out) = outputs {
-                let n = out.len().min(MAX_IMAGE);
-                d.pending[..n].copy_from_slice(&out[..n]);
-                d.pending_len = Some(n);
+            if outputs.is_some() {
                 self.stats.held_outputs = self.stats.held_outputs.wrapping_add(1);
             }
             // The drive keeps the command it had before going online; the inputs are live.
-            let before = self.last.as_ref().map(|c| c.command);
-            let mut c = engine.hold(profile, side);
-            c.command = match before {
-                Some(cmd) => cmd,
-                None if c.command.is_some() => Some(DriveCommand::default()),
-                None => None,
-            };
-            c
+            engine.hold(profile, outputs, side, self.last.as_ref())
         } else if lost {
             engine.comm_lost(profile, side)
         } else if let Some(out) = outputs {
@@ -420,12 +391,12 @@ impl Runtime {
                 Some(c) => c,
                 None => engine.step(profile, side),
             }
+        } else if resumed {
+            // The delay is over: the newest image held back is taken now.
+            engine.resume(profile, side)
         } else {
             engine.step(profile, side)
         };
-        if !held {
-            self.delay.pending_len = None;
-        }
         if let Some(req) = cycle.pkw_request {
             self.pkw.on_request(req);
         }
