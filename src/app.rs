@@ -663,4 +663,253 @@ mod tests {
         assert_eq!(b.read47(), [7, 2, 1, 1]);
         assert_eq!(b.requests(), 3);
     }
+
+    /// Issue 6 item 5: SYNC / FREEZE / Clear / watchdog on live data through the whole card
+    /// (DP slave → profile layer → DPM → simulated drive and back), one module of each family
+    /// (CFW500 §5.1.2 SYNC/FREEZE, §6 A138 / A139 with P0313).
+    mod process_data_semantics {
+        use super::*;
+        use crate::dpm::CardEvent;
+        use crate::drive::model::{CommLossAction, FAULT_FIELDBUS};
+        use crate::drive::CommAlarms;
+
+        /// Global_Control commands (reference §3.6).
+        const GC_SYNC: u8 = 0x20;
+        const GC_UNSYNC: u8 = 0x10;
+        const GC_FREEZE: u8 = 0x08;
+        const GC_UNFREEZE: u8 = 0x04;
+        const GC_CLEAR: u8 = 0x02;
+
+        /// One module per family: ST1, ST20, VACON 138, PPO 5, WEG CFW500 105, CFW-11 103, INVT.
+        fn family_modules() -> Vec<&'static card::Module> {
+            [1u16, 20, 1138, 105, 2105, 3103, 4001]
+                .iter()
+                .map(|r| card::MODULES.iter().find(|m| m.reference == *r).expect("module in the GSD"))
+                .collect()
+        }
+
+        /// The control words of the module's profile: (switch-on sequence, run, stop).
+        fn control_words(m: &card::Module) -> (Vec<u16>, u16, u16) {
+            match Telegram::of_module(m).unwrap() {
+                Telegram::Vendor(crate::dpm::Family::Invt, _) => (vec![], 0x0001, 0x0005),
+                // WEG manufacturer profile (P0741 = 1, the drive's factory setting): P0684
+                // b0 run, b1 general enable, b2 forward, b4 remote.
+                Telegram::Vendor(crate::dpm::Family::WegCfw500 | crate::dpm::Family::WegCfw11, _) => {
+                    (vec![], 0x0017, 0x0016)
+                }
+                _ => (vec![0x047E; 3], 0x047F, 0x047E),
+            }
+        }
+
+        fn image(m: &card::Module, cw: u16, sp: u16) -> Vec<u8> {
+            let pkw = Telegram::of_module(m).unwrap().pkw_words();
+            let mut q = vec![0u8; m.outputs as usize];
+            q[2 * pkw..2 * pkw + 2].copy_from_slice(&cw.to_be_bytes());
+            q[2 * pkw + 2..2 * pkw + 4].copy_from_slice(&sp.to_be_bytes());
+            q
+        }
+
+        /// A setpoint word of `percent` % in the module's profile scale.
+        fn setpoint(m: &card::Module, percent: u32) -> u16 {
+            let full = match Telegram::of_module(m).unwrap() {
+                Telegram::Ppo(_) => 10_000,
+                Telegram::Vendor(crate::dpm::Family::Invt, _) => 5000,
+                Telegram::Vendor(crate::dpm::Family::WegCfw500 | crate::dpm::Family::WegCfw11, _) => 8192,
+                _ => 0x4000,
+            };
+            (full * percent / 100) as u16
+        }
+
+        fn actual(m: &card::Module, inputs: &[u8]) -> u16 {
+            let pkw = Telegram::of_module(m).unwrap().pkw_words();
+            words(inputs)[pkw + 1]
+        }
+
+        impl Bench {
+            /// Set_Prm with Sync_Req and Freeze_Req (and the watchdog, 1 s), Chk_Cfg.
+            fn bring_up_sync_freeze(&mut self, m: &card::Module) {
+                let mut prm = vec![0xB8, 1, 100, 11, (card::IDENT_NUMBER >> 8) as u8, card::IDENT_NUMBER as u8, 0];
+                prm.extend_from_slice(&card::USER_PRM_DEFAULTS);
+                assert_eq!(self.srd(Some(61), &prm), [telegram::SC]);
+                self.step(1);
+                assert_eq!(self.srd(Some(62), m.cfg), [telegram::SC]);
+                self.step(1);
+                assert_eq!(self.node.slave().state(), DpState::DataExch, "{}", m.name);
+            }
+
+            /// Global_Control `command` to group 0 (SDN to SAP 58), then a step.
+            fn global_control(&mut self, command: u8) {
+                let hdr = Header {
+                    da: SLAVE,
+                    sa: MASTER,
+                    fc: FunctionCode::request(0x6, false, false),
+                    dsap: Some(58),
+                    ssap: Some(62),
+                };
+                let mut buf = [0u8; telegram::MAX_FRAME_LEN];
+                let n = telegram::emit(&mut buf, &hdr, &[command, 0x00]).unwrap();
+                for &x in &buf[..n] {
+                    assert!(self.node.on_byte(self.now, x).is_none(), "SDN: no answer");
+                }
+                self.step(1);
+            }
+
+            /// Switch on and run at `percent` % until the drive is there.
+            fn run_at(&mut self, m: &card::Module, percent: u32) {
+                let (on, run, _) = control_words(m);
+                let sp = setpoint(m, percent);
+                for cw in on {
+                    self.cycle(&image(m, cw, sp), 5);
+                }
+                for _ in 0..150 {
+                    self.cycle(&image(m, run, sp), 10);
+                }
+                let want = (0x4000 * percent / 100) as i16;
+                let n = self.app.drive().actual_speed();
+                assert!((n - want).abs() < 0x40, "{}: running at {percent} % (N2 {n:#06X})", m.name);
+            }
+
+            fn card_event(&self, e: CardEvent) -> u8 {
+                self.app.dpm().card_report().unwrap().event(e)
+            }
+        }
+
+        /// SYNC (CFW500 §5.1.2): the outputs received after a SYNC reach the drive only with
+        /// the next SYNC (or UNSYNC).
+        #[test]
+        fn sync_applies_the_outputs_together() {
+            for m in family_modules() {
+                let mut b = Bench::new();
+                b.bring_up_sync_freeze(m);
+                b.run_at(m, 25);
+                let (_, run, stop) = control_words(m);
+                let before = *b.app.drive().command();
+                b.global_control(GC_SYNC);
+                assert!(b.node.slave().is_sync(), "{}", m.name);
+                // New setpoint, then even a stop: stored, not applied.
+                for cw in [run, stop] {
+                    for _ in 0..5 {
+                        b.cycle(&image(m, cw, setpoint(m, 50)), 10);
+                        assert_eq!(*b.app.drive().command(), before, "{}: held under SYNC", m.name);
+                    }
+                }
+                assert!(b.app.drive().actual_speed() > 0x0F00, "{}: still running", m.name);
+                // The run command at 50 % is the last one sent: the next SYNC applies it.
+                b.cycle(&image(m, run, setpoint(m, 50)), 10);
+                b.global_control(GC_SYNC);
+                b.step(5);
+                let c = b.app.drive().command();
+                assert!(c.flags.contains(CommandFlags::RUN), "{}", m.name);
+                assert!((c.speed_setpoint - 0x2000).abs() <= 2, "{}: 50 % applied ({:#06X})", m.name, c.speed_setpoint);
+                // Stop sent under SYNC, then UNSYNC: applied, and later outputs at once.
+                b.cycle(&image(m, stop, setpoint(m, 50)), 10);
+                assert!(b.app.drive().command().flags.contains(CommandFlags::RUN), "{}", m.name);
+                b.global_control(GC_UNSYNC);
+                b.step(5);
+                assert!(!b.node.slave().is_sync());
+                assert!(!b.app.drive().command().flags.contains(CommandFlags::RUN), "{}: stop applied", m.name);
+                b.cycle(&image(m, run, setpoint(m, 10)), 10);
+                b.step(5);
+                let c = b.app.drive().command();
+                assert!((c.speed_setpoint - 0x0666).abs() <= 2, "{}: direct again ({:#06X})", m.name, c.speed_setpoint);
+            }
+        }
+
+        /// FREEZE (CFW500 §5.1.2): the master's inputs stay frozen while the drive ramps, until
+        /// the next FREEZE (a new sample) or UNFREEZE (live again).
+        #[test]
+        fn freeze_holds_the_inputs_while_the_drive_ramps() {
+            for m in family_modules() {
+                let mut b = Bench::new();
+                b.bring_up_sync_freeze(m);
+                b.run_at(m, 10);
+                let (_, run, _) = control_words(m);
+                let q = image(m, run, setpoint(m, 90));
+                b.cycle(&q, 100);
+                b.cycle(&q, 10);
+                b.global_control(GC_FREEZE);
+                assert!(b.node.slave().is_freeze());
+                let frozen = b.cycle(&q, 50);
+                let speed = b.app.drive().actual_speed();
+                for _ in 0..5 {
+                    assert_eq!(b.cycle(&q, 50), frozen, "{}: inputs frozen", m.name);
+                }
+                assert!(b.app.drive().actual_speed() > speed + 0x400, "{}: the drive ramps meanwhile", m.name);
+                // A new FREEZE takes a new sample, frozen again.
+                b.global_control(GC_FREEZE);
+                let second = b.cycle(&q, 50);
+                assert!(actual(m, &second) > actual(m, &frozen), "{}: a newer sample", m.name);
+                assert_eq!(b.cycle(&q, 50), second, "{}", m.name);
+                // UNFREEZE: live values, moving on the ramp.
+                b.global_control(GC_UNFREEZE);
+                b.cycle(&q, 50);
+                let a = actual(m, &b.cycle(&q, 50));
+                let c = actual(m, &b.cycle(&q, 50));
+                assert!(c > a && a > actual(m, &second), "{}: live again ({a} → {c})", m.name);
+            }
+        }
+
+        /// Clear mode (A138): the drive gets the communication-loss command and the CARD
+        /// event; with the drive's action "ramp stop" it stops and shows A138, which goes away
+        /// when the master leaves Clear; the outputs then apply again.
+        #[test]
+        fn clear_mode_gives_the_drive_its_comm_loss_action() {
+            for m in family_modules() {
+                let mut b = Bench::new();
+                b.app.drive_mut().model_mut().config_mut().comm_loss_action = CommLossAction::RampStop;
+                b.bring_up_sync_freeze(m);
+                b.run_at(m, 25);
+                let (_, run, _) = control_words(m);
+                let q = image(m, run, setpoint(m, 25));
+                let events = b.card_event(CardEvent::ClearMode);
+                b.global_control(GC_CLEAR);
+                b.cycle(&q, 5);
+                assert_eq!(b.card_event(CardEvent::ClearMode), events.wrapping_add(1), "{}", m.name);
+                assert_eq!(b.app.dpm().status().unwrap().comm, CommState::ClearMode);
+                assert!(b.app.drive().command().flags.contains(CommandFlags::COMM_LOSS), "{}", m.name);
+                assert_eq!(b.app.drive().comm_alarms(), CommAlarms::CLEAR_MODE, "{}", m.name);
+                for _ in 0..60 {
+                    b.cycle(&q, 10);
+                }
+                assert_eq!(b.app.drive().actual_speed(), 0, "{}: ramp stop (P0313 = 1)", m.name);
+                assert_eq!(b.app.drive().status().warning_code, crate::drive::ALARM_CLEAR_MODE);
+                // Operate again (Global_Control without Clear_Data): the alarm goes, it runs.
+                b.global_control(0x00);
+                for _ in 0..60 {
+                    b.cycle(&q, 10);
+                }
+                assert!(b.app.drive().comm_alarms().is_empty(), "{}", m.name);
+                assert!(!b.app.drive().command().flags.contains(CommandFlags::COMM_LOSS));
+                assert_eq!(b.app.drive().status().warning_code, 0);
+                assert!(b.app.drive().actual_speed() > 0x0800, "{}: runs again", m.name);
+            }
+        }
+
+        /// Watchdog expiry (A139): the CARD events, the communication-loss command, and the
+        /// drive's factory action "fault" (F239-style, kept until reset after the master is back).
+        #[test]
+        fn watchdog_expiry_trips_the_drive_with_its_action() {
+            for m in family_modules() {
+                let mut b = Bench::new();
+                b.bring_up_sync_freeze(m);
+                b.run_at(m, 25);
+                let (wd, off) = (b.card_event(CardEvent::Watchdog), b.card_event(CardEvent::Offline));
+                let ev = b.step(1100);
+                assert!(ev.contains(Events::WATCHDOG_EXPIRED), "{}", m.name);
+                b.step(1);
+                assert_eq!(b.card_event(CardEvent::Watchdog), wd.wrapping_add(1));
+                assert_eq!(b.card_event(CardEvent::Offline), off.wrapping_add(1));
+                assert!(b.app.drive().command().flags.contains(CommandFlags::COMM_LOSS), "{}", m.name);
+                assert_eq!(b.app.drive().comm_alarms(), CommAlarms::OFFLINE, "{}", m.name);
+                assert_eq!(b.app.drive().status().fault_code, FAULT_FIELDBUS, "{}", m.name);
+                assert!(!b.app.drive().model().modulating());
+                // The master comes back: the alarm goes, the fault stays.
+                b.bring_up_sync_freeze(m);
+                let (_, run, _) = control_words(m);
+                b.cycle(&image(m, run, setpoint(m, 25)), 10);
+                assert!(b.app.drive().comm_alarms().is_empty(), "{}", m.name);
+                assert_eq!(b.app.drive().status().fault_code, FAULT_FIELDBUS, "{}: until reset", m.name);
+            }
+        }
+    }
 }
