@@ -18,6 +18,8 @@
 //!
 //! Run: `bash scripts/qemu.sh test`
 
+mod families;
+
 use std::time::{Duration, Instant};
 
 use host_tests::qemu::{
@@ -181,6 +183,94 @@ fn ppo5_zsw_hiw_after_the_pkw_pzd_echoed_drive_runs() {
     let ppo5 = card::MODULES.iter().find(|m| m.reference == 105).expect("PPO 5 in card::MODULES");
     assert_eq!(qemu::DriveImage::new(ppo5).pzd1(), 4, "PPO 5: ZSW/HIW after the four PKW words");
     drive_end_to_end(ppo5, -0x1000, 300);
+}
+
+/// One module's run with the family PLC on a master already in data exchange: run up to
+/// the setpoint (echo back), stop to standstill.
+fn run_family<S: std::io::Read + std::io::Write>(
+    m: &mut LiveMaster<S>,
+    plc: &mut families::FamilyDrive,
+) -> Result<String, String> {
+    use families::Phase;
+    let t0 = Instant::now();
+    for phase in [Phase::Run, Phase::Stop] {
+        plc.start(phase);
+        let deadline = Instant::now() + PHASE;
+        loop {
+            if Instant::now() > deadline {
+                return Err(format!(
+                    "{}: {phase:?} not done within {PHASE:?}; actuals {:?}",
+                    plc.module.name, plc.actuals
+                ));
+            }
+            match m.poll() {
+                Some(PeripheralEvent::DataExchanged) => {
+                    let i = m.peripheral().pi_i().to_vec();
+                    let (q, done) = plc.next(&i, phase)?;
+                    m.peripheral().pi_q_mut().copy_from_slice(&q);
+                    if done {
+                        break;
+                    }
+                }
+                Some(PeripheralEvent::Offline) => {
+                    return Err(format!("{}: the master lost the slave", plc.module.name))
+                }
+                _ => {}
+            }
+        }
+        if phase == Phase::Run {
+            plc.check_ramp()?;
+        }
+    }
+    Ok(format!(
+        "{}: {} cycles in {:.1} s, {} fault acknowledges, ramp through {} values",
+        plc.module.name,
+        plc.cycles,
+        t0.elapsed().as_secs_f64(),
+        plc.resets,
+        plc.actuals.len()
+    ))
+}
+
+/// Issue 6 "the QEMU build runs any of these telegrams": one boot, re-parameterised module
+/// after module (Set_Prm / Chk_Cfg again from a new master on the same line) — ST20, VACON
+/// 138, CFW500 105, CFW-11 103, INVT, then ST1 again — each run up to its setpoint with the
+/// programmable words echoed and stopped, through its own control profile. Leaving data
+/// exchange for the new Set_Prm trips the running card's drive (A139 with its factory action
+/// "fault"): each family acknowledges it with its own reset.
+#[test]
+fn every_family_runs_the_drive_on_one_boot() {
+    let Some(q) = boot() else { return };
+    let mut phy = match q.connect() {
+        Ok(p) => p,
+        Err(e) => fail(q, &[], format!("connect to USART1: {e}")),
+    };
+    if let Err(e) = qemu::wait_for_answer(&mut phy, SLAVE, Duration::from_secs(20)) {
+        fail(q, &[], e);
+    }
+    let mut reports = Vec::new();
+    let mut q = q;
+    for reference in [20u16, 1138, 2105, 3103, 4001, 1] {
+        let mut plc = families::FamilyDrive::new(reference, 25);
+        let mut m = LiveMaster::new(phy, SLAVE, plc.module, &MasterSetup::default());
+        if let Err(e) = m.bring_up(PHASE) {
+            let ev = m.events.clone();
+            fail(q, &ev, format!("{}: {e}", plc.module.name));
+        }
+        match run_family(&mut m, &mut plc).and_then(|r| q.check_running().map(|()| r)) {
+            Ok(r) => reports.push(r),
+            Err(e) => {
+                let ev = m.events.clone();
+                fail(q, &ev, e);
+            }
+        }
+        phy = m.phy;
+    }
+    let fw = q.stop();
+    assert!(!fw.iter().any(|l| l.contains("panic") || l.contains("HardFault")), "firmware log: {fw:#?}");
+    for r in reports {
+        println!("{r}");
+    }
 }
 
 // ----- DP-V1 through the firmware's middle-priority task -----

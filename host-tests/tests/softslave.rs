@@ -20,6 +20,8 @@
 //! `PBCARD_SOFTSLAVE_VERBOSE=1` adds every telegram to it, `PBCARD_PHY_TRACE=1` prints the
 //! master's side.
 
+mod families;
+
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
@@ -164,6 +166,12 @@ struct Master {
 
 impl Master {
     fn new(pty: Pty, module: &card::Module, watchdog: Option<Duration>) -> Self {
+        let phy = GapResponder { inner: pty.into_phy(), slave: SLAVE, answer: Vec::new() };
+        Self::on(phy, module, watchdog)
+    }
+
+    /// A new master (a new Set_Prm / Chk_Cfg) for `module` on the line of an earlier one.
+    fn on(phy: GapResponder<StreamPhy<PtyMaster>>, module: &card::Module, watchdog: Option<Duration>) -> Self {
         let p = PeripheralConfig::card(SLAVE, module, RATE);
         let options = PeripheralOptions {
             ident_number: p.ident,
@@ -187,7 +195,6 @@ impl Master {
         let mut fdl = FdlActiveStation::new(b.build_verified(&dp));
         fdl.set_online();
         dp.enter_operate();
-        let phy = GapResponder { inner: pty.into_phy(), slave: SLAVE, answer: Vec::new() };
         Master { fdl, dp, handle, phy, t0: StdInstant::now(), events: Vec::new(), cycles: 0 }
     }
 
@@ -391,5 +398,57 @@ fn watchdog_expiry_is_logged_and_faults_the_running_drive() {
     }
     // The acknowledge (b7 edge) resets the drive's fault; the profile leaves fault for S1 / S2.
     assert!(slave.logged("drive: fault → S"), "{}", slave.dump());
+    slave.finish();
+}
+
+/// Issue 6 "the soft slave runs any of these telegrams": one soft slave, re-parameterised
+/// module after module by a new master on the same line (Set_Prm / Chk_Cfg again) — ST20,
+/// VACON 139, PPO 6, CFW500 108, CFW-11 107, INVT — each run up to its setpoint with the
+/// programmable words echoed and stopped, through its own control profile (the drive's fault
+/// from leaving data exchange acknowledged with the family's reset).
+#[test]
+fn every_family_runs_the_drive_on_one_soft_slave() {
+    use families::{FamilyDrive, Phase};
+    let pty = Pty::open().expect("create a pseudo-terminal pair");
+    let slave = SoftSlave::start(pty.path().to_str().expect("a UTF-8 pty path"), 500);
+    let mut phy = GapResponder { inner: pty.into_phy(), slave: SLAVE, answer: Vec::new() };
+    for reference in [20u16, 1139, 106, 2108, 3107, 4001] {
+        let mut plc = FamilyDrive::new(reference, 25);
+        let mut m = Master::on(phy, plc.module, None);
+        if !m.run_until(DEADLINE, |p| p.is_running()) {
+            fail(&format!("{}: no data exchange", plc.module.name), &slave, &m);
+        }
+        for phase in [Phase::Run, Phase::Stop] {
+            plc.start(phase);
+            let mut err = None;
+            let ok = m.run_until(DEADLINE, |p| {
+                let i = p.pi_i().to_vec();
+                match plc.next(&i, phase) {
+                    Ok((q, done)) => {
+                        p.pi_q_mut().copy_from_slice(&q);
+                        done
+                    }
+                    Err(e) => {
+                        err = Some(e);
+                        true
+                    }
+                }
+            });
+            if let Some(e) = err {
+                fail(&e, &slave, &m);
+            }
+            if !ok {
+                fail(&format!("{}: {phase:?} not done; actuals {:?}", plc.module.name, plc.actuals), &slave, &m);
+            }
+            if phase == Phase::Run {
+                if let Err(e) = plc.check_ramp() {
+                    fail(&e, &slave, &m);
+                }
+            }
+        }
+        assert!(slave.logged(&format!("Chk_Cfg: {}", plc.module.name)), "{}", slave.dump());
+        println!("{}: {} cycles, {} fault acknowledges", plc.module.name, plc.cycles, plc.resets);
+        phy = m.phy;
+    }
     slave.finish();
 }

@@ -214,6 +214,9 @@ pub struct Runtime {
     drive_fault: u16,
     last: Option<Cycle>,
     delay: UpdateDelay,
+    /// Fault acknowledges of the profiles before this one: a new profile counts from 0, the
+    /// drive must see the counter continue (a restart would acknowledge its fault).
+    resets_base: u8,
     stats: RuntimeStats,
 }
 
@@ -237,6 +240,7 @@ impl Runtime {
             drive_fault: 0,
             last: None,
             delay: UpdateDelay { delay: Duration::ZERO, online: false, until: None },
+            resets_base: 0,
             stats: RuntimeStats::default(),
         }
     }
@@ -265,7 +269,9 @@ impl Runtime {
         }
         self.selection = Some(sel);
         self.stats.selections = self.stats.selections.wrapping_add(1);
-        self.last = None;
+        if let Some(c) = self.last.take().and_then(|c| c.command) {
+            self.resets_base = c.fault_resets;
+        }
         self.delay.online = false;
         self.delay.until = None;
         let dialect = match sel.telegram {
@@ -378,7 +384,8 @@ impl Runtime {
             }
             _ => (false, false),
         };
-        let cycle = if held {
+        let continued = held && self.last.is_some();
+        let mut cycle = if held {
             if outputs.is_some() {
                 self.stats.held_outputs = self.stats.held_outputs.wrapping_add(1);
             }
@@ -399,6 +406,9 @@ impl Runtime {
         };
         if let Some(req) = cycle.pkw_request {
             self.pkw.on_request(req);
+        }
+        if let Some(c) = cycle.command.as_mut().filter(|_| !continued) {
+            c.fault_resets = c.fault_resets.wrapping_add(self.resets_base);
         }
         let c = self.last.insert(cycle);
         Some(Exchange { inputs: c.inputs(), command: c.command, words: c.drive_words() })
@@ -586,5 +596,24 @@ mod tests {
         let e = r.cycle_at(at(100), None, false, &ready(), &[]).unwrap();
         assert_eq!(e.words[0], 0x1234);
         assert!(r.has_pkw_work(), "the held PKW request is taken when the delay ends");
+    }
+
+    /// A new telegram (a new profile counting its acknowledges from 0) does not acknowledge
+    /// the drive's fault: the counter the drive sees continues.
+    #[test]
+    fn a_new_selection_continues_the_fault_acknowledge_counter() {
+        let mut r = Runtime::default();
+        r.select(sel(Telegram::Standard(1), OperateMode::Profidrive));
+        let d = ready();
+        r.cycle(Some(&[0x04, 0x7E, 0, 0]), false, &d, &[]);
+        let e = r.cycle(Some(&[0x04, 0xFE, 0, 0]), false, &d, &[]).unwrap();
+        assert_eq!(e.command.unwrap().fault_resets, 1);
+        r.select(sel(Telegram::Vendor(Family::Invt, 1), OperateMode::Profidrive));
+        let e = r.cycle(Some(&[0; 32]), false, &d, &[]).unwrap();
+        assert_eq!(e.command.unwrap().fault_resets, 1, "no acknowledge by the change");
+        let mut q = [0u8; 32];
+        q[9] = 7; // INVT command 7: fault reset
+        let e = r.cycle(Some(&q), false, &d, &[]).unwrap();
+        assert_eq!(e.command.unwrap().fault_resets, 2);
     }
 }
