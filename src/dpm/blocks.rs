@@ -127,7 +127,8 @@ pub enum CardEvent {
     Offline = 1,
     /// The card entered data exchange.
     Online = 2,
-    /// The DP watchdog expired (A140-like).
+    /// The DP watchdog expired (raised with `Offline`: the drive's A139; A140 is the card's
+    /// heartbeat lost, seen by the host).
     Watchdog = 3,
     /// A Set_Prm was refused.
     ParameterizationError = 4,

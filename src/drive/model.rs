@@ -30,7 +30,7 @@ pub const N2_100: i32 = 0x4000;
 const MICRO: i64 = 1_000_000;
 
 /// Fault code of a fieldbus fault (the card's profile reported FIELDBUS_FAULT or the
-/// communication-loss action "fault"; WEG F0139/A139-style "offline").
+/// communication-loss action "fault"; WEG F238 / F239 / F240 with P0313 = 5, CFW500 §6).
 pub const FAULT_FIELDBUS: u16 = 0x7510;
 /// MELD_NAMUR b7 "error communication bus" (OPTE3/E5 Table 21).
 pub const NAMUR_BUS: u16 = 1 << 7;
