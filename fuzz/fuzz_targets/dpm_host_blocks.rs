@@ -16,6 +16,7 @@
 //! * `c % 8 == 4`: a Data_Exchange with input bytes as outputs.
 //! * `c % 8 == 5`: time passes (up to 1 s; heartbeat supervision, DP watchdog).
 //! * otherwise: one plain `Application::step`.
+//!
 //! Every scribble is followed by the card's `step_collect`, then by a whole step.
 //!
 //! Checks: no panic; the card-written blocks stay well-formed (HEADER is this layout, IDENT
@@ -160,15 +161,16 @@ fuzz_target!(|data: &[u8]| {
         steps += 1;
         let op = src.u8();
         let before = c.app.link().stats();
-        match op % 8 {
+        let kind = op % 8;
+        match kind {
             0 | 3 => {
-                let blocks: Vec<_> = if op % 8 == 0 { host_blocks().collect() } else { card_blocks().collect() };
+                let blocks: Vec<_> = if kind == 0 { host_blocks().collect() } else { card_blocks().collect() };
                 let blk = blocks[usize::from(src.u8()) % blocks.len()];
                 let off = usize::from(src.u8()) % blk.len;
                 let n = usize::from(src.u8()) % (blk.len - off + 1);
                 let bytes = src.bytes(n);
                 trace!("scribble {} +{off}: {bytes:02x?}", blk.name);
-                if op % 8 == 3 {
+                if kind == 3 {
                     card_trusted = false;
                     // The drive reads the card's blocks in its turn.
                     c.app.dpm_mut().as_bytes_mut()[blk.start + off..blk.start + off + bytes.len()]

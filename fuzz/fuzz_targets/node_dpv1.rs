@@ -559,7 +559,7 @@ fuzz_target!(|data: &[u8]| {
                 } else {
                     Some(C2_SSAP)
                 };
-                let pdu = if src.u8() % 4 == 0 { initiate_pdu(&mut src) } else { record_pdu(&mut src) };
+                let pdu = if src.u8().is_multiple_of(4) { initiate_pdu(&mut src) } else { record_pdu(&mut src) };
                 bus.req(sa, Some(sap), ssap, &pdu);
             }
             // MSAC_C2: a poll on a connection SAP.
