@@ -2,7 +2,10 @@
 # Fuzz smoke run: every cargo-fuzz target in fuzz/ for a bounded time, starting from the seed
 # corpora in fuzz/seeds/<target>/ (copied to a temporary corpus directory, so nothing new is
 # left in the tree). Exits non-zero if any target crashes; the crashing input is kept in
-# fuzz/artifacts/<target>/ (git-ignored) and printed in hex.
+# fuzz/artifacts/<target>/ (git-ignored) and printed in hex. The targets are every [[bin]] of
+# fuzz/Cargo.toml (`cargo fuzz list`): the bus-side parsers (telegram, framer, phy_line,
+# dp_params, dpv1_pdu, pkw, profidrive), the whole slave (slave, node_dpv1) and the DPM (dpm_spi;
+# dpm_host_blocks: arbitrary drive-written bytes into a running card).
 #
 #   FUZZ_SECONDS=20        seconds per target (default 20)
 #   FUZZ_TARGETS="a b"     targets to run (default: all of `cargo fuzz list`)

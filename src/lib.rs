@@ -48,4 +48,6 @@ pub mod node;
 pub mod phy;
 pub mod profile;
 pub mod store;
+#[cfg(any(test, feature = "test-support"))]
+pub mod testkit;
 pub mod time;

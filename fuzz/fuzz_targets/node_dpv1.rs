@@ -20,6 +20,10 @@
 //! sizes, and data exchange implies a locking master and a module.
 #![no_main]
 
+#[path = "common/src.rs"]
+#[macro_use]
+mod src;
+
 #[path = "common/fake_drive.rs"]
 mod fake_drive;
 
@@ -31,21 +35,9 @@ use pbcard::dpv1::c1::C1;
 use pbcard::dpv1::pdu::{Function, Response, ERROR_BIT, ERROR_DECODE_DPV1};
 use pbcard::fdl::telegram::{self, Decoded, FunctionCode, Header, RequestFunction, Telegram, MAX_FRAME_LEN};
 use pbcard::node::Node;
+use pbcard::testkit::{self, ScriptedMaster, SetPrm};
 use pbcard::time::{BitTimes, Instant};
-
-/// `PBCARD_FUZZ_TRACE=1 cargo fuzz run node_dpv1 <input>` prints every frame and answer.
-fn trace() -> bool {
-    static T: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *T.get_or_init(|| std::env::var_os("PBCARD_FUZZ_TRACE").is_some())
-}
-
-macro_rules! trace {
-    ($($t:tt)*) => {
-        if trace() {
-            eprintln!($($t)*);
-        }
-    };
-}
+use src::Src;
 
 const ME: u8 = 5;
 /// The class-1 master that parameterises the slave (and owns MSAC_C1).
@@ -60,33 +52,6 @@ const C1_SAP: u8 = 51;
 const RM_SAP: u8 = 49;
 /// The connection SAPs of the card's `C2_MAX_COUNT_CHANNELS` = 2 connections.
 const CONN_SAPS: [u8; 2] = [48, 47];
-
-/// Reads the fuzz input; zeros once it is used up.
-struct Src<'a>(&'a [u8]);
-
-impl Src<'_> {
-    fn u8(&mut self) -> u8 {
-        match self.0.split_first() {
-            Some((&b, rest)) => {
-                self.0 = rest;
-                b
-            }
-            None => 0,
-        }
-    }
-    fn u16(&mut self) -> u16 {
-        u16::from_be_bytes([self.u8(), self.u8()])
-    }
-    fn bytes(&mut self, n: usize) -> Vec<u8> {
-        let n = n.min(self.0.len());
-        let (a, b) = self.0.split_at(n);
-        self.0 = b;
-        a.to_vec()
-    }
-    fn is_empty(&self) -> bool {
-        self.0.is_empty()
-    }
-}
 
 fn is_dpv1_sap(sap: u8) -> bool {
     sap == C1_SAP || sap == RM_SAP || CONN_SAPS.contains(&sap)
@@ -124,7 +89,7 @@ fn sets_last(f: RequestFunction) -> bool {
 struct Bus {
     node: Node,
     table: FakeDrive,
-    fcb: [bool; 128],
+    master: ScriptedMaster,
     now: u64,
     /// Feed frames byte by byte through the framer instead of whole.
     bytewise: bool,
@@ -297,18 +262,15 @@ impl Bus {
     }
 
     fn emit(&mut self, hdr: &Header, pdu: &[u8]) -> Option<Vec<u8>> {
-        let mut out = [0u8; MAX_FRAME_LEN];
-        let n = telegram::emit(&mut out, hdr, pdu).ok()?;
-        self.deliver(&out[..n])
+        let f = testkit::try_frame(hdr, pdu).ok()?;
+        self.deliver(&f)
     }
 
     /// SRD high from `sa` with FCB toggled and FCV = 1.
     fn req(&mut self, sa: u8, dsap: Option<u8>, ssap: Option<u8>, pdu: &[u8]) -> Option<Vec<u8>> {
-        let sa = sa & 0x7F;
-        self.fcb[sa as usize] = !self.fcb[sa as usize];
-        let fc = FunctionCode::request(0x0D, self.fcb[sa as usize], true);
-        let hdr = Header { da: self.own(), sa, fc, dsap, ssap };
-        self.emit(&hdr, pdu)
+        self.master.slave = self.own();
+        let f = self.master.try_request(sa, dsap, ssap, pdu, true).ok()?;
+        self.deliver(&f)
     }
 
     fn process(&mut self) {
@@ -320,11 +282,9 @@ impl Bus {
 
     /// Set_Prm (with `dpv1_status_1` as User_Prm byte 0) and Chk_Cfg from `sa`.
     fn parameterise(&mut self, sa: u8, status: u8, dpv1_status_1: u8, module: usize) -> bool {
-        let id = card::IDENT_NUMBER.to_be_bytes();
-        let mut prm = vec![status, 10, 10, 11, id[0], id[1], 0];
-        let mut user = card::USER_PRM_DEFAULTS;
-        user[0] = dpv1_status_1;
-        prm.extend_from_slice(&user);
+        let prm = SetPrm { station_status: status, wd_fact_1: 10, wd_fact_2: 10, ..SetPrm::CARD }
+            .dpv1_status_1(dpv1_status_1)
+            .pdu();
         let sc = Some(vec![telegram::SC]);
         let a = self.req(sa, Some(61), Some(62), &prm);
         let b = self.req(sa, Some(62), Some(62), card::MODULES[module % card::MODULES.len()].cfg);
@@ -385,7 +345,7 @@ fn param_request(src: &mut Src) -> Vec<u8> {
             let n = if f & 0x08 != 0 { src.u8() % 8 } else { elements.max(1) };
             values.extend_from_slice(&[format, n]);
             let len = size * n as usize;
-            let mut v = src.bytes(len);
+            let mut v = src.bytes(len).to_vec();
             v.resize(len, 0);
             values.extend_from_slice(&v);
             if len & 1 == 1 {
@@ -419,7 +379,7 @@ fn record_pdu(src: &mut Src) -> Vec<u8> {
         4..=7 => with_data(0x5F, param_request(src)),
         8 => {
             let n = if src.u8() & 1 == 0 { 2 } else { 4 };
-            with_data(0x5F, src.bytes(n))
+            with_data(0x5F, src.bytes(n).to_vec())
         }
         9 => with_data(0x51, param_request(src)),
         10 => vec![0x5C, slot, src.u8(), src.u8()],
@@ -428,7 +388,7 @@ fn record_pdu(src: &mut Src) -> Vec<u8> {
         13 => initiate_pdu(src),
         _ => {
             let n = src.u8() as usize;
-            src.bytes(n)
+            src.bytes(n).to_vec()
         }
     }
 }
@@ -446,7 +406,7 @@ fn initiate_pdu(src: &mut Src) -> Vec<u8> {
         if typed {
             let mut v = vec![src.u8() & 1, 0, 1, 2, 3, 4, 5, 6];
             let mac = src.u8() as usize % 5;
-            v.extend(src.bytes(mac));
+            v.extend_from_slice(src.bytes(mac));
             (1, v)
         } else {
             (0, vec![0, 0])
@@ -512,11 +472,11 @@ fn any_sap(src: &mut Src, b: u8) -> Option<u8> {
 }
 
 fuzz_target!(|data: &[u8]| {
-    let mut src = Src(data);
+    let mut src = Src::new(data);
     let mut bus = Bus {
         node: Node::new(DpSlave::new(ME)),
         table: FakeDrive::new(),
-        fcb: [false; 128],
+        master: ScriptedMaster::new(M1, ME),
         now: 1_000,
         bytewise: false,
         last_frame: None,
@@ -599,7 +559,7 @@ fuzz_target!(|data: &[u8]| {
                 } else {
                     Some(C2_SSAP)
                 };
-                let pdu = if src.u8() % 4 == 0 { initiate_pdu(&mut src) } else { record_pdu(&mut src) };
+                let pdu = if src.u8().is_multiple_of(4) { initiate_pdu(&mut src) } else { record_pdu(&mut src) };
                 bus.req(sa, Some(sap), ssap, &pdu);
             }
             // MSAC_C2: a poll on a connection SAP.
@@ -645,7 +605,7 @@ fuzz_target!(|data: &[u8]| {
                 let b = src.u8();
                 if b & 1 == 0 {
                     let n = bus.node.slave().output_len();
-                    let mut out = src.bytes(n);
+                    let mut out = src.bytes(n).to_vec();
                     out.resize(n, 0);
                     bus.req(M1, None, None, &out);
                 } else {
@@ -692,7 +652,7 @@ fuzz_target!(|data: &[u8]| {
                 };
                 let pdu = if sb & 0x40 != 0 {
                     let n = src.u8() as usize % (telegram::MAX_DU_LEN - 1);
-                    src.bytes(n)
+                    src.bytes(n).to_vec()
                 } else {
                     record_pdu(&mut src)
                 };
@@ -706,7 +666,7 @@ fuzz_target!(|data: &[u8]| {
                     trace!("bytewise {}", bus.bytewise);
                 } else {
                     let n = src.u8() as usize % (MAX_FRAME_LEN + 8);
-                    let mut f = src.bytes(n);
+                    let mut f = src.bytes(n).to_vec();
                     if b & 2 != 0 {
                         // Repair FCS and ED so that the frame gets past them.
                         if let Ok(Some(len)) = telegram::frame_len(&f) {

@@ -14,60 +14,27 @@
 //! gets the previous answer byte for byte, whatever the application did in between.
 #![no_main]
 
+#[path = "common/src.rs"]
+#[macro_use]
+mod src;
+
 use libfuzzer_sys::fuzz_target;
 use pbcard::card;
 use pbcard::dp::{DpSlave, DpState};
 use pbcard::fdl::station::Station;
 use pbcard::fdl::telegram::{self, Decoded, FunctionCode, Header, RequestFunction, Telegram, MAX_FRAME_LEN};
+use pbcard::testkit::{self, ScriptedMaster, SetPrm, SAP_MASTER};
 use pbcard::time::Instant;
-
-/// `PBCARD_FUZZ_TRACE=1 cargo fuzz run slave <input>` prints every frame, answer and action
-/// (for triaging a crash or checking what a seed does).
-fn trace() -> bool {
-    static T: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *T.get_or_init(|| std::env::var_os("PBCARD_FUZZ_TRACE").is_some())
-}
-
-macro_rules! trace {
-    ($($t:tt)*) => {
-        if trace() {
-            eprintln!($($t)*);
-        }
-    };
-}
+use src::Src;
 
 const ME: u8 = 8;
 const M1: u8 = 2;
 const M2: u8 = 3;
 
-/// Reads the fuzz input; zeros once it is used up.
-struct Src<'a>(&'a [u8]);
-
-impl Src<'_> {
-    fn u8(&mut self) -> u8 {
-        match self.0.split_first() {
-            Some((&b, rest)) => {
-                self.0 = rest;
-                b
-            }
-            None => 0,
-        }
-    }
-    fn bytes(&mut self, n: usize) -> &[u8] {
-        let n = n.min(self.0.len());
-        let (a, b) = self.0.split_at(n);
-        self.0 = b;
-        a
-    }
-    fn is_empty(&self) -> bool {
-        self.0.is_empty()
-    }
-}
-
 struct Bus {
     station: Station,
     slave: DpSlave,
-    fcb: [bool; 128],
+    master: ScriptedMaster,
     now: u64,
     /// The last frame handed to the station and its answer (for the retry check).
     last: Option<(Vec<u8>, Option<Vec<u8>>)>,
@@ -139,18 +106,15 @@ impl Bus {
     }
 
     fn emit(&mut self, hdr: &Header, pdu: &[u8]) -> Option<Vec<u8>> {
-        let mut out = [0u8; MAX_FRAME_LEN];
-        let n = telegram::emit(&mut out, hdr, pdu).ok()?;
-        self.deliver(&out[..n])
+        let f = testkit::try_frame(hdr, pdu).ok()?;
+        self.deliver(&f)
     }
 
     /// SRD high from `sa` with FCB toggled and FCV = 1 (as a master in data exchange).
     fn req(&mut self, sa: u8, dsap: Option<u8>, pdu: &[u8]) -> Option<Vec<u8>> {
-        let sa = sa & 0x7F;
-        self.fcb[sa as usize] = !self.fcb[sa as usize];
-        let fc = FunctionCode::request(0x0D, self.fcb[sa as usize], true);
-        let hdr = Header { da: self.slave.address(), sa, fc, dsap, ssap: dsap.map(|_| 62) };
-        self.emit(&hdr, pdu)
+        self.master.slave = self.slave.address();
+        let f = self.master.try_request(sa, dsap, dsap.map(|_| SAP_MASTER), pdu, true).ok()?;
+        self.deliver(&f)
     }
 
     /// Repeat the last frame; if it was an SRD to us with FCV = 1 that got an answer, the
@@ -209,8 +173,14 @@ fn set_prm_pdu(status: u8, wd1: u8, wd2: u8, tsdr: u8, group: u8, user: &[u8]) -
 }
 
 fuzz_target!(|data: &[u8]| {
-    let mut src = Src(data);
-    let mut bus = Bus { station: Station::new(), slave: DpSlave::new(ME), fcb: [false; 128], now: 0, last: None };
+    let mut src = Src::new(data);
+    let mut bus = Bus {
+        station: Station::new(),
+        slave: DpSlave::new(ME),
+        master: ScriptedMaster::new(M1, ME),
+        now: 0,
+        last: None,
+    };
 
     // Bring-up as in src/dp/tests.rs: Set_Prm (Lock, optional Sync/Freeze, WD 1 s or 100 ms)
     // and Chk_Cfg for a fuzz-chosen module.
@@ -221,7 +191,7 @@ fuzz_target!(|data: &[u8]| {
         user[0] = 0x04; // WD_Base_1ms
     }
     let module = &card::MODULES[(src.u8() as usize) % card::MODULES.len()];
-    let p = set_prm_pdu(status, 10, 10, 11, 0x01, &user);
+    let p = SetPrm { station_status: status, wd_fact_1: 10, wd_fact_2: 10, group: 0x01, user, ..SetPrm::CARD }.pdu();
     assert_eq!(bus.req(M1, Some(61), &p), Some(vec![telegram::SC]));
     assert_eq!(bus.req(M1, Some(62), module.cfg), Some(vec![telegram::SC]));
     assert_eq!(bus.slave.state(), DpState::DataExch);

@@ -224,3 +224,46 @@ write("dpm_spi", "write_card_block", b"\x00" + spi_frame(0xB2, 4, 0xC0, 2, [1, 2
 write("dpm_spi", "status", b"\x00" + spi_frame(0xC4, 5, 0, 0))
 write("dpm_spi", "fix_crc_write", b"\x02" + spi_frame(0xB2, 6, 0x120, 3, [5, 0, 0]))
 write("dpm_spi", "reply", b"\x01" + bytes([0x80, 1, 0xA1, 0, 0, 0x10, 0, 2, 0xAA, 0xBB, 0, 0]))
+
+# phy_line: control byte c: c >> 6 == 0 a segment of (c & 0x3F) + 1 bytes, 1 the same with a
+# character error ((c & 0x3F) bytes), 2 T_SYN (c & 1 == 0) or receiver reset, 3 (c & 3) + 1
+# well-formed telegrams (kind byte % 8: 0 SC, 1 token, else a request; b4 = to station 5,
+# b5 = with SAPs; then DA?, SA, FC, DSAP?, PDU length % 40, PDU), with c & 4 then
+# (c >> 3) & 7 garbage bytes.
+TSYN, RESET = 0x80, 0x81
+
+
+def segment(b):
+    return [len(b) - 1] + list(b)
+
+
+def well_formed(*reqs):
+    return [0xC0 | (len(reqs) - 1)] + [x for r in reqs for x in r]
+
+
+REQ_SET_PRM = [0x32, 2, 0x6D, 61, len(SET_PRM)] + SET_PRM  # to us, with SAPs
+REQ_DX = [0x12, 2, 0x7D, 4, 0x04, 0x7E, 0x00, 0x00]  # to us, Data_Exchange
+write("phy_line", "tsyn_then_frames", [TSYN] + segment(FRAMES["set_prm"]) + segment(FRAMES["chk_cfg"] + FRAMES["token_sc"])
+      + segment(FRAMES["data_exchange_sd3"]))
+write("phy_line", "unsynced_corrupt_truncated", segment(FRAMES["fdl_status"]) + [TSYN, 0x40 | 3, 1, 2, 3]
+      + segment(FRAMES["set_prm"]) + [TSYN] + segment(FRAMES["diag_response"][:7]) + [TSYN]
+      + segment(FRAMES["diag_response"]))
+write("phy_line", "well_formed_and_garbage", [TSYN] + well_formed(REQ_SET_PRM, [0], [1, 9], REQ_DX)
+      + [0xC4 | (3 << 3) | 1] + REQ_DX + [0x10, 0xFF] + [0xAA, 0x68, 0x05] + [TSYN, RESET] + well_formed(REQ_DX)
+      + [TSYN] + well_formed(REQ_DX))
+
+# dpm_host_blocks: byte 0 the module of the bring-up; then operations c % 8: 0 raw bytes into
+# a host-written block (block index % 5: INPUTS, DRIVE, CONFIG, MBX_RSP, DRIVE_STATE; offset,
+# length, bytes), 1 a whole host block of input bytes with equal counters (index, bytes,
+# counter), 2 a CONFIG with a new counter (address, profile % 3, reaction % 6, operate % 5),
+# 3 raw bytes into a card-written block (index % 7), 4 Data_Exchange, 5 time (b × 4 ms),
+# else one step.
+DX_ST1 = [4, 0x04, 0x7E, 0x00, 0x00]
+write("dpm_host_blocks", "torn_drive_and_config", [0x00] + [6] * 3 + DX_ST1 + [0, 1, 0, 1, 0x12] + [6]
+      + [0, 2, 46, 2, 0x77, 0x77] + DX_ST1 + [6])
+write("dpm_host_blocks", "refused_config_and_ext_diag", [0x00] + [2, 200, 0, 0, 0] + [2, 3, 2, 0, 0]
+      + [1, 1] + [0, 9, 1, 0, 0, 0, 0, 40] + [0xEE] * 32 + [0] * 2 + [0, 9] + DX_ST1 + [6])
+write("dpm_host_blocks", "drive_state_inputs_then_loss", [0x01] + [1, 4] + [0x55] * 40 + [0, 7] + [1, 0] + [0, 7, 1, 4]
+      + [0x04, 0x37, 0x12, 0x34] + [0] * 60 + [0, 8] + DX_ST1 + [5, 100] + DX_ST1 + [5, 250] + DX_ST1)
+write("dpm_host_blocks", "card_blocks_scribbled", [0x00] + DX_ST1 + [3, 0, 0, 4, 0, 0, 0, 0] + [6] + [3, 5, 0, 32]
+      + [0xFF] * 32 + [6] + [3, 6, 0, 8] + [1] * 8 + DX_ST1 + [5, 50])

@@ -49,6 +49,7 @@ pub use pbcard;
 pub use profirust;
 
 pub mod qemu;
+pub mod scripted;
 pub mod serial;
 
 /// profirust's name for one of our rates.

@@ -3,11 +3,13 @@
 //! MSAC_C1 DS_Write / poll / DS_Read on SAP 51 — and checks the PDUs byte for byte, including
 //! the VACON OPTE3/E5 §6.4.4.1 example (read PNU 918 of station 3) through the whole stack.
 
+use host_tests::scripted::Ans;
 use pbcard::card;
 use pbcard::dp::{DpSlave, DpState};
-use pbcard::fdl::telegram::{self, decode, Decoded, FunctionCode, Header, Telegram};
+use pbcard::fdl::telegram::{FunctionCode, Header};
 use pbcard::node::Node;
 use pbcard::profile::param::{ErrorValue, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
+use pbcard::testkit::{self, ScriptedMaster, SetPrm};
 use pbcard::time::Instant;
 
 const ME: u8 = 3;
@@ -49,50 +51,27 @@ impl ParameterAccess for Drive {
 struct Master {
     node: Node,
     drive: Drive,
-    fcb: [bool; 128],
+    master: ScriptedMaster,
     now: u64,
-}
-
-#[derive(Debug, PartialEq)]
-enum Ans {
-    None,
-    Sc,
-    Sd1(u8),
-    Pdu(Vec<u8>),
 }
 
 impl Master {
     fn new() -> Self {
-        Master { node: Node::new(DpSlave::new(ME)), drive: Drive { p100: 50 }, fcb: [false; 128], now: 0 }
+        Master {
+            node: Node::new(DpSlave::new(ME)),
+            drive: Drive { p100: 50 },
+            master: ScriptedMaster::new(M1, ME),
+            now: 0,
+        }
     }
 
     fn send(&mut self, sa: u8, dsap: Option<u8>, ssap: Option<u8>, pdu: &[u8], toggle: bool) -> Ans {
-        if toggle {
-            self.fcb[sa as usize] = !self.fcb[sa as usize];
-        }
-        let hdr = Header { da: ME, sa, fc: FunctionCode::request(0x0D, self.fcb[sa as usize], true), dsap, ssap };
-        let mut f = [0u8; 256];
-        let n = telegram::emit(&mut f, &hdr, pdu).unwrap();
+        let f = self.master.request(sa, dsap, ssap, pdu, toggle);
         self.now += 500;
         let now = Instant::from_micros(self.now);
         self.node.poll(now);
-        let mut answer = None;
-        for &b in &f[..n] {
-            if let Some(r) = self.node.on_byte(now, b) {
-                answer = Some(r.to_vec());
-            }
-        }
-        let Some(r) = answer else { return Ans::None };
-        match decode(&r) {
-            Decoded::Frame(Telegram::ShortAck, 1) => Ans::Sc,
-            Decoded::Frame(Telegram::Data(t), _) if t.pdu.is_empty() && t.dsap.is_none() => Ans::Sd1(t.fc.0),
-            Decoded::Frame(Telegram::Data(t), _) => {
-                assert_eq!((t.da, t.sa, t.fc.0), (sa, ME, 0x08));
-                assert_eq!((t.dsap, t.ssap), (ssap, dsap), "SAPs swapped");
-                Ans::Pdu(t.pdu.to_vec())
-            }
-            other => panic!("invalid answer {other:?}"),
-        }
+        let r = testkit::feed(&mut self.node, now, &f);
+        Ans::of(&f, r.as_deref(), Some(0x08))
     }
 
     fn c1(&mut self, sa: u8, pdu: &[u8]) -> Ans {
@@ -116,9 +95,7 @@ impl Master {
     }
 
     fn bring_up(&mut self, dpv1_status_1: u8) {
-        let id = card::IDENT_NUMBER.to_be_bytes();
-        let mut prm = vec![0x88, 10, 10, 11, id[0], id[1], 0, dpv1_status_1, 0, 0, 0, 0];
-        prm.truncate(7 + card::USER_PRM_LEN);
+        let prm = SetPrm::CARD.watchdog(10, 10).user([dpv1_status_1, 0, 0, 0, 0]).pdu();
         assert_eq!(self.send(M1, Some(61), Some(62), &prm, true), Ans::Sc);
         assert_eq!(self.send(M1, Some(62), Some(62), card::MODULES[0].cfg, true), Ans::Sc);
         assert_eq!(self.node.slave().state(), DpState::DataExch);
@@ -461,12 +438,8 @@ fn c1_ignores_sdn_and_drops_requests_across_sessions() {
     assert_eq!(m.c1(M1, &[0x5F, 0, 47, 10, 1, 1, 1, 1, 0x10, 1, 0x03, 0x96, 0, 0]), Ans::Sc);
     // SDN high from the locking master on SAP 51 with an Alarm_Ack PDU: ignored.
     let hdr = Header { da: 127, sa: M1, fc: FunctionCode::request(0x06, false, false), dsap: Some(51), ssap: Some(51) };
-    let mut f = [0u8; 32];
-    let n = telegram::emit(&mut f, &hdr, &[0x5C, 0, 1, 2]).unwrap();
     let now = Instant::from_micros(m.now);
-    for &b in &f[..n] {
-        assert!(m.node.on_byte(now, b).is_none());
-    }
+    assert_eq!(testkit::feed(&mut m.node, now, &testkit::frame(&hdr, &[0x5C, 0, 1, 2])), None);
     m.process();
     assert_eq!(m.c1(M1, &[]), Ans::Pdu(vec![0x5F, 0, 47, 10]), "the write's answer, not an Alarm_Ack error");
     // A request acknowledged, then Set_Prm + Chk_Cfg: the old request is gone.

@@ -9,13 +9,15 @@
 //! * The slave's main loop runs every millisecond: [`Application::step`], then
 //!   [`Node::process_acyclic`] over the mailbox-backed parameters (as the soft slave does).
 
+use host_tests::scripted::Ans;
 use host_tests::{hex, profirust_rate};
 use pbcard::app::Application;
 use pbcard::card;
 use pbcard::dp::{DpSlave, DpState};
 use pbcard::drive::DriveConfig;
-use pbcard::fdl::telegram::{self, decode, Decoded, FunctionCode, Header, Telegram};
+use pbcard::fdl::telegram;
 use pbcard::node::Node;
+use pbcard::testkit::{ScriptedMaster, SetPrm};
 use pbcard::time::{Baudrate, BitTimes, Instant};
 use profirust::phy::{ProfibusPhy, SimulatorPhy};
 
@@ -113,22 +115,13 @@ impl Slave {
     }
 }
 
-#[derive(Debug, PartialEq)]
-enum Ans {
-    /// No answer within the slot time.
-    None,
-    Sc,
-    Sd1(u8),
-    Pdu(Vec<u8>),
-}
-
 /// Our test master (any number of master addresses) and the slave on one simulated line.
 struct Bus {
     rate: Baudrate,
     now_us: u64,
     phy: SimulatorPhy,
     slave: Slave,
-    fcb: [bool; 128],
+    master: ScriptedMaster,
     /// End of the last character on the line as the master knows it.
     line_end_us: u64,
     /// Measured answer delays (bit times after the request's last stop bit): min, max.
@@ -165,7 +158,7 @@ impl Bus {
             now_us: 0,
             phy,
             slave,
-            fcb: [false; 128],
+            master: ScriptedMaster::new(M1, ME),
             line_end_us: 0,
             tsdr: (u64::MAX, 0),
             min_idle_bits: u64::MAX,
@@ -279,29 +272,14 @@ impl Bus {
     }
 
     fn frame(&mut self, sa: u8, dsap: Option<u8>, ssap: Option<u8>, pdu: &[u8], toggle: bool) -> Vec<u8> {
-        if toggle {
-            self.fcb[sa as usize] = !self.fcb[sa as usize];
-        }
-        let hdr = Header { da: ME, sa, fc: FunctionCode::request(0x0D, self.fcb[sa as usize], true), dsap, ssap };
-        let mut f = [0u8; telegram::MAX_FRAME_LEN];
-        let n = telegram::emit(&mut f, &hdr, pdu).unwrap();
-        f[..n].to_vec()
+        self.master.request(sa, dsap, ssap, pdu, toggle).to_vec()
     }
 
+    /// The answer to `frame` (none within the slot time: [`Ans::None`]).
     fn exchange(&mut self, frame: &[u8]) -> Ans {
         let Some(r) = self.transact_raw(frame) else { return Ans::None };
         self.last_raw = r.clone();
-        let Decoded::Frame(Telegram::Data(req), _) = decode(frame) else { unreachable!() };
-        match decode(&r) {
-            Decoded::Frame(Telegram::ShortAck, 1) => Ans::Sc,
-            Decoded::Frame(Telegram::Data(t), _) if t.pdu.is_empty() && t.dsap.is_none() => Ans::Sd1(t.fc.0),
-            Decoded::Frame(Telegram::Data(t), _) => {
-                assert_eq!((t.da, t.sa), (req.sa, ME));
-                assert_eq!((t.dsap, t.ssap), (req.ssap, req.dsap), "SAPs swapped");
-                Ans::Pdu(t.pdu.to_vec())
-            }
-            other => panic!("invalid answer {other:?}"),
-        }
+        Ans::of(frame, Some(&r), None)
     }
 
     fn send(&mut self, sa: u8, dsap: Option<u8>, ssap: Option<u8>, pdu: &[u8]) -> Ans {
@@ -310,10 +288,8 @@ impl Bus {
     }
 
     fn bring_up(&mut self) {
-        let id = card::IDENT_NUMBER.to_be_bytes();
-        let mut prm = vec![0x88, 10, 10, MIN_TSDR as u8, id[0], id[1], 0];
-        prm.extend_from_slice(&card::USER_PRM_DEFAULTS);
-        prm[7] = 0x80; // DPV1_Status_1: DPV1_Enable
+        // DPV1_Status_1: DPV1_Enable.
+        let prm = SetPrm::CARD.watchdog(10, 10).min_tsdr(MIN_TSDR as u8).dpv1_status_1(0x80).pdu();
         assert_eq!(self.send(M1, Some(61), Some(62), &prm), Ans::Sc, "Set_Prm");
         assert_eq!(self.send(M1, Some(62), Some(62), card::MODULES[0].cfg), Ans::Sc, "Chk_Cfg");
         assert_eq!(self.slave.node.slave().state(), DpState::DataExch);

@@ -9,7 +9,8 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use pbcard::card;
-use pbcard::fdl::telegram::{self, Decoded, FunctionCode, Header};
+use pbcard::fdl::telegram::{self, Decoded};
+use pbcard::testkit::{ScriptedMaster, SetPrm};
 use pbcard::time::Baudrate;
 use pbcard_softslave::serial::Port;
 use pbcard_softslave::Options;
@@ -19,23 +20,14 @@ const MASTER: u8 = 1;
 
 struct Line {
     port: Port,
-    fcb: bool,
+    master: ScriptedMaster,
 }
 
 impl Line {
     /// Send an SRD request and wait for one telegram back.
     fn srd(&mut self, dsap: Option<u8>, pdu: &[u8]) -> Vec<u8> {
-        self.fcb = !self.fcb;
-        let hdr = Header {
-            da: SLAVE,
-            sa: MASTER,
-            fc: FunctionCode::request(0xD, self.fcb, true),
-            dsap,
-            ssap: dsap.map(|_| 62),
-        };
-        let mut buf = [0u8; telegram::MAX_FRAME_LEN];
-        let n = telegram::emit(&mut buf, &hdr, pdu).unwrap();
-        self.port.write_all(&buf[..n]).unwrap();
+        let req = self.master.srd(dsap, pdu);
+        self.port.write_all(&req).unwrap();
         let mut rx = Vec::new();
         let end = Instant::now() + Duration::from_secs(20);
         while Instant::now() < end {
@@ -48,14 +40,13 @@ impl Line {
                 }
             }
         }
-        panic!("no answer to {}", pbcard_softslave::hex(&buf[..n]));
+        panic!("no answer to {}", pbcard_softslave::hex(&req));
     }
 }
 
-fn set_prm(ident: u16) -> Vec<u8> {
-    let mut p = vec![0x80, 0, 0, 11, (ident >> 8) as u8, ident as u8, 0];
-    p.extend_from_slice(&card::USER_PRM_DEFAULTS);
-    p
+/// Set_Prm without the watchdog for `ident`.
+fn set_prm(ident: u16) -> [u8; 7 + card::USER_PRM_LEN] {
+    SetPrm::CARD.no_watchdog().ident(ident).pdu()
 }
 
 fn wait_for(log: &Mutex<Vec<String>>, needle: &str) {
@@ -82,7 +73,7 @@ fn refusals_are_logged_with_their_reason_and_data_flows() {
         pbcard_softslave::run(&opts, &s, &mut |line| l.lock().unwrap().push(line.to_string()))
     });
     wait_for(&log, "waiting for a DP master");
-    let mut line = Line { port, fcb: false };
+    let mut line = Line { port, master: ScriptedMaster::new(MASTER, SLAVE) };
 
     assert_eq!(line.srd(Some(61), &set_prm(0x1234)), [telegram::SC]);
     wait_for(&log, "Set_Prm refused (Prm_Fault): ident number 0x1234, this slave is 0x0F11");

@@ -9,9 +9,10 @@ use super::*;
 use crate::card;
 use crate::dp::diag::Status2;
 use crate::dp::{DpSlave, DpState};
-use crate::fdl::telegram::{self, FunctionCode, Header};
+use crate::fdl::telegram::{FunctionCode, Header};
 use crate::node::Node;
 use crate::profile::param::{ErrorValue, Format, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
+use crate::testkit::{self, Frame, Rig, ScriptedMaster, SetPrm};
 use crate::time::{Duration, Instant};
 
 // ---------------------------------------------------------------------------------------
@@ -314,7 +315,7 @@ struct Bench {
     dpm: Dpm,
     link: Link,
     now: Instant,
-    fcb: bool,
+    master: ScriptedMaster,
 }
 
 impl Bench {
@@ -324,28 +325,8 @@ impl Bench {
             dpm: Dpm::new(),
             link: Link::new(),
             now: Instant::from_millis(0),
-            fcb: false,
+            master: ScriptedMaster::new(MASTER, SLAVE),
         }
-    }
-
-    fn srd(&mut self, dsap: Option<u8>, pdu: &[u8]) -> Vec<u8> {
-        self.fcb = !self.fcb;
-        let hdr = Header {
-            da: SLAVE,
-            sa: MASTER,
-            fc: FunctionCode::request(0xD, self.fcb, true),
-            dsap,
-            ssap: dsap.map(|_| 62),
-        };
-        let mut buf = [0u8; telegram::MAX_FRAME_LEN];
-        let n = telegram::emit(&mut buf, &hdr, pdu).unwrap();
-        let mut resp = None;
-        for &b in &buf[..n] {
-            if let Some(r) = self.node.on_byte(self.now, b) {
-                resp = Some(r.to_vec());
-            }
-        }
-        resp.expect("no response")
     }
 
     /// One card cycle after `ms`, with `host` doing its part on the image in between.
@@ -359,18 +340,29 @@ impl Bench {
     }
 
     fn bring_up(&mut self) {
-        let mut prm = vec![0x88, 1, 100, 11, (card::IDENT_NUMBER >> 8) as u8, card::IDENT_NUMBER as u8, 0];
-        prm.extend_from_slice(&card::USER_PRM_DEFAULTS);
-        assert_eq!(self.srd(Some(61), &prm), [telegram::SC]);
-        self.step(1, |_| {});
-        assert_eq!(self.srd(Some(62), card::MODULES[0].cfg), [telegram::SC]);
-        self.step(1, |_| {});
-        assert_eq!(self.node.slave().state(), DpState::DataExch);
+        Rig::bring_up(self, &SetPrm::CARD, card::MODULES[0].cfg);
     }
 
     fn data_exchange(&mut self, out: &[u8]) -> Vec<u8> {
-        let r = self.srd(None, out);
-        r[telegram::pdu_range(r.len(), self.node.slave().input_len())].to_vec()
+        Rig::data_exchange(self, out).to_vec()
+    }
+}
+
+impl Rig for Bench {
+    fn master(&mut self) -> &mut ScriptedMaster {
+        &mut self.master
+    }
+    fn deliver(&mut self, frame: &[u8]) -> Option<Frame> {
+        testkit::feed(&mut self.node, self.now, frame)
+    }
+    fn settle(&mut self) {
+        self.step(1, |_| {});
+    }
+    fn dp_state(&self) -> DpState {
+        self.node.slave().state()
+    }
+    fn input_len(&self) -> usize {
+        self.node.slave().input_len()
     }
 }
 
@@ -697,14 +689,9 @@ fn card_events_count_clear_and_init_error() {
     let mut b = Bench::new();
     b.bring_up();
     // Global_Control Clear_Data (SAP 58): control 0x02, group 0.
-    b.fcb = !b.fcb;
     let hdr =
         Header { da: SLAVE, sa: MASTER, fc: FunctionCode::request(0x6, false, false), dsap: Some(58), ssap: Some(62) };
-    let mut buf = [0u8; telegram::MAX_FRAME_LEN];
-    let n = telegram::emit(&mut buf, &hdr, &[0x02, 0x00]).unwrap();
-    for &x in &buf[..n] {
-        let _ = b.node.on_byte(b.now, x);
-    }
+    assert_eq!(testkit::feed(&mut b.node, b.now, &testkit::frame(&hdr, &[0x02, 0x00])), None, "SDN: no answer");
     b.step(1, |_| {});
     let r = b.dpm.card_report().unwrap();
     assert_eq!(r.event(CardEvent::ClearMode), 1);
@@ -842,44 +829,4 @@ fn codec_handles_match_the_map_and_the_sides() {
     let r = MailboxRequest { id: 4, ..MailboxRequest::write(1, 100, 2, v) };
     codec::MBX_REQ.encode(&Some(r), 7, &mut req).unwrap();
     assert_eq!(codec::MBX_REQ.decode(&req), Ok((7, Some(r))));
-}
-
-proptest::proptest! {
-    /// Any bytes of any length: decoding never panics and gives a value only for the block's
-    /// length with equal counters; a decoded value re-encodes to what decodes the same.
-    #[test]
-    fn codecs_take_any_bytes(bytes in proptest::collection::vec(proptest::prelude::any::<u8>(), 0..200), same in proptest::prelude::any::<bool>()) {
-        use super::codec;
-        fn check<T: PartialEq + core::fmt::Debug>(c: &codec::BlockCodec<T>, bytes: &[u8], same: bool) {
-            let mut b = bytes.to_vec();
-            b.resize(c.len(), 0);
-            if same && c.block().sequenced {
-                let n = b.len();
-                let (h0, h1) = (b[0], b[1]);
-                b[n - 2] = h0;
-                b[n - 1] = h1;
-            }
-            let _ = c.decode(bytes);
-            if let Ok((seq, v)) = c.decode(&b) {
-                let mut out = vec![0u8; c.len()];
-                c.encode(&v, seq, &mut out).unwrap();
-                let (seq2, v2) = c.decode(&out).unwrap();
-                assert_eq!((seq2, v2), (seq, v), "{}", c.block().name);
-            } else {
-                assert!(c.block().sequenced && !same);
-            }
-        }
-        check(&codec::HEADER, &bytes, same);
-        check(&codec::STATUS, &bytes, same);
-        check(&codec::OUTPUTS, &bytes, same);
-        check(&codec::INPUTS, &bytes, same);
-        check(&codec::IDENT, &bytes, same);
-        check(&codec::CARD, &bytes, same);
-        check(&codec::DRIVE, &bytes, same);
-        check(&codec::CONFIG, &bytes, same);
-        check(&codec::MBX_REQ, &bytes, same);
-        check(&codec::MBX_RSP, &bytes, same);
-        check(&codec::DRIVE_CMD, &bytes, same);
-        check(&codec::DRIVE_STATE, &bytes, same);
-    }
 }

@@ -11,3 +11,5 @@
 pub mod autobaud;
 pub mod divisor;
 pub mod line;
+#[cfg(test)]
+mod tests_props;

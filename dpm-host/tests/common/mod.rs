@@ -6,8 +6,8 @@ use dpm_host::{Duration, Instant, SharedDpm};
 use pbcard::card;
 use pbcard::dp::{DpSlave, DpState, Events};
 use pbcard::dpm::Link;
-use pbcard::fdl::telegram::{self, FunctionCode, Header};
 use pbcard::node::Node;
+use pbcard::testkit::{self, Frame, Rig, ScriptedMaster, SetPrm};
 
 pub const MASTER: u8 = 2;
 pub const SLAVE: u8 = 5;
@@ -17,7 +17,7 @@ pub struct Card {
     pub dpm: SharedDpm,
     pub link: Link,
     pub now: Instant,
-    fcb: bool,
+    master: ScriptedMaster,
 }
 
 impl Card {
@@ -27,7 +27,7 @@ impl Card {
             dpm: SharedDpm::new(),
             link: Link::new(),
             now: Instant::from_millis(0),
-            fcb: false,
+            master: ScriptedMaster::new(MASTER, SLAVE),
         }
     }
 
@@ -48,40 +48,31 @@ impl Card {
         self.link.collect(self.now, &mut self.node, &dpm);
     }
 
-    pub fn srd(&mut self, dsap: Option<u8>, pdu: &[u8]) -> Vec<u8> {
-        self.fcb = !self.fcb;
-        let hdr = Header {
-            da: SLAVE,
-            sa: MASTER,
-            fc: FunctionCode::request(0xD, self.fcb, true),
-            dsap,
-            ssap: dsap.map(|_| 62),
-        };
-        let mut buf = [0u8; telegram::MAX_FRAME_LEN];
-        let n = telegram::emit(&mut buf, &hdr, pdu).unwrap();
-        let mut resp = None;
-        for &b in &buf[..n] {
-            if let Some(r) = self.node.on_byte(self.now, b) {
-                resp = Some(r.to_vec());
-            }
-        }
-        resp.expect("no response")
-    }
-
-    /// Set_Prm (watchdog 100 × 11 × 10 ms… as the pbcard tests) and Chk_Cfg for ST1: data
+    /// Set_Prm (watchdog 1 × 100 × 10 ms, as the pbcard tests) and Chk_Cfg for ST1: data
     /// exchange.
     pub fn bring_up(&mut self) {
-        let mut prm = vec![0x88, 1, 100, 11, (card::IDENT_NUMBER >> 8) as u8, card::IDENT_NUMBER as u8, 0];
-        prm.extend_from_slice(&card::USER_PRM_DEFAULTS);
-        assert_eq!(self.srd(Some(61), &prm), [telegram::SC]);
-        self.cycle(1);
-        assert_eq!(self.srd(Some(62), card::MODULES[0].cfg), [telegram::SC]);
-        self.cycle(1);
-        assert_eq!(self.node.slave().state(), DpState::DataExch);
+        Rig::bring_up(self, &SetPrm::CARD, card::MODULES[0].cfg);
     }
 
     pub fn data_exchange(&mut self, out: &[u8]) -> Vec<u8> {
-        let r = self.srd(None, out);
-        r[telegram::pdu_range(r.len(), self.node.slave().input_len())].to_vec()
+        Rig::data_exchange(self, out).to_vec()
+    }
+}
+
+impl Rig for Card {
+    fn master(&mut self) -> &mut ScriptedMaster {
+        &mut self.master
+    }
+    fn deliver(&mut self, frame: &[u8]) -> Option<Frame> {
+        testkit::feed(&mut self.node, self.now, frame)
+    }
+    fn settle(&mut self) {
+        self.cycle(1);
+    }
+    fn dp_state(&self) -> DpState {
+        self.node.slave().state()
+    }
+    fn input_len(&self) -> usize {
+        self.node.slave().input_len()
     }
 }
