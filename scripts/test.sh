@@ -12,9 +12,11 @@ exec > >(tee "$LOG") 2>&1
 echo "== format"
 cargo fmt --all -- --check
 
-echo "== clippy: protocol library (host and firmware target), -D warnings"
+echo "== clippy: protocol library (host and firmware target, with its tests) and host-tests, -D warnings"
 cargo clippy --lib --target "$HOST" -- -D warnings
 cargo clippy --lib -- -D warnings
+cargo clippy --lib --tests --target "$HOST" -- -D warnings
+cargo clippy -p host-tests --all-targets --target "$HOST" -- -D warnings
 
 echo "== firmware: release build for the STM32F411 (thumbv7em-none-eabihf)"
 cargo build --release
