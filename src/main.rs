@@ -16,14 +16,13 @@
 //! | 16 | QEMU: `usart1` (USART1 interrupt per character) | `Node::on_byte` → response; after a Data_Exchange spawns `app_step`, after a DP-V1 request `acyclic` |
 //! | 15 | F411: `decide` (bound to the unused SDIO interrupt, pended by `line_usart1`) | per telegram: `Node::on_frame` → `DmaLine::respond` (min_TSDR by TIM5 compare); autobaud frame accounting; spawns as above |
 //! | 8 | `acyclic` (software task) | `Node::process_acyclic`: DP-V1 records at slot 0, PROFIdrive parameter access (card PNUs, then the drive's through the DPM parameter mailbox, `Application::parameters`; a job waiting for the drive is retried on the next spawn) |
-//! | 1 | `housekeeping` (QEMU) / `housekeeping_board` (F411) (async, every 1 ms) | `Application::step` in three parts (node timers + DPM publish / drive / collect), events, logs; F411: autobaud poll and rate switch, LEDs, IWDG, address journal |
-//! | 1 | `app_step` (software task) | one `Application::step` right after a Data_Exchange (the drive sees new outputs at once) |
+//! | 1 | `housekeeping` (QEMU) / `housekeeping_board` (F411) (async, every 1 ms) | the application step with two short Node locks (`Application::snapshot`: node timers + a copy; unlocked: DPM publish, drive, profile cycle, PKW, DRIVE_CMD; `Application::apply`: diagnosis + input image), STATUS.CORRUPT_FRAMES from the line, events, logs; F411: autobaud poll and rate switch, LEDs, IWDG, address journal |
+//! | 1 | `app_step` (software task) | one application step (as above) right after a Data_Exchange (the drive sees new outputs at once) |
 //! | – | `idle` | WFI |
 //!
-//! The `Node` is shared by all of them but the F411 line interrupts; the lower tasks lock it
-//! only for the parts of a step that need it (`Application::step_publish`, `step_collect`;
-//! the simulated drive runs outside the lock) or one `Node::process_acyclic` call (README
-//! "Benchmark").
+//! The `Node` is shared by all of them but the line interrupts; the lower tasks lock it only
+//! to copy (`Application::snapshot` and `Application::apply` around the unlocked DPM, drive,
+//! profile and PKW work) or for one `Node::process_acyclic` call (README "Benchmark").
 //!
 //! The board is chosen by cargo feature; only `bsp::board` and the line block below differ:
 //!

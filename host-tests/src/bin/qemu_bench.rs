@@ -267,7 +267,7 @@ fn main() {
         println!("| {label} | {req} → {resp} | {instr} | {} | {:.1} |", v.len(), *hi as f64 / 96.0);
     }
     println!(
-        "\n(lower-priority work with the Node locked, i.e. the decision and USART1 masked: the largest count seen)\n"
+        "\n(lower-priority work with the Node locked, i.e. the decision masked: the largest count seen, counted with interrupts masked)\n"
     );
     println!("| under the Node lock | instructions (max) | ≥ µs at 96 MHz | characters at 1.5 Mbit/s |");
     println!("|---|---:|---:|---:|");
