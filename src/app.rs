@@ -25,7 +25,10 @@ use crate::card;
 use crate::dp::{DpState, Events};
 use crate::dpm::host::{DpmTransport, Host, Options};
 use crate::dpm::layout::operate_mode;
-use crate::dpm::{Dpm, DriveCommandImage, Link, MailboxParams, ParamCache, PdFlags, ProcessData, PzdWords, Telegram};
+use crate::dpm::{
+    Dpm, DriveCommandImage, Link, MailboxParams, NodeSnapshot, NodeUpdate, ParamCache, PdFlags, ProcessData, PzdWords,
+    Telegram,
+};
 use crate::drive::params::DriveTable;
 use crate::drive::{DriveConfig, SimDrive};
 use crate::node::Node;
@@ -108,14 +111,12 @@ impl Application {
     }
 
     /// The first third of [`step`](Self::step), the part that needs the node: its timers and
-    /// [`Link::publish`] (status, outputs, events into the DPM). A firmware that must keep
-    /// the node's lock short calls the three parts with the lock held only for this one and
-    /// [`step_collect`](Self::step_collect).
+    /// [`Link::publish`] (status, outputs, events into the DPM). The same as
+    /// [`snapshot`](Self::snapshot) + [`publish`](Self::publish).
     pub fn step_publish(&mut self, now: Instant, node: &mut Node) -> Events {
-        let events = node.poll(now);
-        self.link.publish(node, events, self.host.transport_mut().dpm_mut());
-        self.events |= events;
-        events
+        let snap = self.snapshot(now, node);
+        self.publish(&snap);
+        snap.events
     }
 
     /// The middle of [`step`](Self::step), without the node: the simulated drive reads
@@ -126,12 +127,49 @@ impl Application {
 
     /// The last part of [`step`](Self::step), with the node: [`Link::collect`] (drive
     /// supervision, configuration takeover, mailbox), the profile layer (DRIVE_STATE → the
-    /// next input image, the outputs → DRIVE_CMD) and a waiting PKW job.
+    /// next input image, the outputs → DRIVE_CMD) and a waiting PKW job. The same as
+    /// [`collect`](Self::collect) on a fresh copy of the node + [`apply`](Self::apply).
     pub fn step_collect(&mut self, now: Instant, node: &mut Node) {
-        self.link.collect(now, node, self.host.transport().dpm());
+        let snap = self.link.snapshot(node, Events::empty());
+        let update = self.collect(now, &snap);
+        self.apply(node, &update);
+    }
+
+    /// The node's part of a step for a firmware that keeps the node's lock short (call it
+    /// with the lock held; it only copies): the node's timers ([`Node::poll`]), the link's
+    /// reaction to a new telegram, and a [`NodeSnapshot`] of what [`publish`](Self::publish)
+    /// and [`collect`](Self::collect) need. The firmware's step is `snapshot` (locked) →
+    /// `publish` → [`step_drive`](Self::step_drive) → `collect` → [`apply`](Self::apply)
+    /// (locked); [`step`](Self::step) does the same with the node at hand.
+    pub fn snapshot(&mut self, now: Instant, node: &mut Node) -> NodeSnapshot {
+        let events = node.poll(now);
+        self.link.take_snapshot(node, events)
+    }
+
+    /// Without the node: STATUS, OUTPUTS and CARD into the DPM from `snap`
+    /// ([`Link::publish_snapshot`]); its events are kept for the profile layer.
+    pub fn publish(&mut self, snap: &NodeSnapshot) {
+        self.link.publish_snapshot(snap, self.host.transport_mut().dpm_mut());
+        self.events |= snap.events;
+    }
+
+    /// Without the node: [`Link::collect_host`] (drive supervision, configuration takeover,
+    /// mailbox; no raw INPUTS: the profile layer builds the input image), the profile cycle
+    /// on `snap` (DRIVE_STATE → the next input image, the outputs → DRIVE_CMD) and a waiting
+    /// PKW job. Returns what the node must learn, for [`apply`](Self::apply).
+    pub fn collect(&mut self, now: Instant, snap: &NodeSnapshot) -> NodeUpdate {
+        let dpm = self.host.transport().dpm();
+        let mut update = self.link.collect_host(now, snap.dp_state(), dpm, false);
         let events = core::mem::replace(&mut self.events, Events::empty());
-        self.run_profile(node, events);
+        self.run_profile(snap, events, &mut update);
         self.service_pkw(now);
+        update
+    }
+
+    /// The node's last part (call it with the lock held; it only copies): the drive's
+    /// diagnosis and the new input image ([`Link::apply`]).
+    pub fn apply(&mut self, node: &mut Node, update: &NodeUpdate) {
+        self.link.apply(node, update);
     }
 
     /// The panic / hard-fault path (ARCHITECTURE §2 "supervision"): the DPM OUTPUTS block to
@@ -160,13 +198,12 @@ impl Application {
     }
 
     /// The profile layer: select the engine for the active telegram, run one cycle with the
-    /// drive's latest state, stage the input image, write DRIVE_CMD.
-    fn run_profile(&mut self, node: &mut Node, events: Events) {
-        let slave = node.slave();
-        let telegram = slave.module().and_then(Telegram::of_module).unwrap_or(Telegram::None);
-        let in_dx = slave.state() == DpState::DataExch;
+    /// drive's latest state, stage the input image in `update`, write DRIVE_CMD.
+    fn run_profile(&mut self, snap: &NodeSnapshot, events: Events, update: &mut NodeUpdate) {
+        let telegram = snap.telegram();
+        let in_dx = snap.dp_state() == DpState::DataExch;
         if telegram != Telegram::None && in_dx {
-            let user = slave.parameters().map(|p| p.user).unwrap_or(card::USER_PRM_DEFAULTS);
+            let user = snap.user_prm;
             let config = self.link.config();
             let local = config.map_or(0, |c| c.operate_mode);
             let data = match config.map_or(1, |c| c.profile) {
@@ -182,9 +219,9 @@ impl Application {
         }
         let Some(sel) = self.runtime.selection() else { return };
         // Watchdog expired / master gone (left data exchange) or master in Clear.
-        let lost = !in_dx || slave.is_clear();
+        let lost = !in_dx || snap.is_clear();
         let state = *self.link.read_drive_state(self.host.transport().dpm());
-        let outputs = (events.contains(Events::OUTPUTS_UPDATED) && !lost).then(|| slave.outputs());
+        let outputs = (events.contains(Events::OUTPUTS_UPDATED) && !lost).then(|| snap.outputs());
         let drive_lost = self.link.drive_lost();
         let Some(x) = self.runtime.cycle(outputs, lost, &state.status, state.extra.words()) else { return };
         let img = DriveCommandImage {
@@ -198,8 +235,8 @@ impl Application {
             outputs_seq: 0,
             extra: PzdWords::new(x.words).unwrap_or(PzdWords::EMPTY),
         };
-        if in_dx && !drive_lost && sel.telegram == telegram {
-            node.slave_mut().set_inputs(x.inputs);
+        if in_dx && !drive_lost && sel.telegram == telegram && telegram == update.telegram() {
+            update.set_inputs(x.inputs);
         }
         self.link.publish_command(&img, self.host.transport_mut().dpm_mut());
     }
@@ -382,23 +419,129 @@ mod tests {
     fn split_step_is_the_same_step() {
         let mut a = Bench::new();
         let mut b = Bench::new();
-        a.bring_up(&card::MODULES[0]);
-        b.bring_up(&card::MODULES[0]);
-        let q = [0x04, 0x7E, 0x20, 0x00];
-        for _ in 0..5 {
+        let mut c = Bench::new();
+        for x in [&mut a, &mut b, &mut c] {
+            x.bring_up(&card::MODULES[0]);
+        }
+        for k in 0..40 {
+            let q = [0x04, if k < 5 { 0x7E } else { 0x7F }, 0x20, 0x00];
             let ia = a.cycle(&q, 5);
-            // The same cycle, the step in three parts (the firmware's short node locks).
+            // The same cycle, the step in three parts.
             let rb = b.srd(None, &q);
             b.now = b.now + Duration::from_millis(5);
             let ev = b.app.step_publish(b.now, &mut b.node);
             b.app.step_drive(b.now);
             b.app.step_collect(b.now, &mut b.node);
-            let _ = ev;
             let ib = rb[telegram::pdu_range(rb.len(), b.node.slave().input_len())].to_vec();
+            // The firmware's short node locks: a copy of the node, the DPM, drive and profile
+            // without it, then the update into the node.
+            let rc = c.srd(None, &q);
+            c.now = c.now + Duration::from_millis(5);
+            let snap = c.app.snapshot(c.now, &mut c.node);
+            c.app.publish(&snap);
+            c.app.step_drive(c.now);
+            let update = c.app.collect(c.now, &snap);
+            c.app.apply(&mut c.node, &update);
+            let ic = rc[telegram::pdu_range(rc.len(), c.node.slave().input_len())].to_vec();
+            assert_eq!(ev, snap.events);
             assert_eq!(ia, ib);
+            assert_eq!(ia, ic);
         }
-        assert_eq!(a.app.profidrive_state(), b.app.profidrive_state());
-        assert_eq!(a.app.dpm().as_bytes()[..], b.app.dpm().as_bytes()[..]);
+        assert_eq!(a.app.profidrive_state(), Some(DriveState::Operation));
+        for x in [&b, &c] {
+            assert_eq!(a.app.profidrive_state(), x.app.profidrive_state());
+            assert_eq!(a.app.dpm().as_bytes()[..], x.app.dpm().as_bytes()[..]);
+            assert_eq!(a.node.slave().inputs(), x.node.slave().inputs());
+        }
+    }
+
+    /// An update made for one telegram is not served after the master configured another
+    /// one between the copy and the update (a Chk_Cfg while the step ran unlocked).
+    #[test]
+    fn an_update_for_an_old_telegram_is_dropped() {
+        let mut b = Bench::new();
+        b.bring_up(&card::MODULES[0]);
+        for _ in 0..3 {
+            b.cycle(&[0x04, 0x7E, 0x20, 0x00], 5);
+        }
+        b.now = b.now + Duration::from_millis(5);
+        let snap = b.app.snapshot(b.now, &mut b.node);
+        b.app.publish(&snap);
+        b.app.step_drive(b.now);
+        let update = b.app.collect(b.now, &snap);
+        assert_eq!(update.telegram(), Telegram::Standard(1));
+        assert!(update.inputs().is_some_and(|i| i.len() == 4));
+        // Meanwhile: Set_Prm + Chk_Cfg for PPO 1 (the slave leaves data exchange).
+        let ppo1 = card::MODULES.iter().find(|m| m.reference == 101).unwrap();
+        b.bring_up(ppo1);
+        let before = b.node.slave().inputs().to_vec();
+        b.app.apply(&mut b.node, &update);
+        assert_eq!(b.node.slave().inputs(), &before[..], "the ST1 image is not served to PPO 1");
+    }
+
+    /// The card's profile layer builds the input image; an INPUTS block the host writes
+    /// (layout 2 style) is not handed to the slave, not even for one cycle.
+    #[test]
+    fn the_profile_is_the_only_input_path() {
+        let mut b = Bench::new();
+        b.bring_up(&card::MODULES[0]);
+        for _ in 0..3 {
+            b.cycle(&[0x04, 0x7E, 0x20, 0x00], 5);
+        }
+        let profile = b.node.slave().inputs().to_vec();
+        assert_eq!(words(&profile)[0] & 0x0277, 0x0231, "S2 from the profile layer");
+        for _ in 0..3 {
+            let raw = ProcessData::new(Telegram::Standard(1), PdFlags::empty(), &[0xDE, 0xAD, 0xBE, 0xEF]);
+            b.app.dpm_mut().host().write_inputs(&raw);
+            b.now = b.now + Duration::from_millis(1);
+            let snap = b.app.snapshot(b.now, &mut b.node);
+            b.app.publish(&snap);
+            let update = b.app.collect(b.now, &snap);
+            assert_eq!(update.inputs(), Some(&profile[..]));
+            b.app.apply(&mut b.node, &update);
+            assert_eq!(b.node.slave().inputs(), &profile[..]);
+        }
+        assert_eq!(b.app.link().stats().inputs_taken, 0);
+    }
+
+    /// STATUS.CORRUPT_FRAMES: the platform's line errors, plus telegrams the FDL station
+    /// found invalid (a DMA receiver hands whole telegrams with their checksum unchecked).
+    #[test]
+    fn corrupt_frames_come_from_the_line_and_the_station() {
+        use crate::phy::line::Receiver;
+        let mut b = Bench::new();
+        b.bring_up(&card::MODULES[0]);
+        b.step(1);
+        assert_eq!(b.app.dpm().status().unwrap().corrupt_frames, 0);
+        // The line: one segment with a character error, one truncated, one of garbage.
+        let mut rx = Receiver::new();
+        rx.on_tsyn();
+        let hdr = Header { da: SLAVE, sa: MASTER, fc: FunctionCode::request(0xD, true, true), dsap: None, ssap: None };
+        let mut buf = [0u8; telegram::MAX_FRAME_LEN];
+        let len = telegram::emit(&mut buf, &hdr, &[0x04, 0x7E, 0x20, 0x00]).unwrap();
+        let good = buf[..len].to_vec();
+        rx.segment(&good, true, |_| {});
+        rx.on_tsyn();
+        rx.segment(&good[..good.len() - 1], false, |_| {});
+        rx.on_tsyn();
+        rx.segment(&[0x00, 0x01], false, |_| {});
+        rx.on_tsyn();
+        // A whole telegram with a bad checksum reaches the node (the receiver cuts by length).
+        let mut bad = good.clone();
+        let n = bad.len();
+        bad[n - 2] ^= 0x01;
+        let mut frames = Vec::new();
+        rx.segment(&bad, false, |f| frames.push(f.to_vec()));
+        assert_eq!(frames.len(), 1);
+        assert!(b.node.on_frame(b.now, &frames[0]).is_none(), "no answer to a corrupt telegram");
+        assert_eq!(rx.stats().lost_frames(), 3);
+        b.app.link_mut().set_line_errors(rx.stats().lost_frames());
+        b.step(1);
+        assert_eq!(b.app.dpm().status().unwrap().corrupt_frames, 4);
+        // Wraps at 16 bits in the block.
+        b.app.link_mut().set_line_errors(0xFFFF);
+        b.step(1);
+        assert_eq!(b.app.dpm().status().unwrap().corrupt_frames, 0);
     }
 
     #[test]

@@ -16,14 +16,13 @@
 //! | 16 | QEMU: `usart1` (USART1 interrupt per character) | `Node::on_byte` → response; after a Data_Exchange spawns `app_step`, after a DP-V1 request `acyclic` |
 //! | 15 | F411: `decide` (bound to the unused SDIO interrupt, pended by `line_usart1`) | per telegram: `Node::on_frame` → `DmaLine::respond` (min_TSDR by TIM5 compare); autobaud frame accounting; spawns as above |
 //! | 8 | `acyclic` (software task) | `Node::process_acyclic`: DP-V1 records at slot 0, PROFIdrive parameter access (card PNUs, then the drive's through the DPM parameter mailbox, `Application::parameters`; a job waiting for the drive is retried on the next spawn) |
-//! | 1 | `housekeeping` (QEMU) / `housekeeping_board` (F411) (async, every 1 ms) | `Application::step` in three parts (node timers + DPM publish / drive / collect), events, logs; F411: autobaud poll and rate switch, LEDs, IWDG, address journal |
-//! | 1 | `app_step` (software task) | one `Application::step` right after a Data_Exchange (the drive sees new outputs at once) |
+//! | 1 | `housekeeping` (QEMU) / `housekeeping_board` (F411) (async, every 1 ms) | the application step with two short Node locks (`Application::snapshot`: node timers + a copy; unlocked: DPM publish, drive, profile cycle, PKW, DRIVE_CMD; `Application::apply`: diagnosis + input image), STATUS.CORRUPT_FRAMES from the line, events, logs; F411: autobaud poll and rate switch, LEDs, IWDG, address journal |
+//! | 1 | `app_step` (software task) | one application step (as above) right after a Data_Exchange (the drive sees new outputs at once) |
 //! | – | `idle` | WFI |
 //!
-//! The `Node` is shared by all of them but the F411 line interrupts; the lower tasks lock it
-//! only for the parts of a step that need it (`Application::step_publish`, `step_collect`;
-//! the simulated drive runs outside the lock) or one `Node::process_acyclic` call (README
-//! "Benchmark").
+//! The `Node` is shared by all of them but the line interrupts; the lower tasks lock it only
+//! to copy (`Application::snapshot` and `Application::apply` around the unlocked DPM, drive,
+//! profile and PKW work) or for one `Node::process_acyclic` call (README "Benchmark").
 //!
 //! The board is chosen by cargo feature; only `bsp::board` and the line block below differ:
 //!
@@ -151,9 +150,10 @@ mod app {
         card_fault: bool,
         /// The pattern for the LED pins.
         leds: Option<Leds>,
-        /// Largest instruction count of one part of `Application::step` under the Node lock.
+        /// Largest instruction counts of the parts of a step: `snapshot` and `apply` (under
+        /// the Node lock), publish + drive + collect (unlocked).
         #[cfg(feature = "bench")]
-        max_step: u32,
+        max_step: [u32; 3],
     }
 
     impl Drive {
@@ -173,36 +173,44 @@ mod app {
                 card_fault: false,
                 leds: None,
                 #[cfg(feature = "bench")]
-                max_step: 0,
+                max_step: [0; 3],
             }
         }
 
-        /// One application step now, the node locked only for the two parts that need it
-        /// (`step_publish`: node timers + DPM status/outputs/events; `step_collect`: DPM
-        /// inputs/config/mailbox → node); the simulated drive runs between them, unlocked.
-        fn step(&mut self, node: &mut impl Mutex<T = Node>) -> NodeView {
+        /// One application step now, the node locked only to copy: `Application::snapshot`
+        /// (node timers, a copy of state, outputs and Set_Prm user bytes) and
+        /// `Application::apply` (the drive's diagnosis and the new input image into the
+        /// slave). The DPM writes (`publish`), the simulated drive, the profile cycle, the
+        /// PKW service and DRIVE_CMD (`collect`) run between them, unlocked. `line_errors`:
+        /// the line's count of corrupt telegrams (STATUS.CORRUPT_FRAMES).
+        fn step(&mut self, node: &mut impl Mutex<T = Node>, line_errors: u32) -> NodeView {
             let now = self.clock.now();
             let app = &mut self.app;
+            app.link_mut().set_line_errors(line_errors);
             #[cfg(feature = "bench")]
-            let mut instr = [0u32; 2];
-            let events = node.lock(|n| {
-                #[cfg(feature = "bench")]
-                let t0 = board::bench::count();
-                let events = app.step_publish(now, n);
+            let mut instr = [0u32; 3];
+            let snap = node.lock(|n| {
+                let (snap, _n) = measured(|| app.snapshot(now, n));
                 #[cfg(feature = "bench")]
                 {
-                    instr[0] = board::bench::count().wrapping_sub(t0);
+                    instr[0] = _n;
                 }
-                events
+                snap
             });
+            #[cfg(feature = "bench")]
+            let t_free = board::bench::count();
+            app.publish(&snap);
             app.step_drive(now);
+            let update = app.collect(now, &snap);
+            #[cfg(feature = "bench")]
+            {
+                instr[2] = board::bench::count().wrapping_sub(t_free);
+            }
             let mut v = node.lock(|n| {
-                #[cfg(feature = "bench")]
-                let t0 = board::bench::count();
-                app.step_collect(now, n);
+                let ((), _n) = measured(|| app.apply(n, &update));
                 #[cfg(feature = "bench")]
                 {
-                    instr[1] = board::bench::count().wrapping_sub(t0);
+                    instr[1] = _n;
                 }
                 let s = n.slave();
                 NodeView {
@@ -216,18 +224,17 @@ mod app {
                     watchdog: s.watchdog_time(),
                 }
             });
+            let events = snap.events;
             v.events = events;
             #[cfg(feature = "bench")]
             {
-                let m = instr[0].max(instr[1]);
-                if m > self.max_step {
-                    self.max_step = m;
-                    defmt::info!(
-                        "LOCK app.step {=u32} instructions (new maximum; publish {=u32}, collect {=u32})",
-                        m,
-                        instr[0],
-                        instr[1]
-                    );
+                // Each part's own maximum: the two locked parts and the unlocked middle.
+                const PARTS: [&str; 3] = ["LOCK app.snapshot", "LOCK app.apply", "UNLOCKED app.step"];
+                for (k, what) in PARTS.iter().enumerate() {
+                    if instr[k] > self.max_step[k] {
+                        self.max_step[k] = instr[k];
+                        defmt::info!("{=str} {=u32} instructions (new maximum)", what, instr[k]);
+                    }
                 }
             }
             // The line spawns the DP-V1 task; this catches a request that arrived while the
@@ -310,6 +317,27 @@ mod app {
                 );
                 self.state = state;
             }
+        }
+    }
+
+    /// Run `f`, work done under the Node lock. The bench build counts its instructions with
+    /// every interrupt masked, so that the count is the lock's own work (QEMU's per-byte
+    /// USART1 interrupts would otherwise land in it; the F411's line interrupts are few and
+    /// short, and delay the decision whether or not the lock is held); other builds just
+    /// run it (count 0).
+    #[inline(always)]
+    fn measured<R>(f: impl FnOnce() -> R) -> (R, u32) {
+        #[cfg(feature = "bench")]
+        {
+            cortex_m::interrupt::free(|_| {
+                let t0 = board::bench::count();
+                let r = f();
+                (r, board::bench::count().wrapping_sub(t0))
+            })
+        }
+        #[cfg(not(feature = "bench"))]
+        {
+            (f(), 0)
         }
     }
 
@@ -410,7 +438,7 @@ mod app {
                 drive,
                 line: b.line,
                 baud,
-                spi: start_dpm_spi(),
+                spi: start_dpm_spi(b.spi),
                 spi_slave: pbcard::dpm::spi::SpiSlave::new(),
             },
             Local {
@@ -517,12 +545,10 @@ mod app {
         drive.lock(|d| {
             let mut params = d.app.parameters(now);
             node.lock(|n| {
-                #[cfg(feature = "bench")]
-                let t0 = board::bench::count();
-                n.process_acyclic(now, &mut params);
+                let ((), _n) = measured(|| n.process_acyclic(now, &mut params));
                 #[cfg(feature = "bench")]
                 {
-                    instr = board::bench::count().wrapping_sub(t0);
+                    instr = _n;
                 }
             });
         });
@@ -532,12 +558,13 @@ mod app {
     }
 
     /// One application step right after a Data_Exchange.
-    #[task(priority = 1, shared = [node, drive])]
+    #[task(priority = 1, shared = [node, drive, line])]
     async fn app_step(cx: app_step::Context) {
-        let app_step::SharedResources { mut node, mut drive, .. } = cx.shared;
+        let app_step::SharedResources { mut node, mut drive, mut line, .. } = cx.shared;
+        let line_errors = line.lock(|l| l.corrupt_frames());
         // Same priority as housekeeping: this lock costs nothing.
         drive.lock(|d| {
-            d.step(&mut node);
+            d.step(&mut node, line_errors);
         });
     }
 
@@ -563,8 +590,9 @@ mod app {
         loop {
             next += 1.millis();
             Mono::delay_until(next).await;
+            let line_errors = line.lock(|l| l.corrupt_frames());
             let (v, now, leds) = drive.lock(|d| {
-                let v = d.step(&mut node);
+                let v = d.step(&mut node, line_errors);
                 (v, d.clock.now(), d.leds)
             });
 
@@ -653,11 +681,12 @@ mod app {
     #[cfg(not(feature = "board-f411"))]
     type DpmSpiFrame = ();
 
-    /// Bring up the SPI port and start the IRQ task (from `init`).
+    /// Bring up the SPI port on the peripherals the board handed over and start the IRQ
+    /// task (from `init`).
     #[cfg(feature = "board-f411")]
-    fn start_dpm_spi() -> DpmSpiPort {
+    fn start_dpm_spi(parts: crate::bsp::spi::SpiParts) -> DpmSpiPort {
         spi_irq::spawn().ok();
-        crate::bsp::spi::init()
+        crate::bsp::spi::init(parts)
     }
     #[cfg(not(feature = "board-f411"))]
     fn start_dpm_spi() -> DpmSpiPort {

@@ -259,6 +259,11 @@ impl DmaLine {
         self.receiver.stats()
     }
 
+    /// Telegrams lost on the line (STATUS.CORRUPT_FRAMES): [`RxStats::lost_frames`].
+    pub fn corrupt_frames(&self) -> u32 {
+        self.receiver.stats().lost_frames()
+    }
+
     /// TIM5 now.
     #[inline(always)]
     pub fn ticks(&self) -> u32 {
@@ -689,10 +694,13 @@ pub struct Board {
     pub flash: super::flash::JournalFlash,
     /// The independent watchdog, not started (the application starts it when its tasks run).
     pub iwdg: IWDG,
+    /// The DPM SPI transport's peripherals and pins, for [`super::spi::init`].
+    pub spi: super::spi::SpiParts,
 }
 
 /// Clock tree (25 MHz HSE → 96 MHz, 3 flash wait states, ART on), SysTick monotonic, PA8 DE /
-/// PA9 TX / PA10 RX, PB6..8 LEDs, TIM5, USART1 + DMA2 at `rate` (receiving).
+/// PA9 TX / PA10 RX, PB6..8 LEDs, TIM5, USART1 + DMA2 at `rate` (receiving); the DPM SPI
+/// transport's peripherals handed over unconfigured in [`Board::spi`].
 pub fn init(dp: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYST, rate: Baudrate) -> Board {
     use stm32f4xx_hal::gpio::{GpioExt, PinState, Speed};
     use stm32f4xx_hal::rcc::{self, RccExt};
@@ -755,5 +763,17 @@ pub fn init(dp: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYS
         sysclk,
         timclk1
     );
-    Board { line, clock, leds, flash: super::flash::JournalFlash::new(dp.FLASH), iwdg: dp.IWDG }
+    let spi = super::spi::SpiParts {
+        spi: dp.SPI2,
+        dma: dp.DMA1,
+        exti: dp.EXTI,
+        syscfg: dp.SYSCFG,
+        rcc,
+        irq: gpiob.pb0,
+        nss: gpiob.pb12,
+        sck: gpiob.pb13,
+        miso: gpiob.pb14,
+        mosi: gpiob.pb15,
+    };
+    Board { line, clock, leds, flash: super::flash::JournalFlash::new(dp.FLASH), iwdg: dp.IWDG, spi }
 }

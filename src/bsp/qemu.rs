@@ -213,6 +213,13 @@ impl QemuLine {
         self.framer.stats()
     }
 
+    /// Telegrams lost on the line (STATUS.CORRUPT_FRAMES): the framer's invalid telegrams
+    /// (a character error inside one included, `Framer::line_error`) and those cut off.
+    pub fn corrupt_frames(&self) -> u32 {
+        let f = self.framer.stats();
+        f.corrupt.wrapping_add(f.truncated)
+    }
+
     /// Always: QEMU has no line hardware to supervise.
     pub fn is_healthy(&self) -> bool {
         true

@@ -46,11 +46,9 @@
 use core::sync::atomic::{compiler_fence, Ordering};
 
 use pbcard::dpm::spi::{MAX_REPLY, MAX_TRANSACTION};
-use stm32f4xx_hal::gpio::{
-    Alternate, Edge, ExtiPin, GpioExt, Output, PinState, PushPull, Speed, PB0, PB12, PB13, PB14, PB15,
-};
-use stm32f4xx_hal::pac::{DMA1, EXTI, RCC, SPI2};
-use stm32f4xx_hal::rcc::{Enable, Reset};
+use stm32f4xx_hal::gpio::{Alternate, Edge, ExtiPin, Output, PinState, PushPull, Speed, PB0, PB12, PB13, PB14, PB15};
+use stm32f4xx_hal::pac::{DMA1, EXTI, SPI2, SYSCFG};
+use stm32f4xx_hal::rcc::{Enable, Rcc, Reset};
 use stm32f4xx_hal::syscfg::SysCfgExt;
 
 /// RX buffer length: one byte more than the longest transaction, so that an overlong one is
@@ -98,7 +96,7 @@ pub struct PortStats {
 pub struct SpiPort {
     spi: SPI2,
     dma: DMA1,
-    rcc: RCC,
+    rcc: Rcc,
     nss: PB12<Alternate<5>>,
     _pins: (PB13<Alternate<5>>, PB14<Alternate<5>>, PB15<Alternate<5>>),
     irq: PB0<Output<PushPull>>,
@@ -276,32 +274,49 @@ fn arm(dma: &DMA1, stream: usize, periph: u32, mem: u32, n: u16, to_periph: bool
     });
 }
 
-/// Bring up SPI2 slave, DMA1, the NSS interrupt and the IRQ pin (released). Call once from
-/// the RTIC `init`, after `f411::init`.
-///
-/// The board's `init` takes the whole `pac::Peripherals`; until it hands over the pieces
-/// this port needs, they are taken here with `steal`: SPI2, DMA1, GPIOB, EXTI and SYSCFG,
-/// which nothing else in the firmware uses, and RCC, of which only the enable / reset bits
-/// of these peripherals are touched (bit-band writes, see the HAL's `rcc` module).
-pub fn init() -> SpiPort {
-    // SAFETY: see the function docs — only peripherals nobody else owns are used, and RCC
-    // only for the enable / reset bits of those.
-    let dp = unsafe { stm32f4xx_hal::pac::Peripherals::steal() };
-    let mut rcc = dp.RCC;
+/// The peripherals this port owns, handed over by the board's `init`
+/// ([`super::f411::Board::spi`]): SPI2, DMA1, EXTI, SYSCFG, the pins PB0 and PB12..=PB15
+/// (unconfigured), and RCC (the HAL's, after the clock tree is frozen), which the port keeps
+/// to reset SPI2 after an aborted transaction; nothing else uses RCC after `init`.
+pub struct SpiParts {
+    /// The SPI in slave mode.
+    pub spi: SPI2,
+    /// Streams 3 (RX) and 4 (TX), channel 0.
+    pub dma: DMA1,
+    /// EXTI line 12 (NSS rising).
+    pub exti: EXTI,
+    /// The EXTI line 12 source selection (port B).
+    pub syscfg: SYSCFG,
+    /// The enable / reset bits of SPI2 and DMA1 (the frozen clock tree).
+    pub rcc: Rcc,
+    /// IRQ to the drive.
+    pub irq: PB0,
+    /// SPI2_NSS.
+    pub nss: PB12,
+    /// SPI2_SCK.
+    pub sck: PB13,
+    /// SPI2_MISO.
+    pub miso: PB14,
+    /// SPI2_MOSI.
+    pub mosi: PB15,
+}
+
+/// Bring up SPI2 slave, DMA1, the NSS interrupt and the IRQ pin (released) on the
+/// peripherals the board handed over. Call once from the RTIC `init`, after `f411::init`.
+pub fn init(parts: SpiParts) -> SpiPort {
+    let SpiParts { spi, dma, mut exti, syscfg, mut rcc, irq, nss, sck, miso, mosi } = parts;
     SPI2::enable(&mut rcc);
     SPI2::reset(&mut rcc);
     DMA1::enable(&mut rcc);
     DMA1::reset(&mut rcc);
 
-    let gpiob = dp.GPIOB.split(&mut rcc);
-    let irq = gpiob.pb0.into_push_pull_output_in_state(PinState::High);
-    let mut nss = gpiob.pb12.into_alternate::<5>();
-    let sck = gpiob.pb13.into_alternate::<5>();
-    let miso = gpiob.pb14.into_alternate::<5>().speed(Speed::VeryHigh);
-    let mosi = gpiob.pb15.into_alternate::<5>();
+    let irq = irq.into_push_pull_output_in_state(PinState::High);
+    let mut nss = nss.into_alternate::<5>();
+    let sck = sck.into_alternate::<5>();
+    let miso = miso.into_alternate::<5>().speed(Speed::VeryHigh);
+    let mosi = mosi.into_alternate::<5>();
 
-    let mut syscfg = dp.SYSCFG.constrain(&mut rcc);
-    let mut exti: EXTI = dp.EXTI;
+    let mut syscfg = syscfg.constrain(&mut rcc);
     nss.make_interrupt_source(&mut syscfg);
     nss.trigger_on_edge(&mut exti, Edge::Rising);
     nss.enable_interrupt(&mut exti);
@@ -315,8 +330,8 @@ pub fn init() -> SpiPort {
     };
 
     let mut port = SpiPort {
-        spi: dp.SPI2,
-        dma: dp.DMA1,
+        spi,
+        dma,
         rcc,
         nss,
         _pins: (sck, miso, mosi),

@@ -3,10 +3,11 @@
 //! the supervision of the drive's heartbeat.
 
 use super::{
-    CardEvent, CardFlags, CardReport, CardSide, CommState, ConfigResult, Dpm, DriveCommandImage, DriveReport,
-    DriveStateImage, HeartbeatMonitor, HostConfig, Liveness, Mailbox, MailboxBusy, MailboxRequest, ParamValues,
-    PdFlags, ProcessData, Status, StatusFlags, Telegram,
+    CardEvent, CardFlags, CardReport, CommState, ConfigResult, Dpm, DriveCommandImage, DriveReport, DriveStateImage,
+    HeartbeatMonitor, HostConfig, Liveness, Mailbox, MailboxBusy, MailboxRequest, ParamValues, PdFlags, ProcessData,
+    Status, StatusFlags, Telegram,
 };
+use crate::card::{MAX_INPUT_LEN, MAX_OUTPUT_LEN, USER_PRM_DEFAULTS, USER_PRM_LEN};
 use crate::dp::{DpState, Events};
 use crate::node::Node;
 use crate::profile::param::ParamError;
@@ -77,6 +78,7 @@ pub struct Link {
     config: Option<HostConfig>,
     config_new: bool,
     mailbox: Mailbox,
+    line_errors: u32,
 }
 
 impl Default for Link {
@@ -126,6 +128,7 @@ impl Link {
             config: None,
             config_new: false,
             mailbox: Mailbox::new(Mailbox::DEFAULT_TIMEOUT),
+            line_errors: 0,
         }
     }
 
@@ -243,15 +246,43 @@ impl Link {
             prm_faults: st.prm_faults as u16,
             cfg_faults: st.cfg_faults as u16,
             watchdog_expiries: st.watchdog_expiries as u16,
-            corrupt_frames: node.framer().stats().corrupt as u16,
+            corrupt_frames: self.corrupt_frames(node) as u16,
         }
+    }
+
+    /// The platform's receiver counts of telegrams lost to the line (cumulative, wrapping):
+    /// character errors, telegrams cut off or no telegram at all where one should start, as a
+    /// receiver that delimits telegrams itself counts them (the F411's DMA receiver,
+    /// [`crate::phy::line::RxStats::lost_frames`]; the QEMU board's own framer). Shown in
+    /// `STATUS.CORRUPT_FRAMES` (DPM layout, docs/DPM.md) with the node's own framer count and
+    /// the telegrams the FDL station found invalid (checksum, delimiters).
+    pub fn set_line_errors(&mut self, count: u32) {
+        self.line_errors = count;
+    }
+
+    /// `STATUS.CORRUPT_FRAMES` before the cut to 16 bits: the node's framer (per-byte
+    /// receivers), the FDL station's invalid telegrams (a receiver that hands whole telegrams
+    /// to [`Node::on_frame`] leaves the checksum to it) and the platform's line errors
+    /// ([`Link::set_line_errors`]).
+    pub fn corrupt_frames(&self, node: &Node) -> u32 {
+        node.framer().stats().corrupt.wrapping_add(node.station().stats().invalid).wrapping_add(self.line_errors)
     }
 
     /// Write STATUS (when changed), OUTPUTS (on new outputs or a changed meaning) and CARD
     /// (every call: the card's heartbeat; `events` raise the card → drive events). A change
     /// of the active telegram also clears the input image until the host answers for the new
-    /// one.
+    /// one. The same as [`Link::take_snapshot`] (the part that needs the node) followed by
+    /// [`Link::publish_snapshot`] (the DPM writes).
     pub fn publish(&mut self, node: &mut Node, events: Events, dpm: &mut Dpm) {
+        let snap = self.take_snapshot(node, events);
+        self.publish_snapshot(&snap, dpm);
+    }
+
+    /// The part of [`Link::publish`] that needs the node, for a platform that holds the
+    /// node's lock only while copying: a change of the active telegram clears the input image
+    /// (or serves the fault image while the drive is lost), then the node is copied into a
+    /// [`NodeSnapshot`] with `events`.
+    pub fn take_snapshot(&mut self, node: &mut Node, events: Events) -> NodeSnapshot {
         let telegram = active_telegram(node);
         if telegram != self.telegram {
             self.telegram = telegram;
@@ -261,21 +292,47 @@ impl Link {
                 set_fault_image(node, telegram);
             }
         }
-        self.raise_events(node, events);
+        self.snapshot(node, events)
+    }
+
+    /// A copy of what the link and the card's profile layer need of `node` (no change to
+    /// the link or the node).
+    pub fn snapshot(&self, node: &Node, events: Events) -> NodeSnapshot {
+        let slave = node.slave();
+        let out = slave.outputs();
+        let n = out.len().min(MAX_OUTPUT_LEN);
+        let mut outputs = [0u8; MAX_OUTPUT_LEN];
+        outputs[..n].copy_from_slice(&out[..n]);
+        NodeSnapshot {
+            events,
+            status: self.status_of(node),
+            outputs,
+            outputs_len: n as u8,
+            user_prm: slave.parameters().map_or(USER_PRM_DEFAULTS, |p| p.user),
+        }
+    }
+
+    /// The part of [`Link::publish`] without the node: STATUS, OUTPUTS and CARD from a
+    /// [`NodeSnapshot`] taken by [`Link::take_snapshot`].
+    pub fn publish_snapshot(&mut self, snap: &NodeSnapshot, dpm: &mut Dpm) {
+        self.raise_events(snap);
         self.report.heartbeat = super::next_seq(self.report.heartbeat);
         let m = self.mailbox.stats();
         self.report.late_responses = m.late_responses as u16;
         self.report.mailbox_timeouts = m.timeouts as u16;
         let mut card = dpm.card();
         card.write_card_report(&self.report);
-        self.write_status(node, &mut card);
+        if self.last_status != Some(snap.status) {
+            card.write_status(&snap.status);
+            self.last_status = Some(snap.status);
+            self.stats.status_written = self.stats.status_written.wrapping_add(1);
+        }
 
-        let slave = node.slave();
         let mut flags = PdFlags::empty();
-        flags.set(PdFlags::DATA_EXCHANGE, slave.state() == DpState::DataExch);
-        flags.set(PdFlags::CLEAR, slave.is_clear());
-        let pd = ProcessData::new(telegram, flags, slave.outputs());
-        if events.contains(Events::OUTPUTS_UPDATED) || self.last_outputs.as_ref() != Some(&pd) {
+        flags.set(PdFlags::DATA_EXCHANGE, snap.dp_state() == DpState::DataExch);
+        flags.set(PdFlags::CLEAR, snap.is_clear());
+        let pd = ProcessData::new(self.telegram, flags, snap.outputs());
+        if snap.events.contains(Events::OUTPUTS_UPDATED) || self.last_outputs.as_ref() != Some(&pd) {
             self.outputs_seq = card.write_outputs(&pd);
             self.last_outputs = Some(pd);
             self.stats.outputs_written = self.stats.outputs_written.wrapping_add(1);
@@ -283,26 +340,64 @@ impl Link {
     }
 
     /// Supervise the drive's heartbeat, take its report, a new configuration, a mailbox
-    /// response, and a new INPUTS image written for the active telegram.
+    /// response, and a new INPUTS image written for the active telegram. The same as
+    /// [`Link::collect_host`] (with the raw INPUTS path) followed by [`Link::apply`].
     pub fn collect(&mut self, now: Instant, node: &mut Node, dpm: &Dpm) {
-        self.supervise(now, node, dpm);
-        self.take_over_config(node, dpm);
+        let update = self.collect_host(now, node.slave().state(), dpm, true);
+        self.apply(node, &update);
+    }
+
+    /// The part of [`Link::collect`] without the node, `dp_state` being the slave's state
+    /// when it was last copied: the drive's report and heartbeat, a new configuration (taken
+    /// over outside data exchange), the mailbox, and with `raw_inputs` a new INPUTS image
+    /// written for the active telegram. What the node must learn from it is returned, for
+    /// [`Link::apply`]. A card that builds the input image itself (the profile layer,
+    /// DRIVE_STATE) passes `raw_inputs = false`: then its image is the only input path.
+    pub fn collect_host(&mut self, now: Instant, dp_state: DpState, dpm: &Dpm, raw_inputs: bool) -> NodeUpdate {
+        let mut update = NodeUpdate::new(self.telegram);
+        self.supervise(now, dpm, &mut update);
+        self.take_over_config(dp_state, dpm);
         self.mailbox.poll(now, dpm);
-        if self.drive_lost {
-            return;
+        if self.drive_lost || !raw_inputs {
+            return update;
         }
         match dpm.inputs() {
             Err(_) => self.stats.torn_reads = self.stats.torn_reads.wrapping_add(1),
             Ok(pd) if pd.seq != self.inputs_seq => {
                 self.inputs_seq = pd.seq;
                 if pd.telegram == self.telegram && self.telegram != Telegram::None {
-                    node.slave_mut().set_inputs(pd.bytes());
+                    update.set_inputs(pd.bytes());
                     self.stats.inputs_taken = self.stats.inputs_taken.wrapping_add(1);
                 } else {
                     self.stats.stale_telegram = self.stats.stale_telegram.wrapping_add(1);
                 }
             }
             Ok(_) => {}
+        }
+        update
+    }
+
+    /// Hand a [`NodeUpdate`] to the node: the drive's extended diagnosis, Stat_Diag while the
+    /// drive is lost, and the input image (the fault image while the drive is lost). Images
+    /// made for another telegram than the node's active one now (a Chk_Cfg came between) are
+    /// dropped: the next [`Link::take_snapshot`] clears the inputs for the new one.
+    pub fn apply(&mut self, node: &mut Node, update: &NodeUpdate) {
+        if update.ext_diag {
+            let ext = self.drive.ext_diag();
+            if node.slave_mut().set_ext_diag(ext, !ext.is_empty()).is_err() {
+                self.stats.bad_ext_diag = self.stats.bad_ext_diag.wrapping_add(1);
+            }
+        }
+        if let Some(on) = update.stat_diag {
+            node.slave_mut().set_stat_diag(on);
+        }
+        if active_telegram(node) != update.telegram {
+            return;
+        }
+        if update.fault_image {
+            set_fault_image(node, update.telegram);
+        } else if let Some(inputs) = update.inputs() {
+            node.slave_mut().set_inputs(inputs);
         }
     }
 
@@ -329,15 +424,15 @@ impl Link {
         &self.drive_state
     }
 
-    fn raise_events(&mut self, node: &Node, events: Events) {
-        let slave = node.slave();
-        if events.contains(Events::CLEAR_CHANGED) && slave.is_clear() {
+    fn raise_events(&mut self, snap: &NodeSnapshot) {
+        let events = snap.events;
+        if events.contains(Events::CLEAR_CHANGED) && snap.is_clear() {
             self.raise(CardEvent::ClearMode);
         }
         if events.contains(Events::LEFT_DATA_EXCHANGE) {
             self.raise(CardEvent::Offline);
         }
-        if events.contains(Events::STATE_CHANGED) && slave.state() == DpState::DataExch {
+        if events.contains(Events::STATE_CHANGED) && snap.dp_state() == DpState::DataExch {
             self.raise(CardEvent::Online);
         }
         if events.contains(Events::WATCHDOG_EXPIRED) {
@@ -351,15 +446,12 @@ impl Link {
         }
     }
 
-    fn supervise(&mut self, now: Instant, node: &mut Node, dpm: &Dpm) {
+    fn supervise(&mut self, now: Instant, dpm: &Dpm, update: &mut NodeUpdate) {
         match dpm.drive_report() {
             Ok(r) => {
                 if r != self.drive {
                     if r.ext_diag() != self.drive.ext_diag() {
-                        let ext = r.ext_diag();
-                        if node.slave_mut().set_ext_diag(ext, !ext.is_empty()).is_err() {
-                            self.stats.bad_ext_diag = self.stats.bad_ext_diag.wrapping_add(1);
-                        }
+                        update.ext_diag = true;
                     }
                     self.drive = r;
                 }
@@ -373,14 +465,14 @@ impl Link {
                 self.report.drive_losses = self.report.drive_losses.wrapping_add(1);
                 self.report.flags.insert(CardFlags::DRIVE_LOST);
                 self.mailbox.abort();
-                node.slave_mut().set_stat_diag(true);
-                set_fault_image(node, self.telegram);
+                update.stat_diag = Some(true);
+                update.fault_image = true;
             }
             (Liveness::Alive, true) => {
                 self.drive_lost = false;
                 self.report.flags.remove(CardFlags::DRIVE_LOST);
                 self.raise(CardEvent::DriveReturned);
-                node.slave_mut().set_stat_diag(false);
+                update.stat_diag = Some(false);
                 // Serve the drive's next image (even if its INPUTS counter did not move).
                 self.inputs_seq = 0;
             }
@@ -388,7 +480,7 @@ impl Link {
         }
     }
 
-    fn take_over_config(&mut self, node: &Node, dpm: &Dpm) {
+    fn take_over_config(&mut self, dp_state: DpState, dpm: &Dpm) {
         let (seq, cfg) = match dpm.config() {
             Ok(c) => c,
             Err(_) => {
@@ -401,7 +493,7 @@ impl Link {
         }
         let result = if !cfg.is_valid() {
             ConfigResult::Refused
-        } else if node.slave().state() == DpState::DataExch {
+        } else if dp_state == DpState::DataExch {
             ConfigResult::Pending
         } else {
             self.config = Some(cfg);
@@ -415,15 +507,6 @@ impl Link {
         self.report.config_ack = seq;
         self.report.config_result = result as u8;
         self.report.flags.set(CardFlags::CONFIG_PENDING, result == ConfigResult::Pending);
-    }
-
-    fn write_status(&mut self, node: &Node, card: &mut CardSide<'_>) {
-        let s = self.status_of(node);
-        if self.last_status != Some(s) {
-            card.write_status(&s);
-            self.last_status = Some(s);
-            self.stats.status_written = self.stats.status_written.wrapping_add(1);
-        }
     }
 }
 
@@ -441,4 +524,83 @@ fn set_fault_image(node: &mut Node, telegram: Telegram) {
 /// The telegram of the module the last Chk_Cfg selected.
 fn active_telegram(node: &Node) -> Telegram {
     node.slave().module().and_then(Telegram::of_module).unwrap_or(Telegram::None)
+}
+
+/// What the [`Link`] and the card's profile layer need of the [`Node`], copied while the
+/// node is locked ([`Link::take_snapshot`]); the DPM is written from the copy, outside the
+/// lock (issue 5: the node's lock is what delays the response decision).
+#[derive(Debug, Clone)]
+pub struct NodeSnapshot {
+    /// The node's events since the last snapshot ([`Node::poll`]).
+    pub events: Events,
+    /// The status block's content (DP state, active telegram, Clear, counters).
+    pub status: Status,
+    outputs: [u8; MAX_OUTPUT_LEN],
+    outputs_len: u8,
+    /// The user bytes of the last accepted Set_Prm (the card's defaults before one): the
+    /// operate mode and the communication-loss reaction of the GSD's user parameters.
+    pub user_prm: [u8; USER_PRM_LEN],
+}
+
+impl NodeSnapshot {
+    /// The active telegram (the module of the last Chk_Cfg).
+    pub fn telegram(&self) -> Telegram {
+        self.status.telegram
+    }
+    /// The DP state.
+    pub fn dp_state(&self) -> DpState {
+        self.status.dp_state
+    }
+    /// The master is in Clear (outputs all zero).
+    pub fn is_clear(&self) -> bool {
+        self.status.flags.contains(StatusFlags::CLEAR)
+    }
+    /// The master's outputs (Data_Exchange).
+    pub fn outputs(&self) -> &[u8] {
+        &self.outputs[..usize::from(self.outputs_len)]
+    }
+}
+
+/// What the node must learn from one [`Link::collect_host`] (and the card's profile layer):
+/// applied while the node is locked by [`Link::apply`].
+#[derive(Debug, Clone)]
+pub struct NodeUpdate {
+    telegram: Telegram,
+    ext_diag: bool,
+    stat_diag: Option<bool>,
+    fault_image: bool,
+    inputs: [u8; MAX_INPUT_LEN],
+    inputs_len: Option<u8>,
+}
+
+impl NodeUpdate {
+    /// Nothing to change, for images of `telegram`.
+    pub const fn new(telegram: Telegram) -> Self {
+        NodeUpdate {
+            telegram,
+            ext_diag: false,
+            stat_diag: None,
+            fault_image: false,
+            inputs: [0; MAX_INPUT_LEN],
+            inputs_len: None,
+        }
+    }
+
+    /// The telegram the images are for.
+    pub fn telegram(&self) -> Telegram {
+        self.telegram
+    }
+
+    /// A new input image for the DP slave (cut to the largest input image,
+    /// [`crate::card::MAX_INPUT_LEN`], as [`crate::dp::DpSlave::set_inputs`] does).
+    pub fn set_inputs(&mut self, bytes: &[u8]) {
+        let n = bytes.len().min(MAX_INPUT_LEN);
+        self.inputs[..n].copy_from_slice(&bytes[..n]);
+        self.inputs_len = Some(n as u8);
+    }
+
+    /// The new input image, if any.
+    pub fn inputs(&self) -> Option<&[u8]> {
+        self.inputs_len.map(|n| &self.inputs[..usize::from(n)])
+    }
 }

@@ -70,7 +70,7 @@ pub use blocks::{
     CardEvent, CardFlags, CardReport, ConfigResult, DriveCommandImage, DriveReport, DriveStateImage, HeartbeatMonitor,
     HostConfig, Identity, Liveness, MailboxRequest, MailboxResponse, ParamValues, PzdWords, RequestKind, CARD_TYPE,
 };
-pub use link::{Link, LinkStats, ZSW1_FAULT};
+pub use link::{Link, LinkStats, NodeSnapshot, NodeUpdate, ZSW1_FAULT};
 pub use mailbox::{Mailbox, MailboxBusy, MailboxServer, MailboxStats};
 pub use params::{MailboxParams, ParamCache};
 

@@ -92,6 +92,18 @@ pub struct RxStats {
     pub tsyn: u32,
 }
 
+impl RxStats {
+    /// Telegrams lost on the line, for `STATUS.CORRUPT_FRAMES` (DPM layout, docs/DPM.md;
+    /// [`crate::dpm::Link::set_line_errors`]): segments with a character error (parity,
+    /// framing, noise, overrun), telegrams cut off by an idle line, and bytes that could not
+    /// start a telegram (wrapping sum). Segments dropped only while waiting for T_SYN are not
+    /// counted: the loss that made the receiver wait is. Telegrams with a wrong checksum are
+    /// counted by the FDL station ([`crate::fdl::station::StationStats::invalid`]).
+    pub const fn lost_frames(&self) -> u32 {
+        self.corrupt.wrapping_add(self.truncated).wrapping_add(self.garbage)
+    }
+}
+
 /// How a segment ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
@@ -456,6 +468,25 @@ mod tests {
         // An error whose only character never reached the ring still desynchronises.
         assert_eq!(cut(&mut r, &[], true), (vec![], SegmentEnd::Corrupt));
         assert!(!r.is_synced());
+    }
+
+    #[test]
+    fn lost_frames_count_errors_cuts_and_garbage_not_the_wait_for_tsyn() {
+        let mut r = synced();
+        let f = frame(5, &[1, 2, 3]);
+        cut(&mut r, &f, true); // character error
+        cut(&mut r, &f, false); // unsynced: not a loss of its own
+        r.on_tsyn();
+        cut(&mut r, &f[..3], false); // truncated
+        r.on_tsyn();
+        cut(&mut r, &[0x00], false); // garbage
+        r.on_tsyn();
+        cut(&mut r, &f, false); // clean
+        let s = r.stats();
+        assert_eq!((s.corrupt, s.unsynced, s.truncated, s.garbage, s.frames), (1, 1, 1, 1, 1));
+        assert_eq!(s.lost_frames(), 3);
+        let wrap = RxStats { corrupt: u32::MAX, garbage: 2, ..RxStats::default() };
+        assert_eq!(wrap.lost_frames(), 1);
     }
 
     #[test]
