@@ -55,8 +55,12 @@ pub struct LinkStats {
 /// never writes DRIVE (layout version 1) is not supervised.
 ///
 /// Configuration: a new CONFIG (a new sequence counter) is checked, then taken over when the
-/// slave is not in data exchange (else `CONFIG_RESULT` = pending until it leaves it); the
-/// platform applies it ([`Link::take_config`]) — the station address by restarting the slave.
+/// slave is not in data exchange (else `CONFIG_RESULT` = pending until it leaves it). Taking
+/// it over applies the station address ([`crate::dp::DpSlave::set_address`]: a new address is
+/// reported as `Events::ADDRESS_CHANGED` for the address store; frozen by No_Add_Chg →
+/// `CONFIG_RESULT` 4, the rest taken) and the telegram selection
+/// ([`crate::dp::DpSlave::require_module`]: Chk_Cfg with another module → Cfg_Fault); the
+/// platform gets the whole block once ([`Link::take_config`]) for the profile settings.
 #[derive(Debug, Clone)]
 pub struct Link {
     baud: Option<Baudrate>,
@@ -388,7 +392,7 @@ impl Link {
         }
     }
 
-    fn take_over_config(&mut self, node: &Node, dpm: &Dpm) {
+    fn take_over_config(&mut self, node: &mut Node, dpm: &Dpm) {
         let (seq, cfg) = match dpm.config() {
             Ok(c) => c,
             Err(_) => {
@@ -399,15 +403,30 @@ impl Link {
         if seq == 0 || seq == self.config_done {
             return;
         }
-        let result = if !cfg.is_valid() {
+        // The module of the selected telegram (none: any module).
+        let module = match cfg.telegram {
+            Telegram::None => None,
+            t => crate::card::MODULES.iter().find(|m| Telegram::of_module(m) == Some(t)),
+        };
+        let result = if !cfg.is_valid() || (cfg.telegram != Telegram::None && module.is_none()) {
             ConfigResult::Refused
         } else if node.slave().state() == DpState::DataExch {
             ConfigResult::Pending
         } else {
+            let slave = node.slave_mut();
+            // 126: keep the card's address.
+            let address = match cfg.station_address {
+                a if a <= crate::dp::slave_add::MAX_NEW_ADDRESS => slave.set_address(a),
+                _ => Ok(false),
+            };
+            slave.require_module(module);
             self.config = Some(cfg);
             self.config_new = true;
             self.stats.configs_taken = self.stats.configs_taken.wrapping_add(1);
-            ConfigResult::Accepted
+            match address {
+                Err(crate::dp::slave_add::SlaveAddError::Frozen) => ConfigResult::AddressLocked,
+                _ => ConfigResult::Accepted,
+            }
         };
         if result != ConfigResult::Pending {
             self.config_done = seq;
