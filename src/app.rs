@@ -11,11 +11,16 @@
 //! control profile (PROFIdrive 4.1 / 2.0, WEG, INVT), the operate mode (PROFIdrive / Bypass /
 //! Echo), the PKW channel and the fault buffer; the drive sees only the drive-neutral
 //! DRIVE_CMD and answers DRIVE_STATE (issue 6 item 2). The drive runs the host-side reference
-//! implementation ([`crate::dpm::host`], issue 7 item 5) over an in-process transport: the
-//! same code a drive maker ports.
+//! implementation ([`crate::dpm::host`], issue 7 item 5) over the SPI frame transport
+//! ([`crate::dpm::spi::SpiHost`]) to an in-process card ([`crate::dpm::spi::Loopback`], which
+//! owns the card's DPM image): the same code and the same frames a drive maker's control
+//! board uses on the wire (issue 7: "the QEMU build and the soft slave use an in-process
+//! transport with the same frames").
 //!
-//! The board firmware of a real card does the same without the drive: the host's
-//! transport is the SPI link ([`crate::dpm::spi`]).
+//! The board firmware of a real card runs [`Application::card_only`]: no simulated drive, the
+//! drive's control board is the SPI master and its frames reach the image through
+//! [`Application::dpm_mut`]. A bench board without a drive builds with the `sim-drive`
+//! feature and runs [`Application::new`] like the QEMU build.
 //!
 //! PROFIdrive parameters not owned by the card go to the drive through the DPM parameter
 //! mailbox: [`Application::parameters`] is the table for [`Node::process_acyclic`]; the PKW
@@ -23,8 +28,9 @@
 
 use crate::card;
 use crate::dp::{DpState, Events};
-use crate::dpm::host::{DpmTransport, Host, Options};
+use crate::dpm::host::{Host, Options, Transport};
 use crate::dpm::layout::operate_mode;
+use crate::dpm::spi::{Loopback, SpiHost};
 use crate::dpm::{
     Dpm, DriveCommandImage, Link, MailboxParams, NodeSnapshot, NodeUpdate, ParamCache, PdFlags, ProcessData, PzdWords,
     Telegram,
@@ -39,27 +45,72 @@ use crate::profile::runtime::{AnyProfile, Runtime, Scales, Selection};
 use crate::profile::telegram::DataProfile;
 use crate::time::{Baudrate, Instant};
 
+/// The drive's side of the DPM as the application sees it: the host reference
+/// implementation over the SPI frames of [`crate::dpm::spi`], the card an in-process
+/// [`Loopback`] that owns the card's DPM image.
+pub type DriveHost = Host<SpiHost<Loopback>>;
+
+/// The simulated drive, and whether it runs: in [card-only](Application::card_only) mode it
+/// is kept (for the accessors) but never stepped, so the host blocks are written only by the
+/// drive's control board through the SPI transport.
+#[derive(Debug, Clone)]
+struct DriveSlot {
+    sim: SimDrive,
+    runs: bool,
+}
+
+impl DriveSlot {
+    fn step<T: Transport>(&mut self, now: Instant, host: &mut Host<T>) {
+        if self.runs {
+            self.sim.step(now, host);
+        }
+    }
+
+    fn set_serve_parameters(&mut self, on: bool) {
+        self.sim.set_serve_parameters(on);
+    }
+
+    fn params(&self) -> &DriveTable {
+        self.sim.params()
+    }
+}
+
 /// DPM image (behind the drive's host interface) + card-side link, profile layer and
 /// parameter caches + simulated drive.
 #[derive(Debug, Clone)]
 pub struct Application {
-    host: Host<DpmTransport<Dpm>>,
+    host: DriveHost,
     link: Link,
     params: ParamCache,
     pkw_params: ParamCache,
     runtime: Runtime,
-    drive: SimDrive,
+    drive: DriveSlot,
     /// Events of [`Self::step_publish`] for [`Self::step_collect`].
     events: Events,
 }
 
 impl Application {
     /// A fresh image (P0740 "inactive" until the first step), the profile layer without a
-    /// telegram, and a drive at standstill.
+    /// telegram, and a simulated drive at standstill that runs in every step over the SPI
+    /// frames (the QEMU firmware, the soft slave, the host tests, a bench board without a
+    /// drive).
     pub fn new(drive: DriveConfig) -> Self {
-        let host = match Host::open(DpmTransport::new(Dpm::new()), Options::DEFAULT) {
+        Self::build(SimDrive::new(drive), true)
+    }
+
+    /// The card alone (the board firmware with a real drive): no simulated drive runs, the
+    /// host blocks (INPUTS, DRIVE, CONFIG, MBX_RSP, DRIVE_STATE) are written only by the
+    /// drive's control board, through the SPI transport the platform feeds into
+    /// [`dpm_mut`](Self::dpm_mut) (`dpm::spi::SpiSlave`).
+    pub fn card_only() -> Self {
+        Self::build(SimDrive::new(DriveConfig::DEFAULT), false)
+    }
+
+    fn build(sim: SimDrive, runs: bool) -> Self {
+        let host = match Host::open(SpiHost::new(Loopback::new(Dpm::new())), Options::DEFAULT) {
             Ok(h) => h,
-            // A fresh image always carries the current header.
+            // A fresh image always carries the current header, and the loopback card answers
+            // every well-formed frame.
             Err(_) => unreachable!("a fresh DPM image opens"),
         };
         Application {
@@ -68,9 +119,15 @@ impl Application {
             params: ParamCache::new(),
             pkw_params: ParamCache::new(),
             runtime: Runtime::new(Scales::DEFAULT),
-            drive: SimDrive::new(drive),
+            drive: DriveSlot { sim, runs },
             events: Events::empty(),
         }
+    }
+
+    /// Whether the simulated drive runs in the steps (false in [card-only](Self::card_only)
+    /// mode).
+    pub fn simulates_drive(&self) -> bool {
+        self.drive.runs
     }
 
     /// The drive's parameters (behind the card's own PNUs) through the DPM parameter mailbox
@@ -260,8 +317,9 @@ impl Application {
     pub fn dpm_mut(&mut self) -> &mut Dpm {
         self.host.transport_mut().dpm_mut()
     }
-    /// The drive's host interface (the reference implementation the simulated drive runs).
-    pub fn host(&self) -> &Host<DpmTransport<Dpm>> {
+    /// The drive's host interface (the reference implementation the simulated drive runs,
+    /// over the SPI frames to the in-process card).
+    pub fn host(&self) -> &DriveHost {
         &self.host
     }
     /// The card-side link (counters, init-error flag).
@@ -284,13 +342,13 @@ impl Application {
             _ => None,
         }
     }
-    /// The simulated drive.
+    /// The simulated drive (at standstill, never stepped, in card-only mode).
     pub fn drive(&self) -> &SimDrive {
-        &self.drive
+        &self.drive.sim
     }
     /// The simulated drive, mutable (inject a fault, a warning).
     pub fn drive_mut(&mut self) -> &mut SimDrive {
-        &mut self.drive
+        &mut self.drive.sim
     }
 }
 
@@ -570,15 +628,54 @@ mod tests {
         assert_ne!(fresh.app.dpm().status().unwrap().comm, CommState::InitError);
     }
 
+    /// The simulated drive reaches the image only through SPI frames (issue 7: the in-process
+    /// transport uses the same frames as the board).
+    #[test]
+    fn the_drive_runs_over_spi_frames() {
+        let mut b = Bench::new();
+        b.bring_up(&card::MODULES[0]);
+        let before = b.app.host().transport().bus().slave().stats();
+        b.cycle(&[0x04, 0x7E, 0x20, 0x00], 5);
+        let after = b.app.host().transport().bus().slave().stats();
+        assert!(after.frames_ok > before.frames_ok, "frames moved in the step");
+        assert_eq!(after.refused(), 0);
+        assert_eq!(b.app.host().transport().retried(), 0);
+        assert!(b.app.simulates_drive());
+    }
+
+    /// Card-only mode: no simulated drive writes the host blocks; the drive's heartbeat never
+    /// starts, so the master reads zeros until a real drive writes INPUTS.
+    #[test]
+    fn card_only_leaves_the_host_blocks_to_the_spi_master() {
+        let mut b = Bench::new();
+        b.app = Application::card_only();
+        b.app.set_baudrate(Some(Baudrate::B1500k));
+        assert!(!b.app.simulates_drive());
+        // Only `Host::open` (header, the host blocks' counters) used the frames.
+        let opened = b.app.host().transport().bus().slave().stats().frames_ok;
+        b.bring_up(&card::MODULES[0]);
+        let mut i = vec![];
+        for _ in 0..5 {
+            i = b.cycle(&[0x04, 0x7E, 0x20, 0x00], 5);
+        }
+        assert_eq!(b.app.host().transport().bus().slave().stats().frames_ok, opened, "no host frames");
+        assert_eq!(b.app.dpm().drive_state().unwrap().0, 0, "DRIVE_STATE never written");
+        assert_eq!(b.app.dpm().inputs().unwrap().seq, 0, "INPUTS never written");
+        assert_eq!(b.app.drive().stats().steps, 0);
+        assert_eq!(words(&i)[1], 0);
+    }
+
     #[test]
     fn size_stays_small() {
         // DPM image 728 B (layout 3) with the host's state, last status, outputs, drive
         // report, command, drive state and a mailbox answer in the link, two parameter caches
         // (record 47 and PKW, 8 mailbox answers each, ≈ 1.1 KiB each), the profile layer
-        // (last cycle, PKW server, fault buffer) and the drive's parameter table: a static in
-        // the firmware.
+        // (last cycle, PKW server, fault buffer) and the drive's parameter table, plus the SPI
+        // frame transport of the drive's host (the host's MOSI and MISO buffers and the
+        // loopback card's reply, one longest transaction of 1034 B each, ≈ 3.1 KiB): a static
+        // in the firmware.
         let n = core::mem::size_of::<Application>();
-        assert!(n <= 4608, "Application is {n} bytes");
+        assert!(n <= 4608 + 3 * crate::dpm::spi::MAX_TRANSACTION + 128, "Application is {n} bytes");
     }
 
     #[test]

@@ -3,12 +3,12 @@
 //! Wiring only, no protocol decisions (ARCHITECTURE §3): bytes from the PROFIBUS line go
 //! into a [`pbcard::node::Node`] (framer → FDL station → DP slave, DP-V1); the response comes
 //! back as bytes for the board's [`bsp::BusPort`]. Behind the node sits
-//! [`pbcard::app::Application`]: the first DPM image, the card-side link and the simulated
-//! drive (`pbcard::drive::SimDrive`, PROFIdrive state machine and ramp) — the same
-//! application as the soft slave's. On the F411 the simulated drive is a placeholder until
-//! the SPI transport of the DPM to the drive's control board exists (issue 7): then the
-//! housekeeping task runs `Node::poll`, `Link::publish`, the transfer and `Link::collect`
-//! instead of `Application::step`.
+//! [`pbcard::app::Application`]: the DPM image, the card-side link and (QEMU, or the F411
+//! with the `sim-drive` feature) the simulated drive (`pbcard::drive::SimDrive`, PROFIdrive
+//! state machine and ramp) over the in-process SPI frames — the same application as the
+//! soft slave's. The F411 build without `sim-drive` runs `Application::card_only()`: the
+//! drive's control board is the SPI master and writes the host blocks (block "DPM SPI
+//! transport" below).
 //!
 //! | priority | task | does |
 //! |---|---|---|
@@ -102,6 +102,7 @@ mod app {
     use pbcard::app::Application;
     use pbcard::dp::{DpSlave, DpState, Events};
     use pbcard::dpm::CommState;
+    #[cfg(any(feature = "qemu", feature = "sim-drive"))]
     use pbcard::drive::DriveConfig;
     use pbcard::led::{LedInputs, Leds};
     use pbcard::node::Node;
@@ -158,7 +159,13 @@ mod app {
 
     impl Drive {
         fn new(clock: SysTickClock, rate: Option<pbcard::time::Baudrate>) -> Self {
+            // QEMU and a bench board without a drive (`sim-drive`): the simulated drive runs
+            // over the in-process SPI frames. The F411 with a drive: the card alone, the
+            // drive's control board writes the host blocks through SPI (`spi_frame`).
+            #[cfg(any(feature = "qemu", feature = "sim-drive"))]
             let mut app = Application::new(DriveConfig::DEFAULT);
+            #[cfg(not(any(feature = "qemu", feature = "sim-drive")))]
+            let mut app = Application::card_only();
             app.set_baudrate(rate);
             let state = app.profidrive_state().unwrap_or(DriveState::SwitchingOnInhibited);
             Drive {
@@ -420,8 +427,13 @@ mod app {
         if recovered {
             defmt::error!("restarted after a card fault (panic or HardFault)");
         }
-        log_drive();
-        defmt::warn!("drive: the simulated drive stands in for the DPM transport to the drive (issue 7)");
+        #[cfg(feature = "sim-drive")]
+        {
+            log_drive();
+            defmt::warn!("drive: simulated (feature sim-drive): no drive may be connected to the DPM SPI port");
+        }
+        #[cfg(not(feature = "sim-drive"))]
+        defmt::info!("drive: the control board behind the DPM SPI port (SPI2 slave, card only)");
         let mut node = Node::new(DpSlave::with_address_lock(address, no_add_chg));
         node.set_baudrate(None);
         let mut drive = Drive::new(b.clock, None);
@@ -450,6 +462,7 @@ mod app {
         )
     }
 
+    #[cfg(any(feature = "qemu", feature = "sim-drive"))]
     fn log_drive() {
         defmt::info!(
             "drive: simulated behind the DPM (PROFIdrive STW1/ZSW1, NSOLL_A/NIST_A 0x4000 = 100 %, ramp {=u64} ms)",
@@ -660,9 +673,11 @@ mod app {
     // (EXTI15_10, short, priority 12 — below USART1) re-arms the DMA and hands the received
     // frame to `spi_frame` (priority 1), which applies it to the application's image under
     // the `drive` lock and stages the reply for the next transaction. `spi_irq` keeps the IRQ
-    // line in step with the card's writes. While the simulated drive still stands in for the
-    // control board (`Application::step`), it writes the host blocks too: switching the
-    // housekeeping step to publish / collect only is the lead's wiring step.
+    // line in step with the card's writes. The F411 build runs `Application::card_only()`:
+    // the housekeeping step publishes and collects, its drive part does nothing, so the host
+    // blocks are written by the control board's frames alone. With the `sim-drive` feature
+    // (a bench card without a drive) the simulated drive writes them through its in-process
+    // SPI frames instead, and no control board may be connected.
     // ---------------------------------------------------------------------------------------
 
     /// The SPI port (QEMU: none; its transport is in-process, `pbcard::dpm::spi::Loopback`).

@@ -167,9 +167,12 @@ impl Node {
         }
         let info = CardInfo {
             address: self.slave.address(),
+            // The telegram the drive selected (DPM CONFIG.TELEGRAM; Chk_Cfg can only select
+            // its module), else the module of the last Chk_Cfg.
             telegram: self
                 .slave
-                .module()
+                .required_module()
+                .or(self.slave.module())
                 .and_then(crate::dpm::Telegram::of_module)
                 .unwrap_or(crate::dpm::Telegram::None),
             baud_p963: self.baudrate.map_or(5, |b| u16::from(b.p0963_code())),

@@ -4,9 +4,12 @@
 mod common;
 
 use common::Card;
+use pbcard::testkit::Rig;
 use dpm_host::*;
+use pbcard::card;
 use pbcard::dp::{DpState, Events};
-use pbcard::dpm::CardEvent;
+use pbcard::dpm::{CardEvent, ConfigResult};
+use pbcard::fdl::telegram;
 
 #[test]
 fn configuration_pending_in_data_exchange_and_taken_over_after() {
@@ -88,4 +91,118 @@ fn process_data_through_the_link_reaches_the_master() {
     card.cycle(1);
     assert_eq!(card.data_exchange(&[0x04, 0x7F, 0x20, 0x00]), [0x02, 0x37, 0x1F, 0xF0]);
     assert_eq!(card.link.stats().stale_telegram, 1);
+}
+
+/// CONFIG.STATION_ADDRESS outside data exchange: the slave takes the address, reports it as
+/// ADDRESS_CHANGED (the platform stores it through its `AddressStore`, as after a
+/// Set_Slave_Add), and STATUS shows it.
+#[test]
+fn station_address_taken_outside_data_exchange_and_stored() {
+    use pbcard::dp::slave_add::{AddressStore, MemoryStore};
+    let mut card = Card::new();
+    let mut store = MemoryStore::default();
+    let mut host = Host::open(card.dpm.clone(), Options::DEFAULT).unwrap();
+    host.write_config(&HostConfig { station_address: 9, ..HostConfig::DEFAULT }).unwrap();
+    let mut changed = false;
+    for _ in 0..3 {
+        let ev = card.cycle(1);
+        if ev.contains(Events::ADDRESS_CHANGED) {
+            let s = card.node.slave();
+            store.save(s.address(), s.no_add_chg()).unwrap();
+            changed = true;
+        }
+    }
+    assert!(changed, "ADDRESS_CHANGED reported by Node::poll");
+    assert_eq!(host.config_outcome(), Ok(ConfigOutcome::Accepted));
+    assert_eq!(card.node.slave().address(), 9);
+    assert_eq!(store.load(), Some((9, false)));
+    assert_eq!(host.status().unwrap().station_address, 9);
+    // 126 = keep the card's address.
+    host.write_config(&HostConfig::DEFAULT).unwrap();
+    card.cycle(1);
+    card.cycle(1);
+    assert_eq!(host.config_outcome(), Ok(ConfigOutcome::Accepted));
+    assert_eq!(card.node.slave().address(), 9);
+}
+
+/// In data exchange the address is not touched (pending), and the master keeps talking to
+/// the card at its address.
+#[test]
+fn station_address_refused_in_data_exchange() {
+    let mut card = Card::new();
+    card.bring_up();
+    let mut host = Host::open(card.dpm.clone(), Options::DEFAULT).unwrap();
+    host.write_config(&HostConfig { station_address: 9, ..HostConfig::DEFAULT }).unwrap();
+    for _ in 0..3 {
+        assert!(!card.cycle(5).contains(Events::ADDRESS_CHANGED));
+    }
+    assert_eq!(host.config_outcome(), Ok(ConfigOutcome::Pending));
+    assert_eq!(card.node.slave().address(), common::SLAVE);
+    assert_eq!(card.data_exchange(&[0x04, 0x7E, 0, 0]).len(), 4, "still answering at its address");
+    assert_eq!(card.node.slave_mut().set_address(9).ok(), None, "the slave refuses it itself too");
+}
+
+/// No_Add_Chg (a Set_Slave_Add froze the address): the address stays, the rest of CONFIG
+/// (the telegram) is taken, CONFIG_RESULT says so.
+#[test]
+fn station_address_locked_by_no_add_chg() {
+    use pbcard::dp::DpSlave;
+    let mut card = Card::new();
+    card.node = pbcard::node::Node::new(DpSlave::with_address_lock(common::SLAVE, true));
+    let mut host = Host::open(card.dpm.clone(), Options::DEFAULT).unwrap();
+    let cfg = HostConfig { station_address: 9, telegram: Telegram::Ppo(2), ..HostConfig::DEFAULT };
+    host.write_config(&cfg).unwrap();
+    card.cycle(1);
+    card.cycle(1);
+    assert_eq!(host.config_outcome(), Ok(ConfigOutcome::AddressLocked));
+    assert_eq!(host.card_report().unwrap().config_result(), ConfigResult::AddressLocked);
+    assert_eq!(card.node.slave().address(), common::SLAVE);
+    assert_eq!(card.node.slave().required_module().and_then(Telegram::of_module), Some(Telegram::Ppo(2)));
+}
+
+/// CONFIG.TELEGRAM: the master's Chk_Cfg must select the drive's telegram; another module is
+/// a Cfg_Fault (P0740 "configuration data error"); 0 lifts the restriction. A telegram the
+/// card has no module for is refused.
+#[test]
+fn telegram_selected_by_the_drive_is_enforced() {
+    let mut card = Card::new();
+    let mut host = Host::open(card.dpm.clone(), Options::DEFAULT).unwrap();
+    host.write_config(&HostConfig { telegram: Telegram::Ppo(2), ..HostConfig::DEFAULT }).unwrap();
+    card.cycle(1);
+    card.cycle(1);
+    assert_eq!(host.config_outcome(), Ok(ConfigOutcome::Accepted));
+    host.poll(card.now); // the events seen so far
+                         // Set_Prm + Chk_Cfg for ST1: acknowledged, refused as Cfg_Fault.
+    let mut prm = vec![0x88, 1, 100, 11, (card::IDENT_NUMBER >> 8) as u8, card::IDENT_NUMBER as u8, 0];
+    prm.extend_from_slice(&card::USER_PRM_DEFAULTS);
+    assert_eq!(card.srd(Some(61), &prm), [telegram::SC]);
+    card.cycle(1);
+    assert_eq!(card.srd(Some(62), card::MODULES[0].cfg), [telegram::SC]);
+    let ev = card.cycle(1);
+    assert!(ev.contains(Events::CFG_FAULT));
+    assert_eq!(card.node.slave().state(), DpState::WaitPrm);
+    assert_eq!(host.status().unwrap().comm, CommState::ConfigError);
+    assert!(host.poll(card.now).events.contains(CardEvent::ConfigurationError));
+    // The drive's telegram (PPO 2) is accepted.
+    let ppo2 = card::MODULES.iter().find(|m| Telegram::of_module(m) == Some(Telegram::Ppo(2))).unwrap();
+    assert_eq!(card.srd(Some(61), &prm), [telegram::SC]);
+    card.cycle(1);
+    assert_eq!(card.srd(Some(62), ppo2.cfg), [telegram::SC]);
+    card.cycle(1);
+    assert_eq!(card.node.slave().state(), DpState::DataExch);
+    assert_eq!(host.status().unwrap().telegram, Telegram::Ppo(2));
+    // A telegram without a module on this card: refused, the selection stays.
+    let ev = card.cycle(3000); // the master stops: out of data exchange
+    assert!(ev.contains(Events::WATCHDOG_EXPIRED));
+    host.write_config(&HostConfig { telegram: Telegram::Standard(999), ..HostConfig::DEFAULT }).unwrap();
+    card.cycle(1);
+    card.cycle(1);
+    assert_eq!(host.config_outcome(), Ok(ConfigOutcome::Refused));
+    assert_eq!(card.node.slave().required_module().map(|m| m.reference), Some(ppo2.reference));
+    // Telegram 0 ("any"): ST1 is accepted again.
+    host.write_config(&HostConfig::DEFAULT).unwrap();
+    card.cycle(1);
+    card.cycle(1);
+    assert_eq!(host.config_outcome(), Ok(ConfigOutcome::Accepted));
+    card.bring_up();
 }

@@ -23,6 +23,10 @@ pub enum CfgError {
     /// The module is not allowed in the operate mode the master forces through Set_Prm:
     /// Standard Telegram 20 with Remote Bypass or Remote Echo (OPTE3/E5 §5.1.5).
     NotAllowedInOperateMode,
+    /// A valid module, but not the one the drive selected (DPM `CONFIG.TELEGRAM`, taken over
+    /// by [`super::DpSlave::require_module`]): the master must configure the drive's telegram
+    /// (PNU 922 shows it).
+    NotTheSelectedModule,
 }
 
 /// Input and output byte counts implied by a configuration.

@@ -26,6 +26,10 @@
 //! | Get_Cfg (59) / Slave_Diag (60) | always, any master | — |
 //! | Set_Prm (61) | unlocked slave or locking master | SC, content ignored, counted |
 //! | Chk_Cfg (62) | Wait_Cfg / Data_Exch, locking master | SC, content ignored, counted |
+//!
+//! The drive side (DPM `CONFIG`, outside data exchange) can change the station address
+//! ([`DpSlave::set_address`], the rules of Set_Slave_Add: frozen by No_Add_Chg) and restrict
+//! Chk_Cfg to the module of the telegram it selected ([`DpSlave::require_module`]).
 //! | any other SAP | — | RS |
 
 pub mod cfg;
@@ -152,6 +156,8 @@ pub struct DpSlave {
     prm: Option<SetPrm>,
     min_tsdr: BitTimes,
     module: Option<&'static Module>,
+    /// The only module Chk_Cfg may select (the drive's telegram selection), if any.
+    required_module: Option<&'static Module>,
     // Faults and diagnosis flags.
     prm_fault: bool,
     cfg_fault: bool,
@@ -202,6 +208,7 @@ impl DpSlave {
             prm: None,
             min_tsdr: BitTimes::MIN_TSDR_DEFAULT,
             module: None,
+            required_module: None,
             prm_fault: false,
             cfg_fault: false,
             not_supported: false,
@@ -256,6 +263,50 @@ impl DpSlave {
     /// The module accepted by the last Chk_Cfg.
     pub fn module(&self) -> Option<&'static Module> {
         self.module
+    }
+    /// The module the drive selected ([`Self::require_module`]), if any.
+    pub fn required_module(&self) -> Option<&'static Module> {
+        self.required_module
+    }
+
+    /// The drive's station address (DPM `CONFIG.STATION_ADDRESS`, 0..=125): refused in data
+    /// exchange ([`SlaveAddError::State`](slave_add::SlaveAddError::State)) and, like
+    /// Set_Slave_Add (reference §3.9), while No_Add_Chg froze the address
+    /// ([`SlaveAddError::Frozen`](slave_add::SlaveAddError::Frozen); the same address is no
+    /// change and always accepted). A new address is reported as
+    /// [`Events::ADDRESS_CHANGED`], so the platform stores it through its
+    /// [`AddressStore`](slave_add::AddressStore) as after a Set_Slave_Add (No_Add_Chg kept as
+    /// it is). In Wait_Cfg the parameterization was for the old address: the slave returns to
+    /// Wait_Prm (lock released). Returns whether the address changed.
+    pub fn set_address(&mut self, address: u8) -> Result<bool, slave_add::SlaveAddError> {
+        if address > slave_add::MAX_NEW_ADDRESS {
+            return Err(slave_add::SlaveAddError::Address(address));
+        }
+        if self.state == DpState::DataExch {
+            return Err(slave_add::SlaveAddError::State);
+        }
+        if address == self.address {
+            return Ok(false);
+        }
+        if self.no_add_chg {
+            return Err(slave_add::SlaveAddError::Frozen);
+        }
+        if self.state != DpState::WaitPrm {
+            self.leave(DpState::WaitPrm);
+        }
+        self.address = address;
+        self.events |= Events::ADDRESS_CHANGED;
+        self.diag_dirty = true;
+        self.restage_dx();
+        Ok(true)
+    }
+
+    /// Restrict Chk_Cfg to `module` (the drive selected its telegram, DPM `CONFIG.TELEGRAM`),
+    /// or lift the restriction (`None`, telegram "any"). Any other module, however valid, is
+    /// answered with Cfg_Fault ([`cfg::CfgError::NotTheSelectedModule`]) from the next
+    /// Chk_Cfg on; the running configuration is not touched.
+    pub fn require_module(&mut self, module: Option<&'static Module>) {
+        self.required_module = module;
     }
     /// The accepted Set_Prm (user parameters, DPV1 status bytes, watchdog).
     pub fn parameters(&self) -> Option<&SetPrm> {
@@ -643,7 +694,11 @@ impl DpSlave {
             return Reply::ShortAck;
         }
         let operate_mode = self.prm.as_ref().map_or(0, |p| p.user[card::PRM_OPERATE_MODE.offset]);
-        match cfg::check_for_mode(req.pdu, operate_mode) {
+        let checked = cfg::check_for_mode(req.pdu, operate_mode).and_then(|m| match self.required_module {
+            Some(r) if r.reference != m.reference => Err(cfg::CfgError::NotTheSelectedModule),
+            _ => Ok(m),
+        });
+        match checked {
             Ok(m) => {
                 let changed = self.module != Some(m);
                 self.cfg_fault = false;

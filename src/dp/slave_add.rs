@@ -6,6 +6,10 @@
 
 use crate::card;
 
+/// The highest address Set_Slave_Add (and the drive's `CONFIG.STATION_ADDRESS`) may set
+/// (126 is only the commissioning default, reference §3.9).
+pub const MAX_NEW_ADDRESS: u8 = 125;
+
 /// Why a Set_Slave_Add was refused (answered RS).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
@@ -38,7 +42,7 @@ impl SetSlaveAdd {
         if pdu.len() < 4 || pdu.len() > 244 {
             return Err(SlaveAddError::Length);
         }
-        if pdu[0] > 125 {
+        if pdu[0] > MAX_NEW_ADDRESS {
             return Err(SlaveAddError::Address(pdu[0]));
         }
         let ident = u16::from_be_bytes([pdu[1], pdu[2]]);

@@ -372,6 +372,66 @@ fn set_slave_add() {
     assert_eq!(b.req(M2, Some(55), &[20, i[0], i[1], 0]), Ans::Sd1(0x03));
 }
 
+/// The drive's station address (DPM CONFIG): outside data exchange like Set_Slave_Add,
+/// refused in data exchange and once No_Add_Chg froze the address.
+#[test]
+fn set_address_from_the_drive() {
+    use slave_add::SlaveAddError;
+    let mut b = Bus::new();
+    assert_eq!(b.slave.set_address(126), Err(SlaveAddError::Address(126)));
+    assert_eq!(b.slave.set_address(ME), Ok(false), "the same address is no change");
+    assert!(!b.slave.take_events().contains(Events::ADDRESS_CHANGED));
+    assert_eq!(b.slave.set_address(20), Ok(true));
+    assert!(b.slave.take_events().contains(Events::ADDRESS_CHANGED));
+    // The old address is dead, the new one answers.
+    let f = b.frame(M1, ME, 0x0D, Some(60), &[], true);
+    assert_eq!(b.raw(&f), None);
+    let f = b.frame(M1, 20, 0x0D, Some(60), &[], true);
+    assert!(b.raw(&f).is_some());
+    // In data exchange: refused, nothing changes.
+    let mut b = Bus::new();
+    b.bring_up(0x88);
+    assert_eq!(b.slave.set_address(21), Err(SlaveAddError::State));
+    assert_eq!((b.slave.address(), b.slave.state()), (ME, DpState::DataExch));
+    // In Wait_Cfg: taken, the parameterization (for the old address) is gone.
+    let mut b = Bus::new();
+    assert_eq!(b.set_prm(M1, 0x88, &card::USER_PRM_DEFAULTS), Ans::Sc);
+    assert_eq!(b.slave.state(), DpState::WaitCfg);
+    assert_eq!(b.slave.set_address(22), Ok(true));
+    assert_eq!((b.slave.state(), b.slave.master_address()), (DpState::WaitPrm, None));
+    // Frozen by a Set_Slave_Add with No_Add_Chg: refused (the same address still passes).
+    let mut b = Bus::new();
+    let i = id();
+    assert_eq!(b.req(M2, Some(55), &[30, i[0], i[1], 1]), Ans::Sc);
+    assert_eq!(b.slave.set_address(31), Err(SlaveAddError::Frozen));
+    assert_eq!(b.slave.set_address(30), Ok(false));
+    assert_eq!(b.slave.address(), 30);
+}
+
+/// The drive selected a telegram: Chk_Cfg with another (valid) module is a Cfg_Fault; its
+/// own module is accepted; lifting the restriction accepts any module again.
+#[test]
+fn chk_cfg_restricted_to_the_drives_module() {
+    let st1 = &card::MODULES[0];
+    let other = card::MODULES.iter().find(|m| m.reference != st1.reference).unwrap();
+    let mut b = Bus::new();
+    b.slave.require_module(Some(other));
+    assert_eq!(b.slave.required_module().map(|m| m.reference), Some(other.reference));
+    assert_eq!(b.set_prm(M1, 0x88, &card::USER_PRM_DEFAULTS), Ans::Sc);
+    assert_eq!(b.req(M1, Some(62), ST1), Ans::Sc, "Chk_Cfg is always acknowledged");
+    assert_eq!(b.slave.state(), DpState::WaitPrm);
+    assert_eq!(b.slave.stats().cfg_faults, 1);
+    assert_eq!(b.diag(M1)[0] & 0x04, 0x04, "Cfg_Fault in Status1");
+    assert_eq!(b.set_prm(M1, 0x88, &card::USER_PRM_DEFAULTS), Ans::Sc);
+    assert_eq!(b.req(M1, Some(62), other.cfg), Ans::Sc);
+    assert_eq!(b.slave.state(), DpState::DataExch);
+    assert_eq!(b.slave.module().map(|m| m.reference), Some(other.reference));
+    let mut b = Bus::new();
+    b.slave.require_module(Some(st1));
+    b.slave.require_module(None);
+    b.bring_up(0x88);
+}
+
 fn parse_from(r: Option<Vec<u8>>, sa: u8) -> Option<u8> {
     let r = r?;
     match decode(&r) {

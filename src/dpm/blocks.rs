@@ -99,8 +99,12 @@ pub enum ConfigResult {
     Accepted = 1,
     /// 2: valid, waits until no cyclic exchange runs.
     Pending = 2,
-    /// 3: refused, invalid content.
+    /// 3: refused, invalid content (a field out of range, or a telegram no module of the
+    /// card offers); nothing of it applied.
     Refused = 3,
+    /// 4: taken over except the station address, which No_Add_Chg (Set_Slave_Add) froze:
+    /// the card keeps `STATUS.STATION_ADDRESS`.
+    AddressLocked = 4,
 }
 
 impl ConfigResult {
@@ -110,6 +114,7 @@ impl ConfigResult {
             1 => ConfigResult::Accepted,
             2 => ConfigResult::Pending,
             3 => ConfigResult::Refused,
+            4 => ConfigResult::AddressLocked,
             _ => ConfigResult::None,
         }
     }
@@ -283,7 +288,8 @@ impl DriveReport {
 /// The configuration block's content.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct HostConfig {
-    /// Station address (0..=125).
+    /// Station address (0..=125; 126 = keep the card's address: the stored one or the
+    /// master's Set_Slave_Add).
     pub station_address: u8,
     /// Profile: 0 PROFIdrive, 1 manufacturer.
     pub profile: u8,
@@ -291,7 +297,8 @@ pub struct HostConfig {
     pub operate_mode: u8,
     /// Communication-loss reaction: 0 none, 1 ramp stop, 2 coast, 3 fault, 4 keep last setpoint.
     pub comm_loss_reaction: u8,
-    /// Telegram selection ([`Telegram::None`] = any module the GSD offers).
+    /// Telegram selection ([`Telegram::None`] = any module the GSD offers; another one =
+    /// Chk_Cfg must select its module, else Cfg_Fault).
     pub telegram: Telegram,
     /// Communication-loss delay in ms.
     pub comm_loss_delay_ms: u16,
@@ -302,7 +309,7 @@ pub struct HostConfig {
 }
 
 impl HostConfig {
-    /// Station address 126, PROFIdrive, no telegram selection, no mapping.
+    /// Station address 126 (keep the card's), PROFIdrive, no telegram selection, no mapping.
     pub const DEFAULT: HostConfig = HostConfig {
         station_address: crate::card::DEFAULT_ADDRESS,
         profile: 0,

@@ -240,7 +240,7 @@ pub mod config {
     pub const LEN: usize = 48;
     /// u16 sequence counter: the head.
     pub const SEQ_HEAD: usize = 0x00;
-    /// u8 station address (0..=125; 126 = default / not set).
+    /// u8 station address (0..=125; 126 = keep the card's address).
     pub const STATION_ADDRESS: usize = 0x02;
     /// u8 profile ([`crate::dpm::HostConfig::profile`]: 0 PROFIdrive, 1 manufacturer).
     pub const PROFILE: usize = 0x03;
@@ -248,7 +248,8 @@ pub mod config {
     pub const OPERATE_MODE: usize = 0x04;
     /// u8 communication-loss reaction (0 none, 1 ramp stop, 2 coast, 3 fault, 4 last setpoint).
     pub const COMM_LOSS_REACTION: usize = 0x05;
-    /// u16 telegram selection ([`crate::dpm::Telegram`] code, 0 = any module).
+    /// u16 telegram selection ([`crate::dpm::Telegram`] code, 0 = any module; else Chk_Cfg
+    /// must select this telegram's module).
     pub const TELEGRAM: usize = 0x06;
     /// u16 communication-loss delay in ms.
     pub const COMM_LOSS_DELAY_MS: usize = 0x08;
@@ -674,7 +675,7 @@ pub const FIELDS: &[Field] = &[
     f!("CARD.SEQ_HEAD", card::SEQ_HEAD, 2, "u16", C, SEQ_VALID),
     f!("CARD.HEARTBEAT", card::HEARTBEAT, 2, "u16", C, "consistent block: changes every card cycle; unchanged for the drive's timeout = card lost"),
     f!("CARD.FLAGS", card::FLAGS, 1, "u8", C, "consistent block: bit 0 drive heartbeat lost, bit 1 configuration pending, bit 2 card fault"),
-    f!("CARD.CONFIG_RESULT", card::CONFIG_RESULT, 1, "u8", C, "consistent block, CONFIG_ACK != 0: 1 taken over, 2 pending (cyclic exchange runs), 3 refused (invalid)"),
+    f!("CARD.CONFIG_RESULT", card::CONFIG_RESULT, 1, "u8", C, "consistent block, CONFIG_ACK != 0: 1 taken over, 2 pending (cyclic exchange runs), 3 refused (invalid, or a telegram without a module; nothing applied), 4 taken over but STATION_ADDRESS kept (No_Add_Chg froze it)"),
     f!("CARD.CONFIG_ACK", card::CONFIG_ACK, 2, "u16", C, "consistent block: the CONFIG.SEQ_HEAD the result is about, 0 = none"),
     f!("CARD.EVENTS", card::EVENTS, 8, "u8[8]", C, "consistent block: counters, a change = event: 0 clear mode, 1 offline, 2 online, 3 watchdog, 4 prm error, 5 cfg error, 6 card fault, 7 drive heartbeat returned"),
     f!("CARD.DRIVE_LOSSES", card::DRIVE_LOSSES, 2, "u16", C, "consistent block: drive heartbeat losses (wraps)"),
@@ -694,11 +695,11 @@ pub const FIELDS: &[Field] = &[
     f!("DRIVE.reserved", @ drive::START + drive::EXT_DIAG + EXT_DIAG_CAPACITY, drive::SEQ_TAIL - drive::EXT_DIAG - EXT_DIAG_CAPACITY, "reserved", H, "0"),
     f!("DRIVE.SEQ_TAIL", drive::SEQ_TAIL, 2, "u16", H, SEQ_VALID),
     f!("CONFIG.SEQ_HEAD", config::SEQ_HEAD, 2, "u16", H, SEQ_VALID),
-    f!("CONFIG.STATION_ADDRESS", config::STATION_ADDRESS, 1, "u8", H, "consistent block, SEQ != 0: station address 0..=125"),
+    f!("CONFIG.STATION_ADDRESS", config::STATION_ADDRESS, 1, "u8", H, "consistent block, SEQ != 0: station address 0..=125, set outside data exchange like Set_Slave_Add (reported as a changed address and stored; refused with result 4 while No_Add_Chg froze it); 126 = keep the card's address"),
     f!("CONFIG.PROFILE", config::PROFILE, 1, "u8", H, "consistent block, SEQ != 0: 0 PROFIdrive, 1 manufacturer"),
     f!("CONFIG.OPERATE_MODE", config::OPERATE_MODE, 1, "u8", H, "consistent block, SEQ != 0: drive-defined operate mode"),
     f!("CONFIG.COMM_LOSS_REACTION", config::COMM_LOSS_REACTION, 1, "u8", H, "consistent block, SEQ != 0: 0 none, 1 ramp stop, 2 coast, 3 fault, 4 keep last setpoint"),
-    f!("CONFIG.TELEGRAM", config::TELEGRAM, 2, "u16", H, "consistent block, SEQ != 0: telegram selection (STATUS.TELEGRAM coding, 0 = any)"),
+    f!("CONFIG.TELEGRAM", config::TELEGRAM, 2, "u16", H, "consistent block, SEQ != 0: telegram selection (STATUS.TELEGRAM coding): 0 = any module; else Chk_Cfg with another module is a Cfg_Fault and PNU 922 shows this telegram"),
     f!("CONFIG.COMM_LOSS_DELAY_MS", config::COMM_LOSS_DELAY_MS, 2, "u16", H, "consistent block, SEQ != 0: communication-loss delay in ms"),
     f!("CONFIG.PZD_OUT_MAP", config::PZD_OUT_MAP, 16, "u16[8]", H, "consistent block, SEQ != 0: PNU of output PZD3..PZD10, 0 = unmapped"),
     f!("CONFIG.PZD_IN_MAP", config::PZD_IN_MAP, 16, "u16[8]", H, "consistent block, SEQ != 0: PNU of input PZD3..PZD10, 0 = unmapped"),

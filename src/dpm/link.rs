@@ -56,8 +56,12 @@ pub struct LinkStats {
 /// never writes DRIVE (layout version 1) is not supervised.
 ///
 /// Configuration: a new CONFIG (a new sequence counter) is checked, then taken over when the
-/// slave is not in data exchange (else `CONFIG_RESULT` = pending until it leaves it); the
-/// platform applies it ([`Link::take_config`]) — the station address by restarting the slave.
+/// slave is not in data exchange (else `CONFIG_RESULT` = pending until it leaves it). Taking
+/// it over applies the station address ([`crate::dp::DpSlave::set_address`]: a new address is
+/// reported as `Events::ADDRESS_CHANGED` for the address store; frozen by No_Add_Chg →
+/// `CONFIG_RESULT` 4, the rest taken) and the telegram selection
+/// ([`crate::dp::DpSlave::require_module`]: Chk_Cfg with another module → Cfg_Fault); the
+/// platform gets the whole block once ([`Link::take_config`]) for the profile settings.
 #[derive(Debug, Clone)]
 pub struct Link {
     baud: Option<Baudrate>,
@@ -356,7 +360,7 @@ impl Link {
     pub fn collect_host(&mut self, now: Instant, dp_state: DpState, dpm: &Dpm, raw_inputs: bool) -> NodeUpdate {
         let mut update = NodeUpdate::new(self.telegram);
         self.supervise(now, dpm, &mut update);
-        self.take_over_config(dp_state, dpm);
+        self.take_over_config(dp_state, dpm, &mut update);
         self.mailbox.poll(now, dpm);
         if self.drive_lost || !raw_inputs {
             return update;
@@ -382,6 +386,9 @@ impl Link {
     /// made for another telegram than the node's active one now (a Chk_Cfg came between) are
     /// dropped: the next [`Link::take_snapshot`] clears the inputs for the new one.
     pub fn apply(&mut self, node: &mut Node, update: &NodeUpdate) {
+        if let Some(t) = &update.config {
+            self.apply_config(node, t);
+        }
         if update.ext_diag {
             let ext = self.drive.ext_diag();
             if node.slave_mut().set_ext_diag(ext, !ext.is_empty()).is_err() {
@@ -480,7 +487,11 @@ impl Link {
         }
     }
 
-    fn take_over_config(&mut self, dp_state: DpState, dpm: &Dpm) {
+    /// A new CONFIG (DPM sequence counter moved): refused when invalid or naming a telegram
+    /// the card has no module for, kept pending in data exchange; otherwise handed to
+    /// [`Link::apply`] (through `update`), which applies the station address and the telegram
+    /// restriction to the node and acknowledges.
+    fn take_over_config(&mut self, dp_state: DpState, dpm: &Dpm, update: &mut NodeUpdate) {
         let (seq, cfg) = match dpm.config() {
             Ok(c) => c,
             Err(_) => {
@@ -491,16 +502,47 @@ impl Link {
         if seq == 0 || seq == self.config_done {
             return;
         }
-        let result = if !cfg.is_valid() {
-            ConfigResult::Refused
-        } else if dp_state == DpState::DataExch {
-            ConfigResult::Pending
-        } else {
-            self.config = Some(cfg);
-            self.config_new = true;
-            self.stats.configs_taken = self.stats.configs_taken.wrapping_add(1);
-            ConfigResult::Accepted
+        // The module of the selected telegram (none: any module).
+        let module = match cfg.telegram {
+            Telegram::None => None,
+            t => crate::card::MODULES.iter().find(|m| Telegram::of_module(m) == Some(t)),
         };
+        if !cfg.is_valid() || (cfg.telegram != Telegram::None && module.is_none()) {
+            self.acknowledge_config(seq, ConfigResult::Refused);
+        } else if dp_state == DpState::DataExch {
+            self.acknowledge_config(seq, ConfigResult::Pending);
+        } else {
+            update.config = Some(ConfigTakeover { seq, config: cfg, module });
+        }
+    }
+
+    /// The node part of a configuration takeover (under the node's lock): the station address
+    /// (126: keep the card's) and the Chk_Cfg restriction to the selected telegram's module.
+    /// A slave that entered data exchange since the snapshot keeps the configuration pending.
+    fn apply_config(&mut self, node: &mut Node, t: &ConfigTakeover) {
+        if node.slave().state() == DpState::DataExch {
+            self.acknowledge_config(t.seq, ConfigResult::Pending);
+            return;
+        }
+        let slave = node.slave_mut();
+        let address = match t.config.station_address {
+            a if a <= crate::dp::slave_add::MAX_NEW_ADDRESS => slave.set_address(a),
+            _ => Ok(false),
+        };
+        slave.require_module(t.module);
+        self.config = Some(t.config);
+        self.config_new = true;
+        self.stats.configs_taken = self.stats.configs_taken.wrapping_add(1);
+        let result = match address {
+            Err(crate::dp::slave_add::SlaveAddError::Frozen) => ConfigResult::AddressLocked,
+            _ => ConfigResult::Accepted,
+        };
+        self.acknowledge_config(t.seq, result);
+    }
+
+    /// CARD.CONFIG_ACK / CONFIG_RESULT for the configuration `seq`; every result but Pending
+    /// ends its processing.
+    fn acknowledge_config(&mut self, seq: u16, result: ConfigResult) {
         if result != ConfigResult::Pending {
             self.config_done = seq;
         }
@@ -508,6 +550,15 @@ impl Link {
         self.report.config_result = result as u8;
         self.report.flags.set(CardFlags::CONFIG_PENDING, result == ConfigResult::Pending);
     }
+}
+
+/// A configuration taken over by [`Link::collect_host`], applied to the node by
+/// [`Link::apply`].
+#[derive(Debug, Clone, Copy)]
+struct ConfigTakeover {
+    seq: u16,
+    config: HostConfig,
+    module: Option<&'static crate::card::Module>,
 }
 
 /// Serve ZSW1 = [`ZSW1_FAULT`] (after the PKW), every other word 0.
@@ -571,6 +622,7 @@ pub struct NodeUpdate {
     fault_image: bool,
     inputs: [u8; MAX_INPUT_LEN],
     inputs_len: Option<u8>,
+    config: Option<ConfigTakeover>,
 }
 
 impl NodeUpdate {
@@ -583,6 +635,7 @@ impl NodeUpdate {
             fault_image: false,
             inputs: [0; MAX_INPUT_LEN],
             inputs_len: None,
+            config: None,
         }
     }
 

@@ -88,6 +88,7 @@
 //! INPUTS/DRIVE, and after each request one STATUS request to fetch its reply, matching the
 //! TAG; a STATUS reply with another TAG is older and skipped, `0x00` means "poll again".
 
+use super::host::{Transport, TransportError};
 use super::layout::{Writer, BLOCKS};
 use super::{Dpm, IMAGE_SIZE};
 
@@ -201,35 +202,25 @@ impl ResultCode {
     }
 }
 
+/// The frame CRC: CRC-16/CCITT-FALSE, catalogued as CRC-16/IBM-3740 (polynomial 0x1021,
+/// init 0xFFFF, no reflection, no final XOR, check 0x29B1), from the `crc` crate's
+/// table-driven implementation, slice-by-16 (16 tables of 256 entries, 8 KiB of flash): the
+/// CRC is the largest cost of a frame, and the simulated drive moves several blocks through
+/// the in-process frames every millisecond (README "Benchmark").
+static CRC: crc::Crc<u16, crc::Table<16>> = crc::Crc::<u16, crc::Table<16>>::new(&crc::CRC_16_IBM_3740);
+
 /// CRC-16/CCITT-FALSE of `data`: polynomial 0x1021, init 0xFFFF, no reflection, no final
 /// XOR (check value 0x29B1 for "123456789").
 pub fn crc16(data: &[u8]) -> u16 {
-    crc16_update(0xFFFF, data)
+    CRC.checksum(data)
 }
 
-/// Continue a CRC-16/CCITT-FALSE over more bytes.
-pub fn crc16_update(mut crc: u16, data: &[u8]) -> u16 {
-    for &b in data {
-        crc = (crc << 8) ^ CRC_TABLE[usize::from((crc >> 8) as u8 ^ b)];
-    }
-    crc
+/// Continue a CRC-16/CCITT-FALSE over more bytes (`crc` = the value over the bytes before).
+pub fn crc16_update(crc: u16, data: &[u8]) -> u16 {
+    let mut d = CRC.digest_with_initial(crc);
+    d.update(data);
+    d.finalize()
 }
-
-const CRC_TABLE: [u16; 256] = {
-    let mut t = [0u16; 256];
-    let mut i = 0;
-    while i < 256 {
-        let mut c = (i as u16) << 8;
-        let mut k = 0;
-        while k < 8 {
-            c = if c & 0x8000 != 0 { (c << 1) ^ 0x1021 } else { c << 1 };
-            k += 1;
-        }
-        t[i] = c;
-        i += 1;
-    }
-    t
-};
 
 fn get16(b: &[u8], at: usize) -> u16 {
     u16::from_be_bytes([b[at], b[at + 1]])
@@ -330,7 +321,7 @@ pub fn parse_request(rx: &[u8]) -> Result<Request<'_>, Refusal> {
     if crc16(&rx[..frame - CRC_LEN]) != get16(rx, frame - CRC_LEN) {
         return Err(refuse(ResultCode::CrcError));
     }
-    if rx[frame..].iter().any(|&b| b != 0) {
+    if !all_zero(&rx[frame..]) {
         return Err(refuse(ResultCode::BadLength));
     }
     let Some(cmd) = cmd else {
@@ -353,6 +344,13 @@ pub fn parse_request(rx: &[u8]) -> Result<Request<'_>, Refusal> {
         }
     }
     Ok(Request { cmd, tag: rx[1], addr, len, data: &rx[REQUEST_HEADER..REQUEST_HEADER + data_len] })
+}
+
+/// Whether `b` is all `0x00` (the padding check: four bytes per step).
+fn all_zero(b: &[u8]) -> bool {
+    let mut words = b.chunks_exact(4);
+    words.by_ref().all(|w| u32::from_ne_bytes([w[0], w[1], w[2], w[3]]) == 0)
+        && words.remainder().iter().all(|&x| x == 0)
 }
 
 /// Whether every byte of `start..start + len` lies in a block the host writes.
@@ -758,7 +756,11 @@ impl<B: SpiBus> SpiHost<B> {
             if attempt > 0 {
                 self.retried = self.retried.wrapping_add(1);
             }
-            let (tag, n) = self.codec.encode(cmd, addr, len, data, &mut self.mosi).ok_or(HostError::BadRequest)?;
+            // Encode into the frame's own length: the zero padding of `encode` then costs
+            // nothing (the buffer holds the longest transaction).
+            let frame = REQUEST_HEADER + if cmd == Command::Write { data.len() } else { 0 } + CRC_LEN;
+            let out = self.mosi.get_mut(..frame).ok_or(HostError::BadRequest)?;
+            let (tag, n) = self.codec.encode(cmd, addr, len, data, out).ok_or(HostError::BadRequest)?;
             self.bus.transfer(&self.mosi[..n], &mut self.miso[..n]).map_err(|_| HostError::Bus)?;
             match self.poll_reply(tag, want)? {
                 Some(ResultCode::Ok) => {
@@ -778,8 +780,10 @@ impl<B: SpiBus> SpiHost<B> {
     /// did not come (lost, corrupted).
     fn poll_reply(&mut self, tag: u8, want: usize) -> Result<Option<ResultCode>, HostError> {
         for _ in 0..self.polls {
-            let (_, n) = self.codec.encode(Command::Status, 0, 0, &[], &mut self.mosi).ok_or(HostError::BadRequest)?;
-            let len = n.max(want);
+            // The poll is padded to the reply we expect (the card clocks it out meanwhile).
+            let len = (REQUEST_HEADER + CRC_LEN).max(want).min(MAX_TRANSACTION);
+            let out = &mut self.mosi[..len];
+            self.codec.encode(Command::Status, 0, 0, &[], out).ok_or(HostError::BadRequest)?;
             self.bus.transfer(&self.mosi[..len], &mut self.miso[..len]).map_err(|_| HostError::Bus)?;
             match SpiHostCodec::decode(&self.miso[..len]) {
                 Ok(r) if r.tag == tag => {
@@ -802,6 +806,46 @@ fn check_range(offset: u16, len: usize) -> Result<(), HostError> {
         Err(HostError::BadRequest)
     } else {
         Ok(())
+    }
+}
+
+impl From<HostError> for TransportError {
+    /// A bus fault or a card that never answered with our TAG is "no response"; a refusal
+    /// for a line error (CRC, length, command) that outlived every retry is "corrupt";
+    /// BAD_ADDRESS and a request that does not fit a frame are "out of range"; FORBIDDEN_WRITE
+    /// is "refused".
+    fn from(e: HostError) -> Self {
+        match e {
+            HostError::Bus | HostError::NoReply => TransportError::NoResponse,
+            HostError::Refused(ResultCode::BadAddress) | HostError::BadRequest => TransportError::OutOfRange,
+            HostError::Refused(ResultCode::ForbiddenWrite) => TransportError::Refused,
+            HostError::Refused(_) => TransportError::Corrupt,
+        }
+    }
+}
+
+/// The SPI frames as the host reference implementation's transport
+/// ([`crate::dpm::host::Host`] over [`SpiHost`]): each `read` / `write` is one or more
+/// READ / WRITE frames of ascending addresses (the transport order rule), confirmed by their
+/// replies.
+impl<B: SpiBus> Transport for SpiHost<B> {
+    fn read(&mut self, offset: u16, buf: &mut [u8]) -> Result<(), TransportError> {
+        SpiHost::read(self, offset, buf).map_err(TransportError::from)
+    }
+    fn write(&mut self, offset: u16, data: &[u8]) -> Result<(), TransportError> {
+        SpiHost::write(self, offset, data).map_err(TransportError::from)
+    }
+}
+
+impl SpiHost<Loopback> {
+    /// The in-process card's image (what the card side reads between host calls).
+    pub fn dpm(&self) -> &Dpm {
+        self.bus.dpm()
+    }
+
+    /// The in-process card's image, for the card side's own writes between host calls.
+    pub fn dpm_mut(&mut self) -> &mut Dpm {
+        self.bus.dpm_mut()
     }
 }
 

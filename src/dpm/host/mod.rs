@@ -178,8 +178,10 @@ pub enum ConfigOutcome {
     Pending,
     /// Taken over.
     Accepted,
-    /// Refused as invalid.
+    /// Refused as invalid (nothing applied).
     Refused,
+    /// Taken over, except the station address: No_Add_Chg froze it (the card keeps its own).
+    AddressLocked,
 }
 
 /// New card → drive events since the previous [`Host::poll`]: how often each
@@ -329,6 +331,8 @@ pub struct Host<T> {
     events_seen: Option<[u8; CARD_EVENT_COUNT]>,
     config_written: Option<u16>,
     request_seen: u16,
+    /// `MBX_REQ.SEQ_HEAD` of the last consistent read of MBX_REQ (0 = none yet).
+    request_block_seq: u16,
     request_open: Option<u16>,
     stats: HostStats,
 }
@@ -376,6 +380,7 @@ impl<T: Transport> Host<T> {
             events_seen: None,
             config_written: None,
             request_seen: 0,
+            request_block_seq: 0,
             request_open: None,
             stats: HostStats::default(),
         };
@@ -478,6 +483,7 @@ impl<T: Transport> Host<T> {
             ConfigResult::Accepted => ConfigOutcome::Accepted,
             ConfigResult::Pending => ConfigOutcome::Pending,
             ConfigResult::Refused => ConfigOutcome::Refused,
+            ConfigResult::AddressLocked => ConfigOutcome::AddressLocked,
             ConfigResult::None => ConfigOutcome::Waiting,
         }
     }
@@ -628,6 +634,8 @@ impl<T: Transport> Host<T> {
         let card_returned = card == Liveness::Alive && self.card_lost;
         if card_lost {
             self.card_lost = true;
+            // A card that comes back may have restarted its counters: read MBX_REQ whole.
+            self.request_block_seq = 0;
             self.stats.card_losses = self.stats.card_losses.wrapping_add(1);
         }
         if card_returned {
@@ -643,7 +651,18 @@ impl<T: Transport> Host<T> {
     /// with [`Self::respond`].
     pub fn fetch_request(&mut self) -> Result<Option<MailboxRequest>, Error> {
         self.require(cap::MAILBOX)?;
-        let (_, req) = self.read(&codec::MBX_REQ)?;
+        // The card starts every write of MBX_REQ with a new SEQ_HEAD: while it is the value
+        // of the last consistent read, the block holds what was read then (no new request),
+        // and two bytes answer instead of the whole block (the drive polls every cycle).
+        if self.request_block_seq != 0 {
+            match self.read_u16(codec::MBX_REQ.start()) {
+                Ok(head) if head == self.request_block_seq => return Ok(None),
+                Ok(_) => {}
+                Err(e) => return Err(self.transport_error(e)),
+            }
+        }
+        let (seq, req) = self.read(&codec::MBX_REQ)?;
+        self.request_block_seq = seq;
         match req {
             Some(r) if r.id != self.request_seen => {
                 self.request_seen = r.id;
