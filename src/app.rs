@@ -43,7 +43,7 @@ use crate::profile::drive_if::CommandFlags;
 use crate::profile::profidrive::State;
 use crate::profile::runtime::{AnyProfile, Runtime, Scales, Selection};
 use crate::profile::telegram::DataProfile;
-use crate::time::{Baudrate, Instant};
+use crate::time::{Baudrate, Duration, Instant};
 
 /// The drive's side of the DPM as the application sees it: the host reference
 /// implementation over the SPI frames of [`crate::dpm::spi`], the card an in-process
@@ -218,7 +218,7 @@ impl Application {
         let dpm = self.host.transport().dpm();
         let mut update = self.link.collect_host(now, snap.dp_state(), dpm, false);
         let events = core::mem::replace(&mut self.events, Events::empty());
-        self.run_profile(snap, events, &mut update);
+        self.run_profile(now, snap, events, &mut update);
         self.service_pkw(now);
         update
     }
@@ -256,7 +256,7 @@ impl Application {
 
     /// The profile layer: select the engine for the active telegram, run one cycle with the
     /// drive's latest state, stage the input image in `update`, write DRIVE_CMD.
-    fn run_profile(&mut self, snap: &NodeSnapshot, events: Events, update: &mut NodeUpdate) {
+    fn run_profile(&mut self, now: Instant, snap: &NodeSnapshot, events: Events, update: &mut NodeUpdate) {
         let telegram = snap.telegram();
         let in_dx = snap.dp_state() == DpState::DataExch;
         if telegram != Telegram::None && in_dx {
@@ -267,6 +267,8 @@ impl Application {
                 0 => DataProfile::Profidrive,
                 _ => DataProfile::Manufacturer,
             };
+            let delay = config.map_or(0, |c| c.io_update_delay);
+            self.runtime.set_io_update_delay(Duration::from_millis(100 * u64::from(delay)));
             self.runtime.select(Selection {
                 telegram,
                 mode: Selection::mode_of(user[card::PRM_OPERATE_MODE.offset], local),
@@ -280,7 +282,7 @@ impl Application {
         let state = *self.link.read_drive_state(self.host.transport().dpm());
         let outputs = (events.contains(Events::OUTPUTS_UPDATED) && !lost).then(|| snap.outputs());
         let drive_lost = self.link.drive_lost();
-        let Some(x) = self.runtime.cycle(outputs, lost, &state.status, state.extra.words()) else { return };
+        let Some(x) = self.runtime.cycle_at(now, outputs, lost, &state.status, state.extra.words()) else { return };
         let img = DriveCommandImage {
             command: x.command.unwrap_or_default(),
             operate_mode: match sel.mode {
@@ -321,6 +323,11 @@ impl Application {
     /// over the SPI frames to the in-process card).
     pub fn host(&self) -> &DriveHost {
         &self.host
+    }
+    /// The drive's host interface, writable: what the drive's control board does besides the
+    /// simulated drive's cycle (write CONFIG, …), for tests and tools.
+    pub fn host_mut(&mut self) -> &mut DriveHost {
+        &mut self.host
     }
     /// The card-side link (counters, init-error flag).
     pub fn link_mut(&mut self) -> &mut Link {
@@ -733,6 +740,38 @@ mod tests {
         }
         assert_eq!(b.app.profidrive_state().unwrap(), DriveState::ReadyToSwitchOn);
         assert_eq!(b.app.drive().actual_speed(), 0);
+    }
+
+    /// P0799-style I/O update delay from the drive's CONFIG.IO_UPDATE_DELAY (CFW-11 manual):
+    /// after going online the drive keeps its previous command (none at power-up) for the
+    /// delay, then the newest outputs apply; the master's inputs stay live meanwhile.
+    #[test]
+    fn the_drives_io_update_delay_holds_the_outputs_after_going_online() {
+        use crate::dpm::HostConfig;
+        let mut b = Bench::new();
+        let cfg = HostConfig { io_update_delay: 5, ..HostConfig::DEFAULT }; // 0.5 s
+        b.app.host_mut().write_config(&cfg).unwrap();
+        b.step(1);
+        b.step(1);
+        assert_eq!(b.app.link().config().map(|c| c.io_update_delay), Some(5), "taken over outside DX");
+        b.bring_up(&card::MODULES[0]);
+        let q = [0x04, 0x7E, 0x20, 0x00];
+        let mut held = 0;
+        for _ in 0..90 {
+            let i = b.cycle(&q, 5); // 450 ms
+            assert_ne!(words(&i)[0], 0, "the inputs are live during the delay (ZSW1)");
+            assert!(!b.app.drive().command().flags.contains(CommandFlags::FIELDBUS_CONTROL), "held");
+            held += 1;
+        }
+        assert_eq!(held, 90);
+        for _ in 0..20 {
+            b.cycle(&q, 5); // past 500 ms
+        }
+        assert!(
+            b.app.drive().command().flags.contains(CommandFlags::FIELDBUS_CONTROL),
+            "the master's STW1 (b10 control by PLC) reaches the drive after the delay"
+        );
+        assert_eq!(b.app.profidrive_state(), Some(DriveState::ReadyToSwitchOn));
     }
 
     #[cfg(not(feature = "bench"))] // the bench-only modules are no GSD telegram

@@ -4,12 +4,12 @@
 mod common;
 
 use common::Card;
-use pbcard::testkit::Rig;
 use dpm_host::*;
 use pbcard::card;
 use pbcard::dp::{DpState, Events};
 use pbcard::dpm::{CardEvent, ConfigResult};
 use pbcard::fdl::telegram;
+use pbcard::testkit::Rig;
 
 #[test]
 fn configuration_pending_in_data_exchange_and_taken_over_after() {

@@ -129,6 +129,7 @@ fn every_field_crosses_the_transport_both_ways() {
         comm_loss_delay_ms: 0x0708,
         pzd_out_map: [1, 2, 3, 4, 5, 6, 7, 8],
         pzd_in_map: [9, 10, 11, 12, 13, 14, 15, 16],
+        io_update_delay: 0x0123,
     };
     host.set_fault(0x7510);
     host.set_warning(0x1234);

@@ -213,6 +213,7 @@ fuzz_target!(|data: &[u8]| {
                     profile: src.u8() % 3,
                     comm_loss_reaction: src.u8() % 6,
                     operate_mode: src.u8() % 5,
+                    io_update_delay: u16::from(src.u8() & 0x0F),
                     ..HostConfig::DEFAULT
                 };
                 let mut bytes = [0u8; codec::CONFIG.len()];

@@ -295,7 +295,8 @@ pub struct HostConfig {
     pub profile: u8,
     /// Operate mode (drive-defined).
     pub operate_mode: u8,
-    /// Communication-loss reaction: 0 none, 1 ramp stop, 2 coast, 3 fault, 4 keep last setpoint.
+    /// Communication-loss reaction: 0 the drive's own setting, 1 ramp stop, 2 coast, 3 quick
+    /// stop, 4 keep the last setpoint.
     pub comm_loss_reaction: u8,
     /// Telegram selection ([`Telegram::None`] = any module the GSD offers; another one =
     /// Chk_Cfg must select its module, else Cfg_Fault).
@@ -306,6 +307,9 @@ pub struct HostConfig {
     pub pzd_out_map: [u16; PZD_MAP_WORDS],
     /// PNU of input PZD3..PZD10 (0 = unmapped).
     pub pzd_in_map: [u16; PZD_MAP_WORDS],
+    /// I/O update delay after going online in 0.1 s (P0799-style, CFW-11 manual: 0.0 ..
+    /// 999.0 s; 0 = none): the card holds the master's outputs back this long.
+    pub io_update_delay: u16,
 }
 
 impl HostConfig {
@@ -319,7 +323,11 @@ impl HostConfig {
         comm_loss_delay_ms: 0,
         pzd_out_map: [0; PZD_MAP_WORDS],
         pzd_in_map: [0; PZD_MAP_WORDS],
+        io_update_delay: 0,
     };
+
+    /// The largest I/O update delay (999.0 s, in 0.1 s).
+    pub const MAX_IO_UPDATE_DELAY: u16 = 9990;
 
     /// Whether the card can take it over: address 0..=126, profile 0 or 1, reaction 0..=4,
     /// telegram none or a known layout.
@@ -327,6 +335,7 @@ impl HostConfig {
         self.station_address <= crate::card::MAX_STATION_ADDRESS
             && self.profile <= 1
             && self.comm_loss_reaction <= 4
+            && self.io_update_delay <= Self::MAX_IO_UPDATE_DELAY
             && (self.telegram == Telegram::None || self.telegram.is_known())
     }
 
@@ -337,6 +346,7 @@ impl HostConfig {
         b[config::COMM_LOSS_REACTION] = self.comm_loss_reaction;
         put16(b, config::TELEGRAM, self.telegram.code());
         put16(b, config::COMM_LOSS_DELAY_MS, self.comm_loss_delay_ms);
+        put16(b, config::IO_UPDATE_DELAY, self.io_update_delay);
         for i in 0..PZD_MAP_WORDS {
             put16(b, config::PZD_OUT_MAP + 2 * i, self.pzd_out_map[i]);
             put16(b, config::PZD_IN_MAP + 2 * i, self.pzd_in_map[i]);
@@ -351,6 +361,7 @@ impl HostConfig {
             comm_loss_reaction: b[config::COMM_LOSS_REACTION],
             telegram: Telegram::from_code(get16(b, config::TELEGRAM)),
             comm_loss_delay_ms: get16(b, config::COMM_LOSS_DELAY_MS),
+            io_update_delay: get16(b, config::IO_UPDATE_DELAY),
             ..HostConfig::DEFAULT
         };
         for i in 0..PZD_MAP_WORDS {

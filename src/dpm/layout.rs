@@ -246,7 +246,9 @@ pub mod config {
     pub const PROFILE: usize = 0x03;
     /// u8 operate mode (drive-defined, e.g. speed / position).
     pub const OPERATE_MODE: usize = 0x04;
-    /// u8 communication-loss reaction (0 none, 1 ramp stop, 2 coast, 3 fault, 4 last setpoint).
+    /// u8 communication-loss reaction the drive applies (0 its own setting, 1 ramp stop,
+    /// 2 coast, 3 quick stop, 4 keep the last setpoint; the coding of DRIVE_CMD and of the
+    /// GSD user parameter).
     pub const COMM_LOSS_REACTION: usize = 0x05;
     /// u16 telegram selection ([`crate::dpm::Telegram`] code, 0 = any module; else Chk_Cfg
     /// must select this telegram's module).
@@ -257,6 +259,10 @@ pub mod config {
     pub const PZD_OUT_MAP: usize = 0x0A;
     /// u16 × 8: drive PNU mapped to input PZD3..PZD10 (0 = unmapped).
     pub const PZD_IN_MAP: usize = PZD_OUT_MAP + 2 * super::PZD_MAP_WORDS;
+    /// u16 I/O update delay in 0.1 s (P0799-style, CFW-11 manual; 0 = none, at most 9990):
+    /// after going online the drive keeps its previous command this long before the master's
+    /// outputs apply.
+    pub const IO_UPDATE_DELAY: usize = PZD_IN_MAP + 2 * super::PZD_MAP_WORDS;
     /// u16 sequence counter: the tail.
     pub const SEQ_TAIL: usize = LEN - 2;
 }
@@ -425,7 +431,8 @@ const _: () = {
     assert!(EXTRA_WORDS <= u8::MAX as usize);
     assert!(card::MAILBOX_TIMEOUTS + 2 <= card::SEQ_TAIL);
     assert!(drive::EXT_DIAG + EXT_DIAG_CAPACITY <= drive::SEQ_TAIL);
-    assert!(config::PZD_IN_MAP + 2 * PZD_MAP_WORDS <= config::SEQ_TAIL);
+    assert!(config::PZD_IN_MAP + 2 * PZD_MAP_WORDS <= config::IO_UPDATE_DELAY);
+    assert!(config::IO_UPDATE_DELAY + 2 <= config::SEQ_TAIL);
     assert!(MBX_CAPACITY <= u8::MAX as usize && EXT_DIAG_CAPACITY <= crate::card::MAX_EXT_DIAG_LEN);
     assert!(status::CORRUPT_FRAMES + 2 <= status::SEQ_TAIL);
     // Every GSD module fits. The benchmark build's 244-byte module does not: its data is cut to
@@ -698,12 +705,13 @@ pub const FIELDS: &[Field] = &[
     f!("CONFIG.STATION_ADDRESS", config::STATION_ADDRESS, 1, "u8", H, "consistent block, SEQ != 0: station address 0..=125, set outside data exchange like Set_Slave_Add (reported as a changed address and stored; refused with result 4 while No_Add_Chg froze it); 126 = keep the card's address"),
     f!("CONFIG.PROFILE", config::PROFILE, 1, "u8", H, "consistent block, SEQ != 0: 0 PROFIdrive, 1 manufacturer"),
     f!("CONFIG.OPERATE_MODE", config::OPERATE_MODE, 1, "u8", H, "consistent block, SEQ != 0: drive-defined operate mode"),
-    f!("CONFIG.COMM_LOSS_REACTION", config::COMM_LOSS_REACTION, 1, "u8", H, "consistent block, SEQ != 0: 0 none, 1 ramp stop, 2 coast, 3 fault, 4 keep last setpoint"),
+    f!("CONFIG.COMM_LOSS_REACTION", config::COMM_LOSS_REACTION, 1, "u8", H, "consistent block, SEQ != 0: the drive's communication-loss reaction (P0313-style), DRIVE_CMD coding: 0 its own setting, 1 ramp stop, 2 coast, 3 quick stop, 4 keep last setpoint"),
     f!("CONFIG.TELEGRAM", config::TELEGRAM, 2, "u16", H, "consistent block, SEQ != 0: telegram selection (STATUS.TELEGRAM coding): 0 = any module; else Chk_Cfg with another module is a Cfg_Fault and PNU 922 shows this telegram"),
     f!("CONFIG.COMM_LOSS_DELAY_MS", config::COMM_LOSS_DELAY_MS, 2, "u16", H, "consistent block, SEQ != 0: communication-loss delay in ms"),
     f!("CONFIG.PZD_OUT_MAP", config::PZD_OUT_MAP, 16, "u16[8]", H, "consistent block, SEQ != 0: PNU of output PZD3..PZD10, 0 = unmapped"),
     f!("CONFIG.PZD_IN_MAP", config::PZD_IN_MAP, 16, "u16[8]", H, "consistent block, SEQ != 0: PNU of input PZD3..PZD10, 0 = unmapped"),
-    f!("CONFIG.reserved", @ config::START + config::PZD_IN_MAP + 16, config::SEQ_TAIL - config::PZD_IN_MAP - 16, "reserved", H, "0"),
+    f!("CONFIG.IO_UPDATE_DELAY", config::IO_UPDATE_DELAY, 2, "u16", H, "consistent block, SEQ != 0: I/O update delay in 0.1 s (P0799-style, 0..=9990; 0 = none; a v3 host that leaves it 0 has none): after going online (and after Clear) the drive keeps its previous command this long, then the newest outputs apply"),
+    f!("CONFIG.reserved", @ config::START + config::IO_UPDATE_DELAY + 2, config::SEQ_TAIL - config::IO_UPDATE_DELAY - 2, "reserved", H, "0"),
     f!("CONFIG.SEQ_TAIL", config::SEQ_TAIL, 2, "u16", H, SEQ_VALID),
     f!("MBX_REQ.SEQ_HEAD", mbx_req::SEQ_HEAD, 2, "u16", C, SEQ_VALID),
     f!("MBX_REQ.REQ_ID", mbx_req::REQ_ID, 2, "u16", C, "consistent block: request identifier, a new value = a new request, 0 = none"),

@@ -245,9 +245,10 @@ impl Runtime {
         }
     }
 
-    /// The I/O update delay after going online (CFW-11 P0799-style, module docs); a card
-    /// parameter, default 0 = the master's outputs are taken at once. Takes effect at the
-    /// next offline → online transition.
+    /// The I/O update delay after going online (CFW-11 P0799-style, module docs): the drive's
+    /// DPM `CONFIG.IO_UPDATE_DELAY` (0.1 s units), set by `app::Application` on every cycle;
+    /// default 0 = the master's outputs are taken at once. Takes effect at the next
+    /// offline → online transition.
     pub fn set_io_update_delay(&mut self, delay: Duration) {
         self.delay.delay = delay;
     }
