@@ -13,7 +13,7 @@
 //! | priority | task | does |
 //! |---|---|---|
 //! | 16 (highest) | F411: `line_usart1` (USART1: IDLE, PE/FE/NF/ORE, TC), `line_tim5` (TIM5 compares: T_SYN proof, delayed response start) | the DMA line (`bsp/f411.rs`): cut telegrams into the queue, release DE on TC; never touches the `Node` |
-//! | 16 | QEMU: `usart1` (USART1 interrupt per character) | `Node::on_byte` → response; after a Data_Exchange spawns `app_step`, after a DP-V1 request `acyclic` |
+//! | 16 | QEMU: `usart1` (USART1 interrupt per character) | the per-byte line (`phy::line::answer` → `Node::on_frame`) → response; after a Data_Exchange spawns `app_step`, after a DP-V1 request `acyclic` |
 //! | 15 | F411: `decide` (bound to the unused SDIO interrupt, pended by `line_usart1`) | per telegram: `Node::on_frame` → `DmaLine::respond` (min_TSDR by TIM5 compare); autobaud frame accounting; spawns as above |
 //! | 8 | `acyclic` (software task) | `Node::process_acyclic`: DP-V1 records at slot 0, PROFIdrive parameter access (card PNUs, then the drive's through the DPM parameter mailbox, `Application::parameters`; a job waiting for the drive is retried on the next spawn) |
 //! | 1 | `housekeeping` (QEMU) / `housekeeping_board` (F411) (async, every 1 ms) | the application step with two short Node locks (`Application::snapshot`: node timers + a copy; unlocked: DPM publish, drive, profile cycle, PKW, DRIVE_CMD; `Application::apply`: diagnosis + input image), STATUS.CORRUPT_FRAMES from the line, events, logs; F411: autobaud poll and rate switch, LEDs, IWDG, address journal |

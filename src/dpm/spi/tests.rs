@@ -585,3 +585,75 @@ proptest! {
         prop_assert_eq!(&host.bus().dpm().as_bytes()[usize::from(at)..][..n], &data[..n]);
     }
 }
+
+/// `docs/SPI.md`: the byte-level specification of the module docs above, with every constant
+/// it names resolved to its value, so a drive maker can integrate from `docs/` alone; the
+/// example frames it quotes are checked here (CRC and the card's parser).
+fn spi_markdown() -> String {
+    let src = include_str!("../spi.rs");
+    let consts: [(&str, String); 10] = [
+        ("[`MAX_TRANSACTION`]", format!("{MAX_TRANSACTION}")),
+        ("[`MAX_DATA`]", format!("{MAX_DATA}")),
+        ("[`T_READY_US`]", format!("{T_READY_US}")),
+        ("[`STATUS_LEN`]", format!("{STATUS_LEN}")),
+        ("[`crc16`]", "CRC-16/CCITT-FALSE".to_string()),
+        ("[`Command`]", "CMD".to_string()),
+        ("[`ResultCode`]", "RESULT".to_string()),
+        ("[`SpiStats`]", "the card's SPI counters".to_string()),
+        ("[`SpiHost`]", "the reference host (`pbcard::dpm::spi::SpiHost`)".to_string()),
+        ("`layout::BLOCKS`", "the block table of `docs/DPM.md`".to_string()),
+    ];
+    let mut out = String::from(
+        "# DPM transport over SPI (board)\n\n\
+         Generated from the module documentation of `src/dpm/spi.rs` (constants resolved); \
+         regenerate with\n`DPM_DOC_WRITE=1 cargo test --lib --target x86_64-unknown-linux-gnu \
+         dpm::spi::tests::spi_doc_is_current`.\nThe image the frames address is `docs/DPM.md`.\n\n",
+    );
+    let mut on = false;
+    for line in src.lines() {
+        let Some(text) = line.strip_prefix("//!") else { break };
+        let text = text.strip_prefix(' ').unwrap_or(text);
+        if text.starts_with("# Byte-level specification") {
+            on = true;
+            out.push_str("## Byte-level specification (protocol version 1)\n");
+            continue;
+        }
+        if on {
+            let mut t = text.to_string();
+            for (name, value) in &consts {
+                t = t.replace(name, value);
+            }
+            out.push_str(&t);
+            out.push('\n');
+        }
+    }
+    out
+}
+
+#[test]
+fn spi_doc_is_current() {
+    let doc = spi_markdown();
+    assert!(!doc.contains("[`"), "an unresolved link in the SPI doc: {doc}");
+    // The example frames the document quotes are valid requests with the CRC they show.
+    let examples: Vec<Vec<u8>> = doc
+        .split('`')
+        .filter(|s| s.len() > 20 && s.split(' ').all(|h| h.len() == 2 && u8::from_str_radix(h, 16).is_ok()))
+        .map(|s| s.split(' ').map(|h| u8::from_str_radix(h, 16).unwrap()).collect())
+        .collect();
+    assert_eq!(examples.len(), 3, "READ, WRITE, STATUS examples");
+    for f in &examples {
+        let n = f.len();
+        assert_eq!(crc16(&f[..n - 2]).to_be_bytes(), [f[n - 2], f[n - 1]], "example CRC {f:02X?}");
+        assert!(parse_request(f).is_ok(), "the card accepts the example {f:02X?}");
+    }
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/SPI.md");
+    if std::env::var_os("DPM_DOC_WRITE").is_some() {
+        std::fs::write(path, &doc).unwrap();
+    }
+    let committed = std::fs::read_to_string(path).unwrap_or_default();
+    assert!(
+        committed == doc,
+        "docs/SPI.md differs from src/dpm/spi.rs; regenerate it with\n  \
+         DPM_DOC_WRITE=1 cargo test --lib --target x86_64-unknown-linux-gnu dpm::spi::tests::spi_doc_is_current"
+    );
+}
