@@ -669,13 +669,7 @@ fuzz_target!(|data: &[u8]| {
                     let mut f = src.bytes(n).to_vec();
                     if b & 2 != 0 {
                         // Repair FCS and ED so that the frame gets past them.
-                        if let Ok(Some(len)) = telegram::frame_len(&f) {
-                            if len <= f.len() && len >= 6 {
-                                f.truncate(len);
-                                telegram::finish(&mut f, len);
-                                f[len - 1] = telegram::ED;
-                            }
-                        }
+                        src::repair_frame(&mut f);
                     }
                     bus.deliver(&f);
                 }

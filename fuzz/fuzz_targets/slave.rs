@@ -345,13 +345,7 @@ fuzz_target!(|data: &[u8]| {
                 let n = src.u8() as usize % (MAX_FRAME_LEN + 8);
                 let mut f = src.bytes(n).to_vec();
                 if op & 0x10 != 0 {
-                    if let Ok(Some(len)) = telegram::frame_len(&f) {
-                        if len <= f.len() && len >= 6 {
-                            f.truncate(len);
-                            telegram::finish(&mut f, len);
-                            f[len - 1] = telegram::ED;
-                        }
-                    }
+                    src::repair_frame(&mut f);
                 }
                 bus.deliver(&f);
             }

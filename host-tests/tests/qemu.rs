@@ -48,6 +48,20 @@ fn boot() -> Option<Qemu> {
     }
 }
 
+/// Boot the firmware, connect to its USART1 and wait until the slave answers: the line, the
+/// running QEMU and the time to the first answer (`None`: QEMU not available, test skipped).
+fn boot_and_connect() -> Option<(Qemu, StreamPhy<std::os::unix::net::UnixStream>, Duration)> {
+    let q = boot()?;
+    let mut phy = match q.connect() {
+        Ok(p) => p,
+        Err(e) => fail(q, &[], format!("connect to USART1: {e}")),
+    };
+    match qemu::wait_for_answer(&mut phy, SLAVE, Duration::from_secs(20)) {
+        Ok(t) => Some((q, phy, t)),
+        Err(e) => fail(q, &[], e),
+    }
+}
+
 fn fail(q: Qemu, master_events: &[(u64, PeripheralEvent)], what: String) -> ! {
     let log = q.stop();
     panic!("{what}\nmaster events (ms, event): {master_events:?}\n--- firmware log ---\n{}", log.join("\n"));
@@ -102,15 +116,7 @@ fn run_the_drive<S: std::io::Read + std::io::Write>(
 
 /// Bring-up, then the drive run with `module` (STW1 at the word after the PKW).
 fn drive_end_to_end(module: &card::Module, setpoint: i16, hold: usize) {
-    let Some(q) = boot() else { return };
-    let mut phy = match q.connect() {
-        Ok(p) => p,
-        Err(e) => fail(q, &[], format!("connect to USART1: {e}")),
-    };
-    let ready = match qemu::wait_for_answer(&mut phy, SLAVE, Duration::from_secs(20)) {
-        Ok(t) => t,
-        Err(e) => fail(q, &[], e),
-    };
+    let Some((q, phy, ready)) = boot_and_connect() else { return };
     let mut m = LiveMaster::new(phy, SLAVE, module, &MasterSetup::default());
     if let Err(e) = m.bring_up(PHASE) {
         let ev = m.events.clone();
@@ -240,14 +246,7 @@ fn run_family<S: std::io::Read + std::io::Write>(
 /// "fault"): each family acknowledges it with its own reset.
 #[test]
 fn every_family_runs_the_drive_on_one_boot() {
-    let Some(q) = boot() else { return };
-    let mut phy = match q.connect() {
-        Ok(p) => p,
-        Err(e) => fail(q, &[], format!("connect to USART1: {e}")),
-    };
-    if let Err(e) = qemu::wait_for_answer(&mut phy, SLAVE, Duration::from_secs(20)) {
-        fail(q, &[], e);
-    }
+    let Some((q, mut phy, _)) = boot_and_connect() else { return };
     let mut reports = Vec::new();
     let mut q = q;
     for reference in [20u16, 1138, 2105, 3103, 4001, 1] {
@@ -360,14 +359,7 @@ impl<S: std::io::Read + std::io::Write> Dpv1Master<S> {
 
 #[test]
 fn dpv1_card_and_drive_parameters_through_msac_c1_and_c2() {
-    let Some(q) = boot() else { return };
-    let mut phy = match q.connect() {
-        Ok(p) => p,
-        Err(e) => fail(q, &[], format!("connect to USART1: {e}")),
-    };
-    if let Err(e) = qemu::wait_for_answer(&mut phy, SLAVE, Duration::from_secs(20)) {
-        fail(q, &[], e);
-    }
+    let Some((q, phy, _)) = boot_and_connect() else { return };
     let mut m = Dpv1Master { phy, fcb: [false; 128] };
     let baud = u16::from(Baudrate::B1500k.p0963_code());
     let run = |m: &mut Dpv1Master<_>| -> Result<(), String> {

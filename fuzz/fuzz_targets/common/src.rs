@@ -52,3 +52,15 @@ macro_rules! trace {
         }
     };
 }
+
+/// Repair the FCS and the end delimiter of a raw frame whose header announces a length it
+/// holds (cut to that length), so the frame gets past those checks to the ones after them.
+pub fn repair_frame(f: &mut Vec<u8>) {
+    if let Ok(Some(len)) = pbcard::fdl::telegram::frame_len(f) {
+        if len <= f.len() && len >= 6 {
+            f.truncate(len);
+            pbcard::fdl::telegram::finish(f, len);
+            f[len - 1] = pbcard::fdl::telegram::ED;
+        }
+    }
+}
