@@ -1164,6 +1164,52 @@ mod tests {
             }
         }
 
+        /// Safety (issue 12 4a): Clear together with Sync (`22 00`) or Unsync (`12 00`), and
+        /// zero-length outputs, never apply the outputs Sync held — Rd_Outp and the DPM OUTPUTS
+        /// block (what the drive reads) stay zero while Clear lasts, and the held image is
+        /// discarded, so it never reaches the drive afterwards.
+        #[test]
+        fn clear_with_sync_never_applies_the_held_outputs() {
+            for m in family_modules() {
+                for enter in [0x22u8, 0x12, 0x32, 0x02, 0xFF] {
+                    let mut b = Bench::new();
+                    b.bring_up_sync_freeze(m);
+                    let (_, run, _) = control_words(m);
+                    let first = image(m, run, setpoint(m, 10));
+                    b.cycle(&first, 5);
+                    b.global_control(GC_SYNC);
+                    let held = image(m, run, setpoint(m, 90));
+                    b.cycle(&held, 5);
+                    if enter == 0xFF {
+                        // Fail-safe Clear: zero-length outputs.
+                        assert!(!b.srd(None, &[]).is_empty());
+                        b.step(5);
+                    } else {
+                        b.global_control(enter);
+                    }
+                    assert!(b.node.slave().is_clear(), "{} {enter:02X}", m.name);
+                    let zero = vec![0u8; m.outputs as usize];
+                    for _ in 0..3 {
+                        assert_eq!(b.node.slave().outputs(), &zero[..], "{} {enter:02X}: outputs zero", m.name);
+                        let rd = b.srd(Some(57), &[]);
+                        assert_eq!(&rd[9..rd.len() - 2], &zero[..], "{} {enter:02X}: Rd_Outp zero", m.name);
+                        let dpm = b.app.dpm().outputs().unwrap();
+                        assert!(dpm.bytes().iter().all(|&x| x == 0), "{} {enter:02X}: the drive sees zero", m.name);
+                        if enter != 0xFF {
+                            b.cycle(&held, 5);
+                            b.global_control(0x22);
+                        }
+                    }
+                    // Clear ends and Sync / Unsync follow: the discarded image never comes back.
+                    b.global_control(0x00);
+                    b.global_control(GC_UNSYNC);
+                    let dpm = b.app.dpm().outputs().unwrap();
+                    assert_ne!(dpm.bytes(), &held[..], "{} {enter:02X}: held outputs reached the drive", m.name);
+                    assert_ne!(b.node.slave().outputs(), &held[..], "{} {enter:02X}", m.name);
+                }
+            }
+        }
+
         /// Watchdog expiry (A139): the CARD events, the communication-loss command, and the
         /// drive's factory action "fault" (F239-style, kept until reset after the master is back).
         #[test]

@@ -584,6 +584,8 @@ impl DpSlave {
                 self.fs_clear = true;
                 self.events |= Events::CLEAR_CHANGED;
             }
+            // The image Sync held is discarded with the outputs: never applied after Clear.
+            self.has_pending_outputs = false;
             if self.outputs.iter().any(|&b| b != 0) {
                 self.outputs.fill(0);
                 self.events |= Events::OUTPUTS_UPDATED;
@@ -744,9 +746,14 @@ impl DpSlave {
             self.gc_clear = clear;
             self.events |= Events::CLEAR_CHANGED;
         }
-        if clear && self.outputs.iter().any(|&b| b != 0) {
-            self.outputs.fill(0);
-            self.events |= Events::OUTPUTS_UPDATED;
+        if clear {
+            // Safety: Clear leaves the outputs zero whatever Sync held; the held image is
+            // discarded, never applied later (a Sync in the same command applies nothing).
+            self.has_pending_outputs = false;
+            if self.outputs.iter().any(|&b| b != 0) {
+                self.outputs.fill(0);
+                self.events |= Events::OUTPUTS_UPDATED;
+            }
         }
         // Sync / Unsync (Unsync wins when both are set).
         if cmd.intersects(ControlCommand::SYNC | ControlCommand::UNSYNC) {
@@ -778,14 +785,16 @@ impl DpSlave {
                 self.diag_changed();
             } else {
                 let freeze = !cmd.contains(ControlCommand::UNFREEZE);
+                let was = self.freeze_mode;
                 // Sample the application's inputs now (Freeze) or return to live inputs.
                 self.freeze_mode = false;
                 self.restage_dx();
                 if freeze {
                     self.events |= Events::FREEZE;
                 }
-                if freeze != self.freeze_mode {
-                    self.freeze_mode = freeze;
+                self.freeze_mode = freeze;
+                if freeze != was {
+                    // Freeze_Mode (diagnosis octet 2 b4) follows at once.
                     self.diag_dirty = true;
                 }
             }

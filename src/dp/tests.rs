@@ -241,6 +241,69 @@ fn sync_and_freeze_semantics() {
     assert!(b.slave.is_clear());
 }
 
+/// Safety (issue 12 4a): Clear never applies what Sync held. The issue's sequence: Set_Prm with
+/// Sync_Req, DX `01 02 03 04`, GC Sync `20 00`, DX `05 06 07 08`, GC Clear+Sync `22 00` → outputs
+/// zero (Rd_Outp too) and the held image discarded; the same for Clear+Unsync, Clear alone and
+/// zero-length outputs, and nothing held comes back when Clear ends.
+#[test]
+fn clear_with_sync_never_applies_the_held_outputs() {
+    // (command that enters Clear while outputs are held, via zero-length outputs?)
+    for (gc, fs_clear) in [(0x22, false), (0x12, false), (0x02, false), (0x32, false), (0x00, true)] {
+        let mut b = Bus::new();
+        b.bring_up(0xB8);
+        b.req(M1, None, &[1, 2, 3, 4]);
+        assert_eq!(b.slave.outputs(), &[1, 2, 3, 4]);
+        b.sdn(M1, 127, 58, &[0x20, 0x00]);
+        b.req(M1, None, &[5, 6, 7, 8]);
+        assert_eq!(b.slave.outputs(), &[1, 2, 3, 4], "held under Sync");
+        if fs_clear {
+            b.req(M1, None, &[]);
+        } else {
+            b.sdn(M1, 127, 58, &[gc, 0x00]);
+        }
+        assert!(b.slave.is_clear(), "GC {gc:02X}");
+        assert_eq!(b.slave.outputs(), &[0; 4], "GC {gc:02X} fs {fs_clear}: zero, not the held image");
+        let rd = b.req(M2, Some(57), &[]);
+        assert!(matches!(rd, Ans::Data { ref pdu, .. } if pdu == &[0; 4]), "Rd_Outp {rd:?}");
+        // While Clear lasts: Data_Exchange and further Syncs change nothing.
+        if !fs_clear {
+            for _ in 0..3 {
+                b.req(M1, None, &[5, 6, 7, 8]);
+                b.sdn(M1, 127, 58, &[0x22, 0x00]);
+                assert_eq!(b.slave.outputs(), &[0; 4], "GC {gc:02X}: zero while Clear lasts");
+            }
+        }
+        // Clear ends (operate, Sync or Unsync): the discarded image never comes back.
+        b.sdn(M1, 127, 58, &[0x00, 0x00]);
+        if fs_clear {
+            // Leaving fail-safe Clear with fresh outputs of the right length.
+            b.req(M1, None, &[9, 9, 9, 9]);
+        }
+        b.sdn(M1, 127, 58, &[0x10, 0x00]);
+        assert!(!b.slave.is_clear());
+        assert_ne!(b.slave.outputs(), &[5, 6, 7, 8], "GC {gc:02X} fs {fs_clear}: stale held outputs");
+        // Live again: the newest outputs apply.
+        b.req(M1, None, &[7, 7, 7, 7]);
+        assert_eq!(b.slave.outputs(), &[7, 7, 7, 7]);
+    }
+}
+
+/// Freeze_Mode (diagnosis octet 2 b4, issue 12 4d) follows Unfreeze at once: `04 00` and `0C 00`.
+#[test]
+fn freeze_mode_bit_clears_on_unfreeze() {
+    for unfreeze in [0x04, 0x0C] {
+        let mut b = Bus::new();
+        b.bring_up(0xB8);
+        b.req(M1, None, &[1, 0, 0, 0]);
+        b.sdn(M1, 127, 58, &[0x08, 0x00]);
+        assert!(b.slave.is_freeze());
+        assert_eq!(b.diag(M1)[1] & 0x10, 0x10, "Freeze_Mode set");
+        b.sdn(M1, 127, 58, &[unfreeze, 0x00]);
+        assert!(!b.slave.is_freeze());
+        assert_eq!(b.diag(M1)[1] & 0x10, 0, "GC {unfreeze:02X}: Freeze_Mode cleared");
+    }
+}
+
 #[test]
 fn sync_without_sync_req_is_not_supported() {
     let mut b = Bus::new();
