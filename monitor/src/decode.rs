@@ -518,9 +518,11 @@ pub fn values(v: &ValueBlock<'_>) -> String {
             Format::INTEGER16 => v.i16(i).map(|x| x.to_string()),
             Format::INTEGER32 => v.u32(i).map(|x| (x as i32).to_string()),
             Format::FLOATING_POINT => v.f32(i).map(|x| x.to_string()),
-            Format::BYTE | Format::WORD | Format::DOUBLE_WORD | Format::OCTET_STRING => {
-                v.value(i).map(|b| format!("0x{}", b.iter().map(|x| format!("{x:02X}")).collect::<String>()))
-            }
+            Format::OCTET_STRING => v.u8(i).map(|b| format!("0x{b:02X}")),
+            // Untyped: hex, and the unsigned value.
+            Format::BYTE => v.u8(i).map(|b| format!("0x{b:02X} ({b})")),
+            Format::WORD => v.u16(i).map(|w| format!("0x{w:04X} ({w})")),
+            Format::DOUBLE_WORD => v.u32(i).map(|w| format!("0x{w:08X} ({w})")),
             _ => match v.value(i).map(<[u8]>::len) {
                 Some(1) => v.u8(i).map(|x| x.to_string()),
                 Some(2) => v.u16(i).map(|x| x.to_string()),

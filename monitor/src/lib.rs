@@ -116,7 +116,7 @@ impl Line {
         if let Some(sd) = self.sd {
             frame.push_str(sd);
         }
-        if let Some(fc) = &self.fc {
+        if let Some(fc) = self.fc.as_deref().filter(|fc| Some(*fc) != self.sd) {
             let _ = write!(frame, " {fc}");
         }
         match (self.ssap, self.dsap) {
