@@ -107,8 +107,7 @@ pub fn parse_line(line: &str) -> Result<Record, CaptureError> {
     let first = fields.next().unwrap_or("");
     if first == "rate" {
         let v = fields.next().unwrap_or("");
-        return match v.parse::<u32>().ok().and_then(|n| Baudrate::ALL.into_iter().find(|r| r.bits_per_second() == n))
-        {
+        return match v.parse::<u32>().ok().and_then(|n| Baudrate::ALL.into_iter().find(|r| r.bits_per_second() == n)) {
             Some(r) if fields.next().is_none() => Ok(Record::Rate(r)),
             _ => Err(CaptureError::Rate(v.chars().take(40).collect())),
         };

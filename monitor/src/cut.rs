@@ -54,6 +54,8 @@ pub struct Cutter {
     garbage: Vec<u8>,
     why: Option<Why>,
     t_us: Option<u64>,
+    /// Time of the last garbage byte.
+    garbage_t: Option<u64>,
 }
 
 impl Cutter {
@@ -78,7 +80,7 @@ impl Cutter {
                     break;
                 }
                 self.buf.remove(0);
-                self.to_garbage(b, Why::NoStartDelimiter);
+                self.add_garbage(b, Why::NoStartDelimiter);
             }
             if self.buf.is_empty() {
                 return;
@@ -92,14 +94,15 @@ impl Cutter {
                 }
                 Decoded::Invalid(e) => {
                     let b = self.buf.remove(0);
-                    self.to_garbage(b, Why::Invalid(e));
+                    self.add_garbage(b, Why::Invalid(e));
                 }
             }
         }
     }
 
-    fn to_garbage(&mut self, b: u8, why: Why) {
+    fn add_garbage(&mut self, b: u8, why: Why) {
         self.garbage.push(b);
+        self.garbage_t = self.t_us;
         // The most telling reason: an invalid telegram beats a byte without a delimiter.
         if self.why.is_none() || matches!((self.why, why), (Some(Why::NoStartDelimiter), Why::Invalid(_))) {
             self.why = Some(why);
@@ -109,7 +112,7 @@ impl Cutter {
     fn flush_garbage(&mut self, out: &mut Vec<Cut>) {
         if !self.garbage.is_empty() {
             let why = self.why.take().unwrap_or(Why::NoStartDelimiter);
-            out.push(Cut::Garbage { bytes: std::mem::take(&mut self.garbage), t_us: self.t_us, why });
+            out.push(Cut::Garbage { bytes: std::mem::take(&mut self.garbage), t_us: self.garbage_t, why });
         }
         self.why = None;
     }
@@ -117,9 +120,8 @@ impl Cutter {
     fn cut_partial(&mut self, why: Why, out: &mut Vec<Cut>) {
         if !self.buf.is_empty() {
             let partial = std::mem::take(&mut self.buf);
-            for b in partial {
-                self.garbage.push(b);
-            }
+            self.garbage.extend(partial);
+            self.garbage_t = self.t_us;
             if !matches!(self.why, Some(Why::Invalid(_))) {
                 self.why = Some(why);
             }

@@ -132,7 +132,13 @@ pub fn set_prm(pdu: &[u8], product: &Product) -> String {
     let ident = u16::from_be_bytes([pdu[4], pdu[5]]);
     let mut s = format!("Station_Status {:02X} ({})", pdu[0], bits(pdu[0], STATION_STATUS));
     if pdu[0] & StationStatus::WD_ON.bits() != 0 {
-        let _ = write!(s, ", watchdog {}×{}×{base} ms = {} ms", pdu[1], pdu[2], u32::from(pdu[1]) * u32::from(pdu[2]) * base);
+        let _ = write!(
+            s,
+            ", watchdog {}×{}×{base} ms = {} ms",
+            pdu[1],
+            pdu[2],
+            u32::from(pdu[1]) * u32::from(pdu[2]) * base
+        );
     } else {
         let _ = write!(s, ", watchdog off (WD_Fact {} {})", pdu[1], pdu[2]);
     }
@@ -177,7 +183,8 @@ pub fn set_prm(pdu: &[u8], product: &Product) -> String {
 
 /// One identifier list (Chk_Cfg / Get_Cfg, reference §3.4): the module, the I/O lengths.
 pub fn cfg_data(bytes: &[u8], product: &Product) -> String {
-    let module = product.module(bytes).map_or_else(|| "no GSD module".to_string(), |m| format!("module \"{}\"", m.name));
+    let module =
+        product.module(bytes).map_or_else(|| "no GSD module".to_string(), |m| format!("module \"{}\"", m.name));
     match cfg::io_lengths(bytes) {
         Ok(io) => format!("{} = {module}, inputs {} bytes, outputs {} bytes", hex(bytes), io.inputs, io.outputs),
         Err(e) => format!("{} = malformed identifier list ({e:?})", hex(bytes)),
@@ -246,9 +253,15 @@ pub fn slave_diag(d: &[u8], product: &Product, dpv1: bool) -> String {
                 let slots: Vec<String> = d[i + 1..i + len]
                     .iter()
                     .enumerate()
-                    .flat_map(|(k, b)| (0..8).filter(move |bit| b & (1 << bit) != 0).map(move |bit| (k * 8 + bit).to_string()))
+                    .flat_map(|(k, b)| {
+                        (0..8).filter(move |bit| b & (1 << bit) != 0).map(move |bit| (k * 8 + bit).to_string())
+                    })
                     .collect();
-                let _ = write!(s, "; identifier-related: modules with diagnosis {}", if slots.is_empty() { "none".into() } else { slots.join(",") });
+                let _ = write!(
+                    s,
+                    "; identifier-related: modules with diagnosis {}",
+                    if slots.is_empty() { "none".into() } else { slots.join(",") }
+                );
                 i += len;
             }
             0b10 => {
@@ -339,8 +352,10 @@ pub fn global_control(pdu: &[u8]) -> String {
                 (ControlCommand::UNSYNC.bits(), "Unsync"),
                 (ControlCommand::SYNC.bits(), "Sync"),
             ];
-            let cmd = if g.command.is_empty() { "operate (no command)".to_string() } else { bits(g.command.bits(), names) };
-            let group = if g.group_select == 0 { "all groups".to_string() } else { format!("groups {:08b}", g.group_select) };
+            let cmd =
+                if g.command.is_empty() { "operate (no command)".to_string() } else { bits(g.command.bits(), names) };
+            let group =
+                if g.group_select == 0 { "all groups".to_string() } else { format!("groups {:08b}", g.group_select) };
             let reserved = if g.reserved != 0 { format!(", reserved bits {:02X}", g.reserved) } else { String::new() };
             format!("Control_Command {:02X} ({cmd}), Group_Select {:02X} ({group}){reserved}", pdu[0], g.group_select)
         }
@@ -513,24 +528,26 @@ pub fn values(v: &ValueBlock<'_>) -> String {
         return format!("VisibleString \"{text}\"");
     }
     let list: Vec<String> = (0..usize::from(v.count))
-        .map(|i| match v.format {
-            Format::INTEGER8 => v.u8(i).map(|b| (b as i8).to_string()),
-            Format::INTEGER16 => v.i16(i).map(|x| x.to_string()),
-            Format::INTEGER32 => v.u32(i).map(|x| (x as i32).to_string()),
-            Format::FLOATING_POINT => v.f32(i).map(|x| x.to_string()),
-            Format::OCTET_STRING => v.u8(i).map(|b| format!("0x{b:02X}")),
-            // Untyped: hex, and the unsigned value.
-            Format::BYTE => v.u8(i).map(|b| format!("0x{b:02X} ({b})")),
-            Format::WORD => v.u16(i).map(|w| format!("0x{w:04X} ({w})")),
-            Format::DOUBLE_WORD => v.u32(i).map(|w| format!("0x{w:08X} ({w})")),
-            _ => match v.value(i).map(<[u8]>::len) {
-                Some(1) => v.u8(i).map(|x| x.to_string()),
-                Some(2) => v.u16(i).map(|x| x.to_string()),
-                Some(4) => v.u32(i).map(|x| x.to_string()),
-                _ => None,
-            },
-        }
-        .unwrap_or_else(|| "?".into()))
+        .map(|i| {
+            match v.format {
+                Format::INTEGER8 => v.u8(i).map(|b| (b as i8).to_string()),
+                Format::INTEGER16 => v.i16(i).map(|x| x.to_string()),
+                Format::INTEGER32 => v.u32(i).map(|x| (x as i32).to_string()),
+                Format::FLOATING_POINT => v.f32(i).map(|x| x.to_string()),
+                Format::OCTET_STRING => v.u8(i).map(|b| format!("0x{b:02X}")),
+                // Untyped: hex, and the unsigned value.
+                Format::BYTE => v.u8(i).map(|b| format!("0x{b:02X} ({b})")),
+                Format::WORD => v.u16(i).map(|w| format!("0x{w:04X} ({w})")),
+                Format::DOUBLE_WORD => v.u32(i).map(|w| format!("0x{w:08X} ({w})")),
+                _ => match v.value(i).map(<[u8]>::len) {
+                    Some(1) => v.u8(i).map(|x| x.to_string()),
+                    Some(2) => v.u16(i).map(|x| x.to_string()),
+                    Some(4) => v.u32(i).map(|x| x.to_string()),
+                    _ => None,
+                },
+            }
+            .unwrap_or_else(|| "?".into())
+        })
         .collect();
     if v.format == Format::ZERO {
         return "Zero (ok)".into();
@@ -602,7 +619,13 @@ pub fn param_response(data: &[u8], pnus: &[u16]) -> (String, Option<u16>) {
                 })
                 .collect();
             let body = if parts.is_empty() { String::new() } else { format!(": {}", parts.join("; ")) };
-            (format!("PROFIdrive response {:02X} {what}, ref {}, axis {}, {} parameters{body}", r.id.0, r.reference, r.axis, r.count), first_err)
+            (
+                format!(
+                    "PROFIdrive response {:02X} {what}, ref {}, axis {}, {} parameters{body}",
+                    r.id.0, r.reference, r.axis, r.count
+                ),
+                first_err,
+            )
         }
         Err(e) => (format!("PROFIdrive parameter response, malformed: {e:?} ({})", hex(data)), None),
     }
@@ -654,7 +677,8 @@ fn im0(d: &[u8]) -> Option<String> {
         return None;
     }
     let b = &d[10..];
-    let text = |r: &[u8]| r.iter().map(|&c| if (0x20..0x7F).contains(&c) { c as char } else { '.' }).collect::<String>();
+    let text =
+        |r: &[u8]| r.iter().map(|&c| if (0x20..0x7F).contains(&c) { c as char } else { '.' }).collect::<String>();
     let w = |i: usize| u16::from_be_bytes([b[i], b[i + 1]]);
     Some(format!(
         "I&M0: MANUFACTURER_ID {}, ORDER_ID \"{}\", SERIAL_NUMBER \"{}\", HARDWARE_REVISION {}, SOFTWARE_REVISION {}{}.{}.{}, REV_COUNTER {}, PROFILE_ID 0x{:04X}, PROFILE_SPECIFIC_TYPE {}, IM_VERSION {}.{}, IM_SUPPORTED 0x{:04X}",
@@ -694,8 +718,12 @@ pub fn dpv1_response(r: &Response<'_>, pnus: &[u16]) -> (String, Option<String>)
             (s, err)
         }
         Response::Write { slot, index, length } => (format!("slot {slot} index {index} length {length} written"), None),
-        Response::DataTransport(x) => (format!("slot {} index {} length {}: {}", x.slot, x.index, x.data.len(), hex(x.data)), None),
-        Response::AlarmAck(a) => (format!("slot {} Alarm_Type {} Seq_Nr {} acknowledged", a.slot, a.alarm_type, a.seq_nr()), None),
+        Response::DataTransport(x) => {
+            (format!("slot {} index {} length {}: {}", x.slot, x.index, x.data.len(), hex(x.data)), None)
+        }
+        Response::AlarmAck(a) => {
+            (format!("slot {} Alarm_Type {} Seq_Nr {} acknowledged", a.slot, a.alarm_type, a.seq_nr()), None)
+        }
         Response::Initiate(i) => (
             format!(
                 "connection open: Max_Len_Data_Unit {}, Features {:02X} {:02X}, Profile_Ident 0x{:04X}",
@@ -707,7 +735,10 @@ pub fn dpv1_response(r: &Response<'_>, pnus: &[u16]) -> (String, Option<String>)
         Response::ResourceManager { server_sap, poll_timeout } => {
             (format!("resource manager: continue on SAP {server_sap}, poll timeout {poll_timeout}"), None)
         }
-        Response::Abort(a) => (format!("Abort: {:?}, instance {:?}, reason {:?}", a.subnet, a.instance, a.reason), Some(format!("Abort {:?}", a.reason))),
+        Response::Abort(a) => (
+            format!("Abort: {:?}, instance {:?}, reason {:?}", a.subnet, a.instance, a.reason),
+            Some(format!("Abort {:?}", a.reason)),
+        ),
         Response::Error { function, decode, code1, code2 } => {
             let e = error_code1(*code1);
             (

@@ -226,7 +226,7 @@ fn run_device(o: &Opts, product: Product, out: &mut Out, stop: &AtomicBool) -> R
             });
             cutter.push(Some(t_us), &chunk, &mut cuts);
             if let Some(w) = rec.as_mut() {
-                w.bytes(Some(t_us), &chunk).map_err(|e| e.to_string())?;
+                w.bytes(Some(t_us), &chunk).and_then(|_| w.flush()).map_err(|e| e.to_string())?;
             }
         }
         for c in &cuts {

@@ -171,7 +171,10 @@ mod tests {
         let c = Product::card();
         assert_eq!(g.ident, c.ident);
         assert_eq!(g.max_tsdr, c.max_tsdr);
-        assert_eq!(g.modules.iter().map(|m| &m.cfg).collect::<Vec<_>>(), c.modules.iter().map(|m| &m.cfg).collect::<Vec<_>>());
+        assert_eq!(
+            g.modules.iter().map(|m| &m.cfg).collect::<Vec<_>>(),
+            c.modules.iter().map(|m| &m.cfg).collect::<Vec<_>>()
+        );
         assert_eq!(g.user_prms.iter().map(|p| p.offset).collect::<Vec<_>>(), [3, 4]);
         assert!(Product::from_gsd(Path::new("/nonexistent.gsd")).is_err());
     }

@@ -168,7 +168,11 @@ fn a_recorded_card_session_replays_with_every_request_matched() {
     assert_eq!(missing.len(), 1, "{all}");
     assert_eq!(missing[0].service, "Data_Exchange");
     let st = &mon.stations()[&SLAVE];
-    assert_eq!((st.requests, st.answered + st.missing, st.missing, st.retries), (st.requests, st.requests, 1, 1), "{all}");
+    assert_eq!(
+        (st.requests, st.answered + st.missing, st.missing, st.retries),
+        (st.requests, st.requests, 1, 1),
+        "{all}"
+    );
     assert_eq!(st.state, "Data_Exch");
     assert_eq!(st.module.as_deref(), Some("Standard telegram 1, PZD-2/2"));
     assert_eq!(st.late, 0, "{all}");
@@ -199,14 +203,20 @@ fn a_recorded_card_session_replays_with_every_request_matched() {
     }
     assert!(!prm.text.contains("refuses"), "{}", prm.text);
     let cfg = find(&lines, |l| l.service == "Chk_Cfg", "Chk_Cfg");
-    assert!(cfg.text.contains("C3 C1 C1 FD 00 01 = module \"Standard telegram 1, PZD-2/2\", inputs 4 bytes, outputs 4 bytes"), "{}", cfg.text);
+    assert!(
+        cfg.text
+            .contains("C3 C1 C1 FD 00 01 = module \"Standard telegram 1, PZD-2/2\", inputs 4 bytes, outputs 4 bytes"),
+        "{}",
+        cfg.text
+    );
     let dx = find(&lines, |l| l.service == "Data_Exchange" && l.text.contains("047F"), "Data_Exchange 047F");
     assert!(
         dx.text.contains("STW1 047F (ON No_OFF2 No_OFF3 Enable_operation Enable_ramp Unfreeze_ramp Enable_setpoint Control_by_PLC), NSOLL_A 2000 (+50.0 %)"),
         "{}",
         dx.text
     );
-    let running = find(&lines, |l| l.request == Some("Data_Exchange") && l.text.contains("Operation_enabled"), "ZSW1 running");
+    let running =
+        find(&lines, |l| l.request == Some("Data_Exchange") && l.text.contains("Operation_enabled"), "ZSW1 running");
     assert!(running.text.starts_with("inputs ZSW1 "), "{}", running.text);
     assert_eq!(running.fc.as_deref(), Some("DL"));
     let retry = find(&lines, |l| l.retry, "retry");
@@ -214,10 +224,18 @@ fn a_recorded_card_session_replays_with_every_request_matched() {
     // DP-V1: the record-47 write, the polls, the read with PNU 918's value (the station address).
     let w = find(&lines, |l| l.service == "DS_Write" && !l.poll, "DS_Write");
     assert_eq!((w.slot, w.index, w.pnu, w.dsap), (Some(0), Some(47), Some(918), Some(51)));
-    assert!(w.text.contains("PROFIdrive request parameter, ref 1, axis 1: PNU 918 (station address) value"), "{}", w.text);
+    assert!(
+        w.text.contains("PROFIdrive request parameter, ref 1, axis 1: PNU 918 (station address) value"),
+        "{}",
+        w.text
+    );
     let r = find(&lines, |l| l.request == Some("DS_Read") && l.sd == Some("SD2"), "DS_Read response");
     assert_eq!((r.index, r.pnu), (Some(47), Some(918)));
-    assert!(r.text.contains("PROFIdrive response 01 request parameter ok, ref 1, axis 1, 1 parameters: PNU 918 = "), "{}", r.text);
+    assert!(
+        r.text.contains("PROFIdrive response 01 request parameter ok, ref 1, axis 1, 1 parameters: PNU 918 = "),
+        "{}",
+        r.text
+    );
     assert!(r.text.ends_with(&format!("PNU 918 = Word 0x{SLAVE:04X} ({SLAVE})")), "{}", r.text);
     assert!(lines.iter().any(|l| l.poll && l.service == "DS_Read"), "{all}");
     let gc = find(&lines, |l| l.service == "Global_Control", "Global_Control");
@@ -319,7 +337,10 @@ fn vacon_opte3_e5_6_4_4_parameter_access_field_by_field() {
         &[0x5F, 0x00, 0x2F, 0x0E, 0x05, 0x02, 0x01, 0x01, 0x10, 0x01, 0x27, 0x11, 0x00, 0x67, 0x42, 0x01, 0x00, 0x28],
         &[0x5E, 0x00, 0x2F, 0x04, 0x05, 0x02, 0x01, 0x01],
     );
-    assert!(req.contains("change parameter, ref 5, axis 1: PNU 10001[103]") && req.ends_with("value := Word 0x0028 (40)"), "{req}");
+    assert!(
+        req.contains("change parameter, ref 5, axis 1: PNU 10001[103]") && req.ends_with("value := Word 0x0028 (40)"),
+        "{req}"
+    );
     assert!(resp.ends_with("02 change parameter ok, ref 5, axis 1, 1 parameters"), "{resp}");
     // §6.4.4.9 Table 79 / 82: change to 0 → error 0x02.
     let (_, resp) = exchange(
@@ -328,8 +349,14 @@ fn vacon_opte3_e5_6_4_4_parameter_access_field_by_field() {
     );
     assert!(resp.ends_with("82 change parameter NEGATIVE, ref 6, axis 1, 1 parameters: PNU 10001 = error 0x02 low or high limit exceeded"), "{resp}");
     // A negative DP-V1 response (VACON Table 46): DE 80 B0 00 → invalid index.
-    let (_, resp) = exchange(&[0x5F, 0x00, 0x2F, 0x0A, 0x01, 0x01, 0x01, 0x01, 0x10, 0x01, 0x03, 0x96, 0x00, 0x00], &[0xDE, 0x80, 0xB0, 0x00]);
-    assert_eq!(resp, "NEGATIVE DS_Read: Error_Decode 80 (DP-V1), Error_Code_1 B0 (access: invalid index), Error_Code_2 00");
+    let (_, resp) = exchange(
+        &[0x5F, 0x00, 0x2F, 0x0A, 0x01, 0x01, 0x01, 0x01, 0x10, 0x01, 0x03, 0x96, 0x00, 0x00],
+        &[0xDE, 0x80, 0xB0, 0x00],
+    );
+    assert_eq!(
+        resp,
+        "NEGATIVE DS_Read: Error_Decode 80 (DP-V1), Error_Code_1 B0 (access: invalid index), Error_Code_2 00"
+    );
 }
 
 #[test]
@@ -338,11 +365,13 @@ fn weg_cfw11_4_2_5_examples_field_by_field() {
     let ds_resp = |d: &[u8]| [&[0x5E, 0x00, 0x2F, d.len() as u8][..], d].concat();
     // Exemplo 1: read P0002 and P0003; positive: 100 rpm, 5,0 A.
     let read = [0x01, 0x01, 0x00, 0x02, 0x10, 0x01, 0x00, 0x02, 0x00, 0x00, 0x10, 0x01, 0x00, 0x03, 0x00, 0x00];
-    let (req, resp) = exchange(&ds_write(&read), &ds_resp(&[0x01, 0x01, 0x00, 0x02, 0x42, 0x01, 0x00, 0x64, 0x42, 0x01, 0x00, 0x32]));
+    let (req, resp) =
+        exchange(&ds_write(&read), &ds_resp(&[0x01, 0x01, 0x00, 0x02, 0x42, 0x01, 0x00, 0x64, 0x42, 0x01, 0x00, 0x32]));
     assert!(req.ends_with("request parameter, ref 1, axis 0: PNU 2 value; PNU 3 value"), "{req}");
     assert!(resp.ends_with("2 parameters: PNU 2 = Word 0x0064 (100); PNU 3 = Word 0x0032 (50)"), "{resp}");
     // Exemplo 1 negative: P0003 does not exist.
-    let (_, resp) = exchange(&ds_write(&read), &ds_resp(&[0x01, 0x81, 0x00, 0x02, 0x42, 0x01, 0x00, 0x64, 0x44, 0x01, 0x00, 0x00]));
+    let (_, resp) =
+        exchange(&ds_write(&read), &ds_resp(&[0x01, 0x81, 0x00, 0x02, 0x42, 0x01, 0x00, 0x64, 0x44, 0x01, 0x00, 0x00]));
     assert!(resp.ends_with("PNU 2 = Word 0x0064 (100); PNU 3 = error 0x00 impermissible parameter number"), "{resp}");
     // Exemplo 2: change P0100 to 85; negative: out of limits.
     let change = [0x01, 0x02, 0x00, 0x01, 0x10, 0x01, 0x00, 0x64, 0x00, 0x00, 0x42, 0x01, 0x00, 0x55];
