@@ -217,7 +217,9 @@ where
             "--address" => {
                 let mut list = Vec::new();
                 for a in value.split(',') {
-                    list.push(parse_u64(flag, a.trim(), card::MAX_STATION_ADDRESS as u64, "0..=126, or a list 5,6,7")? as u8);
+                    list.push(
+                        parse_u64(flag, a.trim(), card::MAX_STATION_ADDRESS as u64, "0..=126, or a list 5,6,7")? as u8
+                    );
                 }
                 o.address = list[0];
                 o.more_addresses = list[1..].to_vec();

@@ -165,7 +165,8 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
                             }
                             if node.framer().stats().frames != frames {
                                 let prefix = format!("#{}", node.slave().address());
-                                st.monitor.on_frame(node.framer().frame(), node, &mut |m| emit(format!("{prefix} {m}")));
+                                st.monitor
+                                    .on_frame(node.framer().frame(), node, &mut |m| emit(format!("{prefix} {m}")));
                             }
                         }
                     }
@@ -180,7 +181,11 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
             ));
             for st in stations.iter_mut() {
                 if st.config.verbose && !st.node.framer().pending().is_empty() {
-                    emit(format!("{} partial telegram dropped after idle line: {}", st.prefix(), hex(st.node.framer().pending())));
+                    emit(format!(
+                        "{} partial telegram dropped after idle line: {}",
+                        st.prefix(),
+                        hex(st.node.framer().pending())
+                    ));
                 }
                 st.node.on_idle(BitTimes(bits.min(u32::MAX as u64) as u32));
             }
@@ -199,7 +204,8 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
                 let late = (sent - at).as_micros() as u64;
                 if let Some(st) = stations.get_mut(tx_station) {
                     let prefix = st.prefix();
-                    st.monitor.on_response(&bytes, (late > 100).then_some(late), &mut |m| emit(format!("{prefix} {m}")));
+                    st.monitor
+                        .on_response(&bytes, (late > 100).then_some(late), &mut |m| emit(format!("{prefix} {m}")));
                 }
                 // The line is busy while our answer goes out.
                 last_activity = sent + to_us(rate.bits_to_duration(11 * bytes.len() as u32));

@@ -99,7 +99,8 @@ impl fmt::Display for ConfigError {
             ConfigError::Address(a) => write!(f, "configuration: station address {a} is outside 0..=126"),
             ConfigError::Duplicate(a) => write!(f, "configuration: station address {a} is given twice"),
             ConfigError::Module(m) => {
-                let names: Vec<String> = card::MODULES.iter().map(|m| format!("\"{}\" ({})", m.name, m.reference)).collect();
+                let names: Vec<String> =
+                    card::MODULES.iter().map(|m| format!("\"{}\" ({})", m.name, m.reference)).collect();
                 write!(f, "configuration: unknown module {m}; the GSD's modules are {}", names.join(", "))
             }
             ConfigError::Param { address, pnu, value, why } => {
@@ -280,9 +281,15 @@ mod tests {
         )
         .unwrap();
         assert_eq!(s.len(), 2);
-        assert_eq!((s[0].address, s[0].module.map(|m| m.reference), s[0].ramp), (5, Some(104), Duration::from_millis(500)));
+        assert_eq!(
+            (s[0].address, s[0].module.map(|m| m.reference), s[0].ramp),
+            (5, Some(104), Duration::from_millis(500))
+        );
         assert_eq!(s[0].params, [(100, 85)]);
-        assert_eq!((s[1].module.map(|m| m.reference), s[1].verbose, s[1].ramp), (Some(1), true, Duration::from_millis(100)));
+        assert_eq!(
+            (s[1].module.map(|m| m.reference), s[1].verbose, s[1].ramp),
+            (Some(1), true, Duration::from_millis(100))
+        );
         let st = Station::new(&s[0]).unwrap();
         assert_eq!(st.app.drive().params().get(100, 0), Some(85));
     }
@@ -290,14 +297,24 @@ mod tests {
     #[test]
     fn bad_configurations_name_the_problem() {
         let e = |t: &str| parse_config(t, D, false).unwrap_err().to_string();
-        assert_eq!(e("[[station]]\naddress = 5\n[[station]]\naddress = 5\n"), "configuration: station address 5 is given twice");
+        assert_eq!(
+            e("[[station]]\naddress = 5\n[[station]]\naddress = 5\n"),
+            "configuration: station address 5 is given twice"
+        );
         assert_eq!(e("[[station]]\naddress = 127\n"), "configuration: station address 127 is outside 0..=126");
-        assert!(e("[[station]]\naddress = 5\nmodule = \"PPO 9\"\n").starts_with("configuration: unknown module \"PPO 9\"; the GSD's modules are \"Standard telegram 1"));
-        assert!(e("[[station]]\naddress = 5\nspeed = 3\n").contains("unknown field `speed`"), "{}", e("[[station]]\naddress = 5\nspeed = 3\n"));
+        assert!(e("[[station]]\naddress = 5\nmodule = \"PPO 9\"\n")
+            .starts_with("configuration: unknown module \"PPO 9\"; the GSD's modules are \"Standard telegram 1"));
+        assert!(
+            e("[[station]]\naddress = 5\nspeed = 3\n").contains("unknown field `speed`"),
+            "{}",
+            e("[[station]]\naddress = 5\nspeed = 3\n")
+        );
         assert!(e("colour = 1\n").contains("unknown field `colour`"));
         assert_eq!(e(""), "configuration: no [[station]]");
-        assert!(e("[[station]]\naddress = 5\n[station.params]\n100 = 100000\n").starts_with("configuration: station 5: parameter 100 = 100000: refused"));
-        assert!(e("[[station]]\naddress = 5\n[station.params]\n4242 = 1\n").starts_with("configuration: station 5: parameter 4242 = 1: refused"));
+        assert!(e("[[station]]\naddress = 5\n[station.params]\n100 = 100000\n")
+            .starts_with("configuration: station 5: parameter 100 = 100000: refused"));
+        assert!(e("[[station]]\naddress = 5\n[station.params]\n4242 = 1\n")
+            .starts_with("configuration: station 5: parameter 4242 = 1: refused"));
         assert!(e("[[station]\n").starts_with("configuration: "));
         for t in ["[[station]]\naddress = 5\n[station.params]\n100 = 85\n"] {
             assert!(!e(&format!("{t}[[station]]\naddress = 5\n")).contains('\n'), "one line");

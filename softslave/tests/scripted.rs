@@ -170,7 +170,11 @@ fn two_stations_on_one_line_answer_each_their_own() {
     let dir = std::env::temp_dir().join(format!("pbcard-softslave-two-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let cfg = dir.join("two.toml");
-    std::fs::write(&cfg, "[[station]]\naddress = 7\nmodule = 1\n[[station]]\naddress = 8\n[station.params]\n100 = 85\n").unwrap();
+    std::fs::write(
+        &cfg,
+        "[[station]]\naddress = 7\nmodule = 1\n[[station]]\naddress = 8\n[station.params]\n100 = 85\n",
+    )
+    .unwrap();
     let mut opts = Options::new(port.path());
     opts.config = Some(cfg.to_str().unwrap().into());
     opts.pd_every = None;
