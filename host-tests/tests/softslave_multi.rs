@@ -293,6 +293,7 @@ fn three_stations_in_one_soft_slave_run_independently_under_profirust() {
     for svc in ["FDL_Status", "Slave_Diag", "Set_Prm", "Chk_Cfg", "Data_Exchange"] {
         assert!(lines.iter().any(|l| l.request == Some(svc)), "a {svc} response in the capture");
     }
-    println!("{}", mon.summary());
+    // Shown with --nocapture (README examples).
+    println!("{}\n{}", dump(), mon.summary());
     let _ = std::fs::remove_dir_all(dir);
 }
