@@ -573,6 +573,9 @@ impl Monitor {
         if !matches {
             self.unanswered(out);
             line.request = None;
+            if d.is_none() {
+                line.service = "SC";
+            }
             line.text = match d {
                 Some(d) => format!("response without a request: {}", hex(d.pdu)),
                 None => "SC without a request".into(),
