@@ -2,8 +2,10 @@
 //! three peripherals on one pseudo-terminal: all three reach data exchange, each one's
 //! simulated drive follows its own setpoint, one station's DP watchdog expires (the master's
 //! requests to it are cut off on the line) while the other two keep running — and the whole
-//! run, recorded on the master's side in the bus monitor's capture format, decodes with
-//! `pbcard-monitor` with every request matched to its response and no `Unknown`.
+//! run, recorded on the master's side in the bus monitor's capture format (bring-up, data
+//! exchange, and at the end a DP-V1 record-47 parameter read by a scripted class-1 master, as
+//! profirust has no DP-V1), decodes with `pbcard-monitor` with every request matched to its
+//! response and no `Unknown`.
 //!
 //! Timing as in `softslave.rs`: a pseudo-terminal has no line timing, so slot times are long and
 //! every wait is "until it holds" with deadlines of tens of seconds.
@@ -171,7 +173,10 @@ fn three_stations_in_one_soft_slave_run_independently_under_profirust() {
     let mut dp = DpMaster::new(Vec::new());
     let mut handles: Vec<PeripheralHandle> = Vec::new();
     for (a, m) in STATIONS.iter().zip(modules) {
-        let p = PeripheralConfig::card(*a, m, RATE);
+        let mut p = PeripheralConfig::card(*a, m, RATE);
+        if *a == 5 {
+            p.user_prm[0] = 0x80; // DPV1_Status_1: DPV1_Enable (the DP-V1 read at the end)
+        }
         let options = PeripheralOptions {
             ident_number: p.ident,
             sync_mode: false,
@@ -267,6 +272,31 @@ fn three_stations_in_one_soft_slave_run_independently_under_profirust() {
     if !run(&mut dp, &mut phy, DEADLINE, &mut |dp| (0..3).all(|i| at_setpoint(dp, h[i], setpoints[i]))) {
         panic!("#7 did not come back\n{}", dump());
     }
+    // profirust has no DP-V1: a scripted class-1 master on the same line reads PNU 918 of
+    // station 5 through record 47 (DS_Write, polls, DS_Read, polls), recorded as well.
+    std::thread::sleep(Duration::from_millis(200));
+    let rest = phy.inner.take_received();
+    phy.record(&rest);
+    let mut script = pbcard::testkit::ScriptedMaster::new(MASTER, 5);
+    let mut c1 = |phy: &mut Line<StreamPhy<PtyMaster>>, pdu: &[u8]| -> Vec<u8> {
+        let mut data = pdu.to_vec();
+        for _ in 0..50 {
+            let f = script.request(MASTER, Some(51), Some(51), &data, true);
+            phy.record(&f);
+            let r = phy.inner.request(&f, Duration::from_secs(10)).unwrap().expect("an answer on SAP 51");
+            phy.record(&r);
+            if r != [telegram::SC] {
+                return r;
+            }
+            data.clear(); // poll
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        panic!("no DP-V1 response\n{}", dump());
+    };
+    let w = c1(&mut phy, &[0x5F, 0x00, 0x2F, 0x0A, 0x01, 0x01, 0x01, 0x01, 0x10, 0x01, 0x03, 0x96, 0x00, 0x00]);
+    assert!(w.len() > 6, "DS_Write answered: {w:02x?}");
+    let r = c1(&mut phy, &[0x5E, 0x00, 0x2F, 0xF0]);
+    assert!(r.len() > 12, "DS_Read answered with a parameter response: {r:02x?}");
     stop.store(true, Ordering::Relaxed);
     let summary = slave.join().unwrap().unwrap();
     assert_eq!(summary.stations.iter().map(|s| s.0).collect::<Vec<_>>(), STATIONS);
@@ -290,7 +320,13 @@ fn three_stations_in_one_soft_slave_run_independently_under_profirust() {
         assert_eq!(s.missing, 0, "#{a}: every request on the line answered: {s:?}");
         assert_eq!(s.module.as_deref(), Some(if a == 6 { "PPO 3, PZD-2/2" } else { "Standard telegram 1, PZD-2/2" }));
     }
-    for svc in ["FDL_Status", "Slave_Diag", "Set_Prm", "Chk_Cfg", "Data_Exchange"] {
+    let read = lines.iter().find(|l| l.request == Some("DS_Read") && l.sd == Some("SD2"));
+    assert!(
+        read.is_some_and(|l| l.text.ends_with("PNU 918 = Word 0x0005 (5)") && l.pnu == Some(918)),
+        "the DP-V1 read decoded: {:?}",
+        read.map(|l| l.text_line())
+    );
+    for svc in ["FDL_Status", "Slave_Diag", "Set_Prm", "Chk_Cfg", "Data_Exchange", "DS_Write", "DS_Read"] {
         assert!(lines.iter().any(|l| l.request == Some(svc)), "a {svc} response in the capture");
     }
     // Shown with --nocapture (README examples).
