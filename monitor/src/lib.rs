@@ -17,6 +17,9 @@
 //! transmission time". From a capture with exact times (tests, a logic analyser) that is exact;
 //! from a USB adapter it is as good as the adapter's read latency.
 
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
 pub mod capture;
 pub mod cut;
 pub mod decode;

@@ -1,4 +1,5 @@
 //! `pbcard-monitor`: see `--help` and the README section "Bus monitor".
+#![forbid(unsafe_code)]
 
 use std::fs::File;
 use std::io::{self, BufWriter, Read, Write};
