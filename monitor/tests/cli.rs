@@ -101,3 +101,20 @@ fn live_pty_input_is_decoded_recorded_and_replayed() {
     assert!(replayed.contains("Response(FDL_Status)   station type: slave [TSDR"), "{replayed}");
     let _ = std::fs::remove_file(rec);
 }
+
+#[test]
+fn names_from_a_gsd_file() {
+    let path = tmp("gsd-cap.txt");
+    std::fs::write(&path, CAPTURE).unwrap();
+    let gsd = concat!(env!("CARGO_MANIFEST_DIR"), "/../gsd/ODCP0F11.gsd");
+    let out = Command::new(BIN).args(["--gsd", gsd, "--input", path.to_str().unwrap()]).output().unwrap();
+    assert!(out.status.success(), "{out:?}");
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("names from ") && text.contains("ODCP0F11.gsd"), "{text}");
+    let prm = text.lines().find(|l| l.contains("Set_Prm ")).unwrap();
+    assert!(prm.contains("Ident_Number 0x0F11, Group_Ident 0x00") && !prm.contains("≠ GSD"), "{prm}");
+    let out =
+        Command::new(BIN).args(["--gsd", "/nonexistent.gsd", "--input", path.to_str().unwrap()]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let _ = std::fs::remove_file(path);
+}
