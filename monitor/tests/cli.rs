@@ -38,6 +38,10 @@ fn a_capture_file_is_decoded_with_the_summary() {
     let row = text.lines().find(|l| l.trim_start().starts_with("5 ")).unwrap();
     assert!(row.contains("Wait_Cfg"), "{row}");
 
+    let out = Command::new(BIN).args(["--summary", "--input", path.to_str().unwrap()]).output().unwrap();
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.starts_with("summary: 5 telegrams") && !text.contains("Set_Prm"), "only the table: {text}");
+
     let out = Command::new(BIN).args(["--json", "--input", path.to_str().unwrap()]).output().unwrap();
     let text = String::from_utf8(out.stdout).unwrap();
     let first: serde_json::Value = serde_json::from_str(text.lines().next().unwrap()).unwrap();
