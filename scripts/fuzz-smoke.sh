@@ -5,7 +5,8 @@
 # fuzz/artifacts/<target>/ (git-ignored) and printed in hex. The targets are every [[bin]] of
 # fuzz/Cargo.toml (`cargo fuzz list`): the bus-side parsers (telegram, framer, phy_line,
 # dp_params, dpv1_pdu, pkw, profidrive), the whole slave (slave, node_dpv1) and the DPM (dpm_spi;
-# dpm_host_blocks: arbitrary drive-written bytes into a running card).
+# dpm_host_blocks: arbitrary drive-written bytes into a running card) and the bus monitor
+# (monitor_capture: the capture format; monitor_decode: cutter + decoder over arbitrary bytes).
 #
 #   FUZZ_SECONDS=20        seconds per target (default 20)
 #   FUZZ_TARGETS="a b"     targets to run (default: all of `cargo fuzz list`)

@@ -3,7 +3,7 @@
 # QEMU firmware on pseudo-terminals, with other addresses and modules than the Rust tests use,
 # and runs the simulated drive (host-tests/pyprofibus/master.py). Exit code 0 = pass.
 #   bash scripts/pyprofibus.sh            # both
-#   bash scripts/pyprofibus.sh softslave  # or: qemu
+#   bash scripts/pyprofibus.sh softslave  # or: multi (two stations in one soft slave), qemu
 set -euo pipefail
 cd "$(dirname "$0")/.."
 HOST=$(bash scripts/host-triple)
@@ -45,6 +45,16 @@ softslave() {
   "$PY" host-tests/pyprofibus/master.py "$dev" 9 "PPO 2, PKW + PZD-6/6" 20 60 || { cat "$LOG/softslave2.log"; return 1; }
 }
 
+multi() {
+  cargo build -q -p pbcard-softslave --target "$HOST"
+  "$TARGET_DIR/$HOST/debug/pbcard-softslave" --device pty --address 9,10 --baud 19200 --ramp-ms 500 >"$LOG/multi.log" 2>&1 &
+  pids+=($!)
+  dev=$(wait_for_pty "$LOG/multi.log")
+  echo "== pyprofibus → one soft slave serving #9 (Standard telegram 1, 25 %) and #10 (PPO 3, 50 %) on $dev"
+  "$PY" host-tests/pyprofibus/multi.py "$dev" 90 "9:Standard telegram 1, PZD-2/2:4:0x1000" "10:PPO 3, PZD-2/2:4:0x2000" ||
+    { echo "--- soft slave log"; cat "$LOG/multi.log"; return 1; }
+}
+
 qemu() {
   PBCARD_STATION_ADDRESS=33 cargo build -q --release --no-default-features --features qemu
   elf=$TARGET_DIR/thumbv7em-none-eabihf/release/pbcard
@@ -63,7 +73,8 @@ qemu() {
 
 case "${1:-all}" in
   softslave) softslave ;;
+  multi) multi ;;
   qemu) qemu ;;
-  all) softslave; qemu ;;
-  *) echo "usage: $0 [softslave|qemu]" >&2; exit 2 ;;
+  all) softslave; multi; qemu ;;
+  *) echo "usage: $0 [softslave|multi|qemu]" >&2; exit 2 ;;
 esac

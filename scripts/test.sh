@@ -42,6 +42,10 @@ echo "== soft slave: clippy and its own tests (the pty end-to-end run is in host
 cargo clippy -p pbcard-softslave --all-targets --target "$HOST" -- -D warnings
 cargo test -p pbcard-softslave --target "$HOST"
 
+echo "== bus monitor: clippy and its tests (recorded card session, manuals' examples, CLI, live pty)"
+cargo clippy -p pbcard-monitor --all-targets --target "$HOST" -- -D warnings
+cargo test -p pbcard-monitor --target "$HOST"
+
 echo "== dpm-host: the host-side reference implementation (std on the host, no_std on the firmware target)"
 cargo clippy -p dpm-host --all-targets --target "$HOST" -- -D warnings
 cargo clippy -p dpm-host --no-default-features -- -D warnings

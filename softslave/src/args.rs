@@ -21,7 +21,11 @@ OPTIONS:
                         `--device pty` creates a pseudo-terminal and prints its path.
     -b, --baud N        PROFIBUS rate in bit/s: 9600 19200 45450 93750 187500 500000 1500000
                         3000000 6000000 12000000 (also 19.2k, 1.5M …). Default 19200.
-    -a, --address N     station address 0..=126. Default 126.
+    -a, --address N     station address 0..=126, or several: 5,6,7 (one independent card
+                        each: DP state, DP-V1 channels, simulated drive). Default 126.
+    -c, --config FILE   the stations from a TOML file (per station: address, module, ramp,
+                        initial drive parameters, verbose; README, Soft slave). A bad file
+                        is one error line and exit status 2, before the device is opened.
         --ramp-ms N     simulated drive: ramp time from 0 to 100 % speed. Default 2000.
         --pd-every S    log the process data every S seconds (0 = never). Default 2.
         --idle-us N     silence after which a partial telegram is dropped. Default: 33 bit
@@ -40,8 +44,12 @@ pub struct Options {
     pub device: String,
     /// Transmission rate.
     pub baud: Baudrate,
-    /// Station address.
+    /// Station address (the first of [`Options::addresses`]).
     pub address: u8,
+    /// Further station addresses of `--address 5,6,7` (after `address`).
+    pub more_addresses: Vec<u8>,
+    /// `--config FILE`: the stations from a TOML file (overrides the address list).
+    pub config: Option<String>,
     /// Simulated drive: ramp time 0 → 100 %.
     pub ramp: Duration,
     /// Process-data log period (`None` = never).
@@ -59,11 +67,30 @@ impl Options {
             device: device.into(),
             baud: Baudrate::B19200,
             address: card::DEFAULT_ADDRESS,
+            more_addresses: Vec::new(),
+            config: None,
             ramp: Duration::from_millis(2000),
             pd_every: Some(Duration::from_secs(2)),
             idle: None,
             verbose: false,
         }
+    }
+}
+
+impl Options {
+    /// The stations to run: from `--config`, else one per address of `--address` with the
+    /// command line's ramp and verbosity. Checked: unique addresses, known modules, initial
+    /// parameter values the simulated drive accepts.
+    pub fn stations(&self) -> Result<Vec<crate::station::StationConfig>, crate::station::ConfigError> {
+        if let Some(path) = &self.config {
+            return crate::station::load_config(path, self.ramp, self.verbose);
+        }
+        let list: Vec<crate::station::StationConfig> = std::iter::once(self.address)
+            .chain(self.more_addresses.iter().copied())
+            .map(|a| crate::station::StationConfig::new(a, self.ramp, self.verbose))
+            .collect();
+        crate::station::check(&list)?;
+        Ok(list)
     }
 }
 
@@ -171,6 +198,7 @@ where
             "-d" | "--device" => "--device",
             "-b" | "--baud" => "--baud",
             "-a" | "--address" => "--address",
+            "-c" | "--config" => "--config",
             "--ramp-ms" => "--ramp-ms",
             "--pd-every" => "--pd-every",
             "--idle-us" => "--idle-us",
@@ -186,7 +214,18 @@ where
             "--baud" => {
                 o.baud = parse_baud(&value).ok_or(ArgError::Invalid { flag, value, expected: RATES })?;
             }
-            "--address" => o.address = parse_u64(flag, &value, card::MAX_STATION_ADDRESS as u64, "0..=126")? as u8,
+            "--address" => {
+                let mut list = Vec::new();
+                for a in value.split(',') {
+                    list.push(
+                        parse_u64(flag, a.trim(), card::MAX_STATION_ADDRESS as u64, "0..=126, or a list 5,6,7")? as u8
+                    );
+                }
+                o.address = list[0];
+                o.more_addresses = list[1..].to_vec();
+            }
+            "--config" if !value.is_empty() => o.config = Some(value),
+            "--config" => return Err(ArgError::Invalid { flag, value, expected: "a file" }),
             "--ramp-ms" => o.ramp = Duration::from_millis(parse_u64(flag, &value, 3_600_000, "0..=3600000 ms")?),
             "--pd-every" => {
                 let s = parse_u64(flag, &value, 86_400, "0..=86400 s")?;
@@ -216,6 +255,12 @@ mod tests {
         assert_eq!(o.ramp, Duration::from_millis(2000));
         assert_eq!(parse_args(["-d", "x", "--help"]), Ok(Command::Help));
         assert_eq!(parse_args(["-V"]), Ok(Command::Version));
+        let Command::Run(o) = parse_args(["-d", "pty", "--address", "5,6, 7"]).unwrap() else { panic!() };
+        assert_eq!((o.address, o.more_addresses.as_slice()), (5, &[6, 7][..]));
+        assert_eq!(o.stations().unwrap().iter().map(|s| s.address).collect::<Vec<_>>(), [5, 6, 7]);
+        let Command::Run(o) = parse_args(["-d", "pty", "--address", "5,6,5"]).unwrap() else { panic!() };
+        assert_eq!(o.stations().unwrap_err().to_string(), "configuration: station address 5 is given twice");
+        assert!(matches!(parse_args(["-d", "x", "-a", "5,,6"]), Err(ArgError::Invalid { flag: "--address", .. })));
     }
 
     #[test]

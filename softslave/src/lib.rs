@@ -3,12 +3,12 @@
 //! The same sans-IO stack as the firmware ([`pbcard::node::Node`]) and the same simulated
 //! drive behind the same DPM image ([`pbcard::app::Application`]), driven by a host loop:
 //!
-//! * bytes are read non-blocking and fed to [`Node::on_byte`] with their arrival time;
+//! * bytes are read non-blocking and fed to [`Node::on_byte`](pbcard::node::Node::on_byte) with their arrival time;
 //!   telegrams are found by their length, parity/framing errors (8E1 with `PARMRK`) go to
-//!   [`Node::on_line_error`], silence of at least the idle threshold to [`Node::on_idle`];
+//!   [`Node::on_line_error`](pbcard::node::Node::on_line_error), silence of at least the idle threshold to [`Node::on_idle`](pbcard::node::Node::on_idle);
 //! * a response is written once min_TSDR has passed since the request was read (spinning for
 //!   the last stretch);
-//! * [`Application::step`] runs every 2 ms and after every received chunk;
+//! * [`Application::step`](pbcard::app::Application::step) runs every 2 ms and after every received chunk;
 //! * [`run`] returns when `stop` is set (the binary sets it on Ctrl-C).
 //!
 //! A pseudo-terminal has no parity and no line timing: bytes pass, and the DP master at the
@@ -18,58 +18,70 @@ pub mod args;
 mod monitor;
 pub mod parmrk;
 pub mod serial;
+pub mod station;
 
 use std::io;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant as StdInstant};
 
-use pbcard::app::Application;
 use pbcard::card;
-use pbcard::dp::DpSlave;
-use pbcard::drive::DriveConfig;
-use pbcard::node::Node;
+
 use pbcard::time::{BitTimes, Instant};
 
 pub use args::{parse_args, ArgError, Command, Options, USAGE};
 pub use monitor::hex;
-use monitor::Monitor;
 use parmrk::{Parmrk, Rx};
 use serial::Port;
+pub use station::{ConfigError, Station, StationConfig};
 
 /// How often the application (DPM, simulated drive, timers) runs when no telegram arrives.
 const STEP_EVERY: Duration = Duration::from_millis(2);
 /// Waits for min_TSDR shorter than this are spun, not slept.
 const SPIN_BELOW: Duration = Duration::from_millis(2);
 
-/// Counters at the end of a run.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+/// Counters at the end of a run (summed over the stations).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Summary {
     /// Run time.
     pub elapsed: Duration,
-    /// Requests the FDL station handled.
+    /// Requests the FDL stations handled.
     pub requests: u32,
     /// FCB retries answered from the stored response.
     pub retries: u32,
     /// Data_Exchange requests answered.
     pub data_exchanges: u32,
-    /// Corrupt telegrams.
+    /// Corrupt telegrams (as the first station's framer counted them).
     pub corrupt: u32,
     /// Responses written.
     pub responses: u32,
+    /// Per station: address and its Data_Exchange count.
+    pub stations: Vec<(u8, u32)>,
 }
 
-/// Open the device and run the slave until `stop` is set. Every log line (already
-/// timestamped, seconds since start) goes to `log`.
+/// Open the device and run the stations until `stop` is set. Every log line (already
+/// timestamped, seconds since start; a station's lines prefixed `#address`) goes to `log`.
+///
+/// Several stations share the line: every received byte goes to every station's [`Node`](pbcard::node::Node),
+/// whose framer and FDL station keep only the telegrams addressed to it (destination address,
+/// or broadcast), so each card answers its own requests as it would alone on the bus.
 pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::Result<Summary> {
     let t0 = StdInstant::now();
     let mut emit = |msg: String| log(&format!("[{:>9.3}] {msg}", t0.elapsed().as_secs_f64()));
     let rate = opts.baud;
+    // The stations first: a bad configuration stops here, before the device is opened.
+    let configs = opts.stations().map_err(|e| io::Error::new(io::ErrorKind::InvalidInput, e.to_string()))?;
+    let mut stations = Vec::with_capacity(configs.len());
+    for c in &configs {
+        stations.push(Station::new(c).map_err(|e| io::Error::new(io::ErrorKind::InvalidInput, e.to_string()))?);
+    }
     let mut port = if opts.device == "pty" { Port::create_pty(rate)? } else { Port::open(&opts.device, rate)? };
 
+    let addresses: Vec<String> = configs.iter().map(|c| c.address.to_string()).collect();
     emit(format!(
-        "pbcard soft slave {}: station {}, ident 0x{:04X}, {} bit/s on {}",
+        "pbcard soft slave {}: station{} {}, ident 0x{:04X}, {} bit/s on {}",
         env!("CARGO_PKG_VERSION"),
-        opts.address,
+        if configs.len() > 1 { "s" } else { "" },
+        addresses.join(", "),
         card::IDENT_NUMBER,
         rate.bits_per_second(),
         port.path()
@@ -89,19 +101,20 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
     }
     let modules: Vec<String> = card::MODULES.iter().map(|m| format!("{} ({})", m.name, hex(m.cfg))).collect();
     emit(format!("modules (the master's Chk_Cfg picks one): {}", modules.join(", ")));
-    emit(format!(
-        "simulated drive: PROFIdrive STW1/ZSW1, 0x4000 = 100 %, ramp 0 → 100 % in {} ms; 0x047E → ready, 0x047F → run",
-        opts.ramp.as_millis()
-    ));
+    for st in &mut stations {
+        let c = &st.config;
+        let prefix = st.prefix();
+        let module = c.module.map_or("any module".to_string(), |m| format!("only {} ({})", m.name, hex(m.cfg)));
+        let params: Vec<String> = c.params.iter().map(|(p, v)| format!("P{p} = {v}")).collect();
+        emit(format!(
+            "{prefix} simulated drive: PROFIdrive STW1/ZSW1, 0x4000 = 100 %, ramp 0 → 100 % in {} ms; 0x047E → ready, 0x047F → run; {module}{}",
+            c.ramp.as_millis(),
+            if params.is_empty() { String::new() } else { format!("; {}", params.join(", ")) }
+        ));
+        st.app.set_baudrate(Some(rate));
+    }
     emit("waiting for a DP master (Ctrl-C stops)".into());
 
-    let mut node = Node::new(DpSlave::new(opts.address));
-    let mut app = Application::new(DriveConfig {
-        ramp_time: pbcard::time::Duration::from_micros(opts.ramp.as_micros() as u64),
-        ..DriveConfig::DEFAULT
-    });
-    app.set_baudrate(Some(rate));
-    let mut monitor = Monitor::new(opts.verbose, opts.address);
     let mut decoder = Parmrk::new(port.parity());
     let to_us = |d: pbcard::time::Duration| Duration::from_micros(d.as_micros());
     let idle =
@@ -112,6 +125,8 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
     let mut last_activity = t0;
     let mut idle_reported = true;
     let mut tx: Option<(StdInstant, Vec<u8>)> = None;
+    // The station whose answer `tx` is.
+    let mut tx_station = 0usize;
     let mut last_step = t0;
     let mut last_pd = t0;
     let mut responses = 0u32;
@@ -139,17 +154,23 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
                 let now = now_pb(t);
                 decoder.feed(&buf[..n], |rx| match rx {
                     Rx::Byte(b) => {
-                        let frames = node.framer().stats().frames;
-                        let response = node.on_byte(now, b).map(<[u8]>::to_vec);
-                        if let Some(r) = response {
-                            let wait = to_us(rate.bits_to_duration(node.min_tsdr().0));
-                            tx = Some((t + wait, r));
-                        }
-                        if node.framer().stats().frames != frames {
-                            monitor.on_frame(node.framer().frame(), &node, &mut emit);
+                        for (i, st) in stations.iter_mut().enumerate() {
+                            let node = &mut st.node;
+                            let frames = node.framer().stats().frames;
+                            let response = node.on_byte(now, b).map(<[u8]>::to_vec);
+                            if let Some(r) = response {
+                                let wait = to_us(rate.bits_to_duration(node.min_tsdr().0));
+                                tx = Some((t + wait, r));
+                                tx_station = i;
+                            }
+                            if node.framer().stats().frames != frames {
+                                let prefix = format!("#{}", node.slave().address());
+                                st.monitor
+                                    .on_frame(node.framer().frame(), node, &mut |m| emit(format!("{prefix} {m}")));
+                            }
                         }
                     }
-                    Rx::Error => node.on_line_error(),
+                    Rx::Error => stations.iter_mut().for_each(|st| st.node.on_line_error()),
                 });
             }
         }
@@ -158,10 +179,16 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
             let bits = rate.duration_to_bits(pbcard::time::Duration::from_micros(
                 now.saturating_duration_since(last_activity).as_micros() as u64,
             ));
-            if opts.verbose && !node.framer().pending().is_empty() {
-                emit(format!("partial telegram dropped after idle line: {}", hex(node.framer().pending())));
+            for st in stations.iter_mut() {
+                if st.config.verbose && !st.node.framer().pending().is_empty() {
+                    emit(format!(
+                        "{} partial telegram dropped after idle line: {}",
+                        st.prefix(),
+                        hex(st.node.framer().pending())
+                    ));
+                }
+                st.node.on_idle(BitTimes(bits.min(u32::MAX as u64) as u32));
             }
-            node.on_idle(BitTimes(bits.min(u32::MAX as u64) as u32));
             idle_reported = true;
         }
         if let Some((at, _)) = &tx {
@@ -175,7 +202,11 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
                 port.write_all(&bytes)?;
                 responses = responses.wrapping_add(1);
                 let late = (sent - at).as_micros() as u64;
-                monitor.on_response(&bytes, (late > 100).then_some(late), &mut emit);
+                if let Some(st) = stations.get_mut(tx_station) {
+                    let prefix = st.prefix();
+                    st.monitor
+                        .on_response(&bytes, (late > 100).then_some(late), &mut |m| emit(format!("{prefix} {m}")));
+                }
                 // The line is busy while our answer goes out.
                 last_activity = sent + to_us(rate.bits_to_duration(11 * bytes.len() as u32));
                 idle_reported = false;
@@ -183,32 +214,46 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
         }
         if got || now - last_step >= STEP_EVERY {
             last_step = now;
-            let events = app.step(now_pb(now), &mut node);
-            // DP-V1: data records at slot 0 over the card's PNUs and the simulated drive's
-            // parameters through the DPM mailbox (a job waiting for the drive is retried
-            // here every step); the master's next poll fetches the response.
-            if node.has_acyclic_work() {
-                node.process_acyclic(now_pb(now), &mut app.parameters(now_pb(now)));
+            for st in stations.iter_mut() {
+                let events = st.app.step(now_pb(now), &mut st.node);
+                // The configured module stays the only one Chk_Cfg accepts (a DPM CONFIG of
+                // the simulated drive does not widen it).
+                if st.config.module.is_some() {
+                    st.node.slave_mut().require_module(st.config.module);
+                }
+                // DP-V1: data records at slot 0 over the card's PNUs and the simulated drive's
+                // parameters through the DPM mailbox (a job waiting for the drive is retried
+                // here every step); the master's next poll fetches the response.
+                if st.node.has_acyclic_work() {
+                    st.node.process_acyclic(now_pb(now), &mut st.app.parameters(now_pb(now)));
+                }
+                let prefix = st.prefix();
+                st.monitor.on_step(events, &st.node, &st.app, &mut |m| emit(format!("{prefix} {m}")));
             }
-            monitor.on_step(events, &node, &app, &mut emit);
         }
         if let Some(every) = opts.pd_every {
             if now - last_pd >= every {
-                monitor.process_data((now - last_pd).as_secs_f64(), &node, &app, &mut emit);
+                for st in stations.iter_mut() {
+                    let prefix = st.prefix();
+                    st.monitor.process_data((now - last_pd).as_secs_f64(), &st.node, &st.app, &mut |m| {
+                        emit(format!("{prefix} {m}"))
+                    });
+                }
                 last_pd = now;
             }
         }
     }
 
-    let st = node.station().stats();
-    let summary = Summary {
-        elapsed: t0.elapsed(),
-        requests: st.requests,
-        retries: st.retries,
-        data_exchanges: node.slave().stats().data_exchanges,
-        corrupt: node.framer().stats().corrupt,
-        responses,
-    };
+    let mut summary = Summary { elapsed: t0.elapsed(), responses, ..Default::default() };
+    for st in &stations {
+        let s = st.node.station().stats();
+        let dx = st.node.slave().stats().data_exchanges;
+        summary.requests += s.requests;
+        summary.retries += s.retries;
+        summary.data_exchanges += dx;
+        summary.stations.push((st.node.slave().address(), dx));
+    }
+    summary.corrupt = stations.first().map_or(0, |st| st.node.framer().stats().corrupt);
     emit(format!(
         "stopped after {:.1} s: {} requests, {} Data_Exchange, {} FCB retries, {} corrupt telegrams, {} responses",
         summary.elapsed.as_secs_f64(),

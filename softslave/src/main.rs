@@ -22,6 +22,12 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    // A bad station list (addresses, --config file) is one line and exit status 2, before the
+    // device is opened.
+    if let Err(e) = opts.stations() {
+        eprintln!("pbcard-softslave: {e}");
+        return ExitCode::from(2);
+    }
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();
     if let Err(e) = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed)) {

@@ -92,10 +92,11 @@ impl Monitor {
 
     /// A complete telegram on the line (request, or our own echo on some adapters).
     pub fn on_frame(&mut self, frame: &[u8], node: &Node, log: &mut dyn FnMut(String)) {
-        if self.verbose {
+        let Decoded::Frame(Frame::Data(t), _) = telegram::decode(frame) else { return };
+        // Several stations see every telegram: each logs its own (and broadcasts).
+        if self.verbose && (t.da == node.slave().address() || t.da == telegram::BROADCAST) {
             log(format!("rx {}", hex(frame)));
         }
-        let Decoded::Frame(Frame::Data(t), _) = telegram::decode(frame) else { return };
         if !t.fc.is_request() || t.da != node.slave().address() {
             return;
         }

@@ -131,3 +131,82 @@ fn the_binary_stops_cleanly_on_ctrl_c() {
     assert!(rest.contains("stopped after"), "{rest}");
     assert!(lines.iter().any(|l| l.contains("created a pseudo-terminal: point the DP master program at /dev/pts/")));
 }
+
+#[test]
+fn a_bad_station_list_is_one_line_and_exit_status_2_before_the_device_is_opened() {
+    let dir = std::env::temp_dir().join(format!("pbcard-softslave-cfg-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let cases: [(&str, &str); 5] = [
+        ("[[station]]\naddress = 5\n[[station]]\naddress = 5\n", "station address 5 is given twice"),
+        ("[[station]]\naddress = 130\n", "station address 130 is outside 0..=126"),
+        ("[[station]]\naddress = 5\nmodule = \"PPO 7\"\n", "unknown module \"PPO 7\""),
+        ("[[station]]\naddress = 5\nwatchdog = 1\n", "unknown field `watchdog`"),
+        ("[[station]]\naddress = 5\n[station.params]\n100 = 99999\n", "parameter 100 = 99999: refused"),
+    ];
+    for (i, (text, want)) in cases.iter().enumerate() {
+        let path = dir.join(format!("{i}.toml"));
+        std::fs::write(&path, text).unwrap();
+        // A device that does not exist: opening it would fail with status 1, not 2.
+        let out = Command::new(env!("CARGO_BIN_EXE_pbcard-softslave"))
+            .args(["--device", "/nonexistent/tty", "--config", path.to_str().unwrap()])
+            .output()
+            .unwrap();
+        let err = String::from_utf8(out.stderr).unwrap();
+        assert_eq!(out.status.code(), Some(2), "{text}: {err}");
+        assert_eq!(err.lines().count(), 1, "one line: {err}");
+        assert!(err.starts_with("pbcard-softslave: configuration: ") && err.contains(want), "{err}");
+    }
+    let out = Command::new(env!("CARGO_BIN_EXE_pbcard-softslave"))
+        .args(["--device", "/nonexistent/tty", "--address", "5,6,5"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let _ = std::fs::remove_dir_all(dir);
+}
+
+#[test]
+fn two_stations_on_one_line_answer_each_their_own() {
+    let port = Port::create_pty(Baudrate::B19200).unwrap();
+    let dir = std::env::temp_dir().join(format!("pbcard-softslave-two-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let cfg = dir.join("two.toml");
+    std::fs::write(
+        &cfg,
+        "[[station]]\naddress = 7\nmodule = 1\n[[station]]\naddress = 8\n[station.params]\n100 = 85\n",
+    )
+    .unwrap();
+    let mut opts = Options::new(port.path());
+    opts.config = Some(cfg.to_str().unwrap().into());
+    opts.pd_every = None;
+    let stop = Arc::new(AtomicBool::new(false));
+    let log = Arc::new(Mutex::new(Vec::new()));
+    let (s, l) = (stop.clone(), log.clone());
+    let t = std::thread::spawn(move || {
+        pbcard_softslave::run(&opts, &s, &mut |line| l.lock().unwrap().push(line.to_string()))
+    });
+    wait_for(&log, "waiting for a DP master");
+    wait_for(&log, "stations 7, 8, ident 0x0F11");
+    wait_for(&log, "#7 simulated drive");
+    wait_for(&log, "#8 simulated drive");
+    wait_for(&log, "only Standard telegram 1, PZD-2/2");
+    wait_for(&log, "P100 = 85");
+    let mut a = Line { port, master: ScriptedMaster::new(MASTER, 7) };
+    // #7 refuses PPO 4 (its module is Standard telegram 1), #8 takes it.
+    assert_eq!(a.srd(Some(61), &set_prm(card::IDENT_NUMBER)), [telegram::SC]);
+    assert_eq!(a.srd(Some(62), &[0xF5]), [telegram::SC]);
+    wait_for(&log, "#7 Chk_Cfg refused (Cfg_Fault)");
+    let Line { port, .. } = a;
+    let mut b = Line { port, master: ScriptedMaster::new(MASTER, 8) };
+    assert_eq!(b.srd(Some(61), &set_prm(card::IDENT_NUMBER)), [telegram::SC]);
+    assert_eq!(b.srd(Some(62), &[0xF5]), [telegram::SC]);
+    wait_for(&log, "#8 Chk_Cfg: PPO 4");
+    wait_for(&log, "#8 DP state Data_Exch");
+    let r = b.srd(None, &[0; 12]);
+    let Decoded::Frame(telegram::Telegram::Data(d), _) = telegram::decode(&r) else { panic!("{r:02x?}") };
+    assert_eq!((d.sa, d.pdu.len()), (8, 12), "#8 answers its Data_Exchange");
+    stop.store(true, Ordering::Relaxed);
+    let summary = t.join().unwrap().unwrap();
+    assert_eq!(summary.stations, [(7, 0), (8, 1)]);
+    assert!(!log.lock().unwrap().iter().any(|l| l.contains("#7 DP state Data_Exch")));
+    let _ = std::fs::remove_dir_all(dir);
+}

@@ -1,0 +1,390 @@
+//! The monitor judged on telegrams the project's own card produces and on the manuals' byte
+//! examples:
+//!
+//! * a capture *recorded* from the card's shipped stack (`Node` + `Application`, the soft slave's
+//!   core) talking to the scripted DP master of `pbcard::testkit` on a simulated 19.2 kbit/s line
+//!   with exact times: bring-up, data exchange, a DP-V1 record-47 parameter read, Global_Control,
+//!   one lost answer and its retry — replayed from the capture format and decoded with every
+//!   request matched to its response and no `Unknown`;
+//! * garbage between frames, and the same bytes as raw input (cut by syntax, no times);
+//! * the VACON OPTE3/E5 §6.4.4 and WEG CFW-11 §4.2.5 parameter-access examples decoded field by
+//!   field.
+
+use pbcard::app::Application;
+use pbcard::card;
+use pbcard::dp::DpSlave;
+use pbcard::drive::DriveConfig;
+use pbcard::fdl::telegram::{FunctionCode, Header, ResponseStatus};
+use pbcard::node::Node;
+use pbcard::testkit::{self, ScriptedMaster, SetPrm};
+use pbcard::time::{Baudrate, BitTimes, Instant};
+use pbcard_monitor::capture::Writer;
+use pbcard_monitor::product::Product;
+use pbcard_monitor::{decode_raw, replay, Line};
+
+const RATE: Baudrate = Baudrate::B19200;
+const MASTER: u8 = 2;
+const SLAVE: u8 = 5;
+
+/// The card on a simulated line with exact times, every byte written to a capture.
+struct Bus {
+    node: Node,
+    app: Application,
+    master: ScriptedMaster,
+    t_us: u64,
+    capture: Writer<Vec<u8>>,
+    /// Every telegram on the line, in order (the raw byte stream).
+    raw: Vec<u8>,
+}
+
+impl Bus {
+    fn new() -> Self {
+        let mut app = Application::new(DriveConfig::DEFAULT);
+        app.set_baudrate(Some(RATE));
+        Bus {
+            node: Node::new(DpSlave::new(SLAVE)),
+            app,
+            master: ScriptedMaster::new(MASTER, SLAVE),
+            t_us: 1_000_000,
+            capture: Writer::new(Vec::new(), Some(RATE)).unwrap(),
+            raw: Vec::new(),
+        }
+    }
+
+    fn us(bits: u32) -> u64 {
+        RATE.bits_to_duration(bits).as_micros()
+    }
+
+    fn put(&mut self, bytes: &[u8]) {
+        self.t_us += Self::us(11 * bytes.len() as u32);
+        self.capture.bytes(Some(self.t_us), bytes).unwrap();
+        self.raw.extend_from_slice(bytes);
+    }
+
+    /// A request on the line; the card's answer after its min_TSDR (unless `lose` it).
+    fn send(&mut self, frame: &[u8], lose: bool) -> Option<Vec<u8>> {
+        self.put(frame);
+        let now = Instant::from_micros(self.t_us);
+        let answer = testkit::feed(&mut self.node, now, frame).map(|f| f.to_vec());
+        if let Some(a) = &answer {
+            self.t_us += Self::us(self.node.min_tsdr().0);
+            if lose {
+                // The answer is lost on the line: the master hears nothing within its slot time.
+                self.t_us += Self::us(11 * a.len() as u32);
+            } else {
+                self.put(a);
+            }
+        }
+        // The line is idle before the next request; the card runs its cycle.
+        self.t_us += Self::us(100);
+        self.node.on_idle(BitTimes(100));
+        let now = Instant::from_micros(self.t_us);
+        self.app.step(now, &mut self.node);
+        if self.node.has_acyclic_work() {
+            self.node.process_acyclic(now, &mut self.app.parameters(now));
+        }
+        answer
+    }
+
+    fn srd(&mut self, dsap: Option<u8>, pdu: &[u8]) -> Vec<u8> {
+        let f = self.master.srd(dsap, pdu);
+        self.send(&f, false).expect("an answer")
+    }
+
+    /// A DP-V1 MSAC_C1 request (SAP 51 ↔ 51), then polls until the response PDU comes.
+    fn c1(&mut self, pdu: &[u8]) -> Vec<u8> {
+        let f = self.master.request(MASTER, Some(51), Some(51), pdu, true);
+        let r = self.send(&f, false).expect("an answer");
+        assert_eq!(r, [0xE5], "the request is acknowledged with SC");
+        for _ in 0..20 {
+            let poll = self.master.request(MASTER, Some(51), Some(51), &[], true);
+            let r = self.send(&poll, false).expect("an answer");
+            if r != [0xE5] {
+                return r;
+            }
+        }
+        panic!("no DP-V1 response");
+    }
+}
+
+/// Record the session; its capture text and raw bytes.
+fn session() -> (String, Vec<u8>) {
+    let mut b = Bus::new();
+    // FDL_Status: the master's GAP poll.
+    let fdl = testkit::frame(
+        &Header { da: SLAVE, sa: MASTER, fc: FunctionCode::request(0x9, false, false), dsap: None, ssap: None },
+        &[],
+    );
+    assert!(b.send(&fdl, false).is_some());
+    b.srd(Some(60), &[]);
+    // Set_Prm with DPV1_Enable, Lock_Req, WD_On (1 × 100 × 10 ms); Chk_Cfg Standard telegram 1.
+    b.srd(Some(61), &SetPrm::CARD.dpv1_status_1(0x80).pdu());
+    b.srd(Some(62), card::MODULES[0].cfg);
+    b.srd(Some(60), &[]);
+    // Data exchange: STW1 047E then 047F with 50 % setpoint.
+    for k in 0..6 {
+        let stw: u16 = if k < 2 { 0x047E } else { 0x047F };
+        let mut out = stw.to_be_bytes().to_vec();
+        out.extend_from_slice(&0x2000u16.to_be_bytes());
+        b.srd(None, &out);
+    }
+    // One lost answer and the master's retry (same FCB: the card answers from its stored response).
+    let dx = b.master.srd(None, &[0x04, 0x7F, 0x20, 0x00]);
+    assert!(b.send(&dx, true).is_some());
+    assert!(b.send(&dx, false).is_some());
+    // DP-V1: read PNU 918 (station address) through record 47 (VACON Table 55 shape, axis 1).
+    let write = [0x5F, 0x00, 0x2F, 0x0A, 0x01, 0x01, 0x01, 0x01, 0x10, 0x01, 0x03, 0x96, 0x00, 0x00];
+    let ack = b.c1(&write);
+    assert_eq!(ack[ack.len() - 6..ack.len() - 2], [0x5F, 0x00, 0x2F, 0x0A], "write acknowledged");
+    let resp = b.c1(&[0x5E, 0x00, 0x2F, 0xF0]);
+    assert!(resp.len() > 12, "a parameter response");
+    b.srd(None, &[0x04, 0x7F, 0x20, 0x00]);
+    // Global_Control Clear_Data to all (SDN broadcast, no answer).
+    let gc = testkit::frame(
+        &Header { da: 127, sa: MASTER, fc: FunctionCode::request(0x6, false, false), dsap: Some(58), ssap: Some(62) },
+        &[0x02, 0x00],
+    );
+    assert!(b.send(&gc, false).is_none());
+    let text = String::from_utf8(b.capture.into_inner()).unwrap();
+    (text, b.raw)
+}
+
+fn find<'a>(lines: &'a [Line], pred: impl Fn(&Line) -> bool, what: &str) -> &'a Line {
+    lines.iter().find(|l| pred(l)).unwrap_or_else(|| panic!("no line {what}:\n{}", dump(lines)))
+}
+
+fn dump(lines: &[Line]) -> String {
+    lines.iter().map(Line::text_line).collect::<Vec<_>>().join("\n")
+}
+
+#[test]
+fn a_recorded_card_session_replays_with_every_request_matched() {
+    let (text, _) = session();
+    let (lines, mon) = replay(Product::card(), &text, None);
+    let all = dump(&lines);
+    // Nothing unknown, nothing garbage; exactly the one lost answer is missing.
+    assert!(lines.iter().all(|l| l.service != "Unknown" && l.kind != "garbage"), "{all}");
+    let missing: Vec<&Line> = lines.iter().filter(|l| l.kind == "no_response").collect();
+    assert_eq!(missing.len(), 1, "{all}");
+    assert_eq!(missing[0].service, "Data_Exchange");
+    let st = &mon.stations()[&SLAVE];
+    assert_eq!(
+        (st.requests, st.answered + st.missing, st.missing, st.retries),
+        (st.requests, st.requests, 1, 1),
+        "{all}"
+    );
+    assert_eq!(st.state, "Data_Exch");
+    assert_eq!(st.module.as_deref(), Some("Standard telegram 1, PZD-2/2"));
+    assert_eq!(st.late, 0, "{all}");
+    // Every response time is the card's min_TSDR (11 bit) within the µs rounding.
+    assert!(st.tsdr_bits.n >= 15 && st.tsdr_bits.min >= 10 && st.tsdr_bits.max <= 12, "{:?}\n{all}", st.tsdr_bits);
+    // Data_Exchange every 11 bytes out + 11 back + gaps: the cycle is measured.
+    assert!(st.cycle_us.n >= 6 && st.cycle_us.min > 0, "{:?}", st.cycle_us);
+
+    // Field by field.
+    let fdl = find(&lines, |l| l.request == Some("FDL_Status"), "FDL_Status response");
+    assert_eq!((fdl.sd, fdl.fc.as_deref()), (Some("SD1"), Some("OK")));
+    assert!(fdl.text.contains("station type: slave"));
+    let diag = find(&lines, |l| l.request == Some("Slave_Diag"), "Slave_Diag response");
+    assert!(diag.text.contains("Station_status_1 02 (Station_Not_Ready)"), "{}", diag.text);
+    assert!(diag.text.contains("Station_status_2 05 (Prm_Req)"), "{}", diag.text);
+    assert!(diag.text.contains("Master_Add none, Ident_Number 0x0F11"), "{}", diag.text);
+    let prm = find(&lines, |l| l.service == "Set_Prm", "Set_Prm");
+    assert_eq!((prm.dsap, prm.ssap), (Some(61), Some(62)));
+    for part in [
+        "Station_Status 88 (Lock_Req WD_On)",
+        "watchdog 1×100×10 ms = 1000 ms",
+        "min_TSDR 11 bit",
+        "Ident_Number 0x0F11, Group_Ident 0x00",
+        "DPV1_Status 80 (DPV1_Enable) 00 (-) 00 (Alarm_Mode 1; -)",
+        "Operate mode = 0, Communication loss reaction = 0",
+    ] {
+        assert!(prm.text.contains(part), "'{part}' in {}", prm.text);
+    }
+    assert!(!prm.text.contains("refuses"), "{}", prm.text);
+    let cfg = find(&lines, |l| l.service == "Chk_Cfg", "Chk_Cfg");
+    assert!(
+        cfg.text
+            .contains("C3 C1 C1 FD 00 01 = module \"Standard telegram 1, PZD-2/2\", inputs 4 bytes, outputs 4 bytes"),
+        "{}",
+        cfg.text
+    );
+    let dx = find(&lines, |l| l.service == "Data_Exchange" && l.text.contains("047F"), "Data_Exchange 047F");
+    assert!(
+        dx.text.contains("STW1 047F (ON No_OFF2 No_OFF3 Enable_operation Enable_ramp Unfreeze_ramp Enable_setpoint Control_by_PLC), NSOLL_A 2000 (+50.0 %)"),
+        "{}",
+        dx.text
+    );
+    let running =
+        find(&lines, |l| l.request == Some("Data_Exchange") && l.text.contains("Operation_enabled"), "ZSW1 running");
+    assert!(running.text.starts_with("inputs ZSW1 "), "{}", running.text);
+    assert_eq!(running.fc.as_deref(), Some("DL"));
+    let retry = find(&lines, |l| l.retry, "retry");
+    assert_eq!(retry.service, "Data_Exchange");
+    // DP-V1: the record-47 write, the polls, the read with PNU 918's value (the station address).
+    let w = find(&lines, |l| l.service == "DS_Write" && !l.poll, "DS_Write");
+    assert_eq!((w.slot, w.index, w.pnu, w.dsap), (Some(0), Some(47), Some(918), Some(51)));
+    assert!(
+        w.text.contains("PROFIdrive request parameter, ref 1, axis 1: PNU 918 (station address) value"),
+        "{}",
+        w.text
+    );
+    let r = find(&lines, |l| l.request == Some("DS_Read") && l.sd == Some("SD2"), "DS_Read response");
+    assert_eq!((r.index, r.pnu), (Some(47), Some(918)));
+    assert!(
+        r.text.contains("PROFIdrive response 01 request parameter ok, ref 1, axis 1, 1 parameters: PNU 918 = "),
+        "{}",
+        r.text
+    );
+    assert!(r.text.ends_with(&format!("PNU 918 = Word 0x{SLAVE:04X} ({SLAVE})")), "{}", r.text);
+    assert!(lines.iter().any(|l| l.poll && l.service == "DS_Read"), "{all}");
+    let gc = find(&lines, |l| l.service == "Global_Control", "Global_Control");
+    assert!(gc.text.contains("Control_Command 02 (Clear_Data), Group_Select 00 (all groups)"), "{}", gc.text);
+
+    // JSON carries the fields the issue names.
+    let j: serde_json::Value = serde_json::from_str(&w.json()).unwrap();
+    for k in ["t", "sd", "da", "sa", "fc", "service", "dsap", "ssap", "slot", "index", "pnu"] {
+        assert!(j.get(k).is_some(), "{k} in {j}");
+    }
+    assert_eq!(j["service"], "DS_Write");
+    let summary = mon.summary();
+    assert!(summary.contains("Data_Exch"), "{summary}");
+}
+
+#[test]
+fn raw_bytes_with_garbage_between_frames_are_cut_by_syntax() {
+    let (_, raw) = session();
+    // Garbage before, between (a broken telegram, noise) and a truncated telegram at the end.
+    let mut bytes = vec![0x00, 0xFF, 0x42];
+    let split = raw.iter().position(|&b| b == 0x68).unwrap();
+    bytes.extend_from_slice(&raw[..split]);
+    bytes.extend_from_slice(&[0x68, 0x05, 0x06, 0x68, 0x13]);
+    bytes.extend_from_slice(&raw[split..]);
+    bytes.extend_from_slice(&[0x68, 0x09, 0x09]);
+    let (lines, mon) = decode_raw(Product::card(), None, &bytes);
+    let all = dump(&lines);
+    let garbage: Vec<&Line> = lines.iter().filter(|l| l.kind == "garbage").collect();
+    assert_eq!(garbage.len(), 3, "{all}");
+    assert!(garbage[0].text.contains("no start delimiter"), "{}", garbage[0].text);
+    assert!(garbage[1].text.contains("LengthMismatch"), "{}", garbage[1].text);
+    assert!(garbage[2].text.contains("truncated"), "{}", garbage[2].text);
+    // Every telegram of the session is still found and matched.
+    let st = &mon.stations()[&SLAVE];
+    assert_eq!((st.missing, st.retries), (1, 1), "{all}");
+    assert!(lines.iter().filter(|l| l.kind == "telegram").all(|l| l.service != "Unknown"), "{all}");
+    // Without times there is no timing judgement.
+    assert!(lines.iter().all(|l| l.t.is_none() && l.tsdr_bits.is_none()));
+}
+
+#[test]
+fn a_corrupt_capture_line_is_shown_and_the_replay_goes_on() {
+    let (text, _) = session();
+    let mut lines_in: Vec<&str> = text.lines().collect();
+    lines_in.insert(5, "12.x 10 02");
+    lines_in.insert(7, "3.000000 !");
+    let (lines, mon) = replay(Product::card(), &lines_in.join("\n"), None);
+    assert!(lines.iter().any(|l| l.error.as_deref().is_some_and(|e| e.starts_with("capture line 6"))));
+    assert!(lines.iter().any(|l| l.error.as_deref().is_some_and(|e| e.contains("character error"))));
+    assert!(mon.stations()[&SLAVE].answered > 10);
+}
+
+fn c1_frame(request: bool, pdu: &[u8]) -> Vec<u8> {
+    let hdr = if request {
+        Header { da: 3, sa: MASTER, fc: FunctionCode::request(0xD, true, true), dsap: Some(51), ssap: Some(51) }
+    } else {
+        Header { da: MASTER, sa: 3, fc: FunctionCode::response(ResponseStatus::Dl), dsap: Some(51), ssap: Some(51) }
+    };
+    testkit::frame(&hdr, pdu).to_vec()
+}
+
+/// The request's PDU and the response PDU through the monitor: the response line's text.
+fn exchange(write: &[u8], read_resp: &[u8]) -> (String, String) {
+    let mut bytes = c1_frame(true, write);
+    bytes.push(0xE5);
+    bytes.extend(c1_frame(true, &[0x5E, 0x00, 0x2F, 0xF0]));
+    bytes.push(0xE5);
+    bytes.extend(c1_frame(true, &[]));
+    bytes.extend(c1_frame(false, read_resp));
+    let (lines, _) = decode_raw(Product::card(), None, &bytes);
+    assert!(lines.iter().all(|l| l.service != "Unknown"), "{}", dump(&lines));
+    (lines[0].text.clone(), lines.last().unwrap().text.clone())
+}
+
+#[test]
+fn vacon_opte3_e5_6_4_4_parameter_access_field_by_field() {
+    // §6.4.4.1 Table 55 / §6.4.4.2 Table 58: read PNU 918 → 3.
+    let (req, resp) = exchange(
+        &[0x5F, 0x00, 0x2F, 0x0A, 0x01, 0x01, 0x01, 0x01, 0x10, 0x01, 0x03, 0x96, 0x00, 0x00],
+        &[0x5E, 0x00, 0x2F, 0x08, 0x01, 0x01, 0x01, 0x01, 0x42, 0x01, 0x00, 0x03],
+    );
+    assert_eq!(req, "MSAC_C1 slot 0 index 47 length 10: PROFIdrive request parameter, ref 1, axis 1: PNU 918 (station address) value");
+    assert_eq!(resp, "slot 0 index 47 length 8: PROFIdrive response 01 request parameter ok, ref 1, axis 1, 1 parameters: PNU 918 = Word 0x0003 (3)");
+    // §6.4.4.5 Table 67 / §6.4.4.6 Table 70: PNU 900 → error 0x00.
+    let (_, resp) = exchange(
+        &[0x5F, 0x00, 0x2F, 0x0A, 0x03, 0x01, 0x01, 0x01, 0x10, 0x01, 0x03, 0x84, 0x00, 0x00],
+        &[0x5E, 0x00, 0x2F, 0x08, 0x03, 0x81, 0x01, 0x01, 0x44, 0x01, 0x00, 0x00],
+    );
+    assert!(resp.ends_with("81 request parameter NEGATIVE, ref 3, axis 1, 1 parameters: PNU 900 = error 0x00 impermissible parameter number"), "{resp}");
+    // §6.4.4.7 Table 71 / 74: drive parameter ID 103 through PNU 10001 → 30.
+    let (req, resp) = exchange(
+        &[0x5F, 0x00, 0x2F, 0x0A, 0x04, 0x01, 0x01, 0x01, 0x10, 0x01, 0x27, 0x11, 0x00, 0x67],
+        &[0x5E, 0x00, 0x2F, 0x08, 0x04, 0x01, 0x01, 0x01, 0x42, 0x01, 0x00, 0x1E],
+    );
+    assert!(req.ends_with("PNU 10001[103] (drive parameter (application ID in the subindex)) value"), "{req}");
+    assert!(resp.ends_with("PNU 10001 = Word 0x001E (30)"), "{resp}");
+    // §6.4.4.8 Table 75 / 78: change ID 103 to 40; the positive change response is the header.
+    let (req, resp) = exchange(
+        &[0x5F, 0x00, 0x2F, 0x0E, 0x05, 0x02, 0x01, 0x01, 0x10, 0x01, 0x27, 0x11, 0x00, 0x67, 0x42, 0x01, 0x00, 0x28],
+        &[0x5E, 0x00, 0x2F, 0x04, 0x05, 0x02, 0x01, 0x01],
+    );
+    assert!(
+        req.contains("change parameter, ref 5, axis 1: PNU 10001[103]") && req.ends_with("value := Word 0x0028 (40)"),
+        "{req}"
+    );
+    assert!(resp.ends_with("02 change parameter ok, ref 5, axis 1, 1 parameters"), "{resp}");
+    // §6.4.4.9 Table 79 / 82: change to 0 → error 0x02.
+    let (_, resp) = exchange(
+        &[0x5F, 0x00, 0x2F, 0x0E, 0x06, 0x02, 0x01, 0x01, 0x10, 0x01, 0x27, 0x11, 0x00, 0x67, 0x42, 0x01, 0x00, 0x00],
+        &[0x5E, 0x00, 0x2F, 0x08, 0x06, 0x82, 0x01, 0x01, 0x44, 0x01, 0x00, 0x02],
+    );
+    assert!(resp.ends_with("82 change parameter NEGATIVE, ref 6, axis 1, 1 parameters: PNU 10001 = error 0x02 low or high limit exceeded"), "{resp}");
+    // A negative DP-V1 response (VACON Table 46): DE 80 B0 00 → invalid index.
+    let (_, resp) = exchange(
+        &[0x5F, 0x00, 0x2F, 0x0A, 0x01, 0x01, 0x01, 0x01, 0x10, 0x01, 0x03, 0x96, 0x00, 0x00],
+        &[0xDE, 0x80, 0xB0, 0x00],
+    );
+    assert_eq!(
+        resp,
+        "NEGATIVE DS_Read: Error_Decode 80 (DP-V1), Error_Code_1 B0 (access: invalid index), Error_Code_2 00"
+    );
+}
+
+#[test]
+fn weg_cfw11_4_2_5_examples_field_by_field() {
+    let ds_write = |d: &[u8]| [&[0x5F, 0x00, 0x2F, d.len() as u8][..], d].concat();
+    let ds_resp = |d: &[u8]| [&[0x5E, 0x00, 0x2F, d.len() as u8][..], d].concat();
+    // Exemplo 1: read P0002 and P0003; positive: 100 rpm, 5,0 A.
+    let read = [0x01, 0x01, 0x00, 0x02, 0x10, 0x01, 0x00, 0x02, 0x00, 0x00, 0x10, 0x01, 0x00, 0x03, 0x00, 0x00];
+    let (req, resp) =
+        exchange(&ds_write(&read), &ds_resp(&[0x01, 0x01, 0x00, 0x02, 0x42, 0x01, 0x00, 0x64, 0x42, 0x01, 0x00, 0x32]));
+    assert!(req.ends_with("request parameter, ref 1, axis 0: PNU 2 value; PNU 3 value"), "{req}");
+    assert!(resp.ends_with("2 parameters: PNU 2 = Word 0x0064 (100); PNU 3 = Word 0x0032 (50)"), "{resp}");
+    // Exemplo 1 negative: P0003 does not exist.
+    let (_, resp) =
+        exchange(&ds_write(&read), &ds_resp(&[0x01, 0x81, 0x00, 0x02, 0x42, 0x01, 0x00, 0x64, 0x44, 0x01, 0x00, 0x00]));
+    assert!(resp.ends_with("PNU 2 = Word 0x0064 (100); PNU 3 = error 0x00 impermissible parameter number"), "{resp}");
+    // Exemplo 2: change P0100 to 85; negative: out of limits.
+    let change = [0x01, 0x02, 0x00, 0x01, 0x10, 0x01, 0x00, 0x64, 0x00, 0x00, 0x42, 0x01, 0x00, 0x55];
+    let (req, resp) = exchange(&ds_write(&change), &ds_resp(&[0x01, 0x82, 0x00, 0x01, 0x44, 0x01, 0x00, 0x02]));
+    assert!(req.ends_with("change parameter, ref 1, axis 0: PNU 100 value := Word 0x0055 (85)"), "{req}");
+    assert!(resp.ends_with("PNU 100 = error 0x02 low or high limit exceeded"), "{resp}");
+}
+
+#[test]
+#[ignore = "prints the decoded session (README example): cargo test -p pbcard-monitor --test replay -- --ignored --nocapture"]
+fn print_the_session() {
+    let (text, _) = session();
+    println!("{text}");
+    let (lines, mon) = replay(Product::card(), &text, None);
+    println!("{}\n{}", dump(&lines), mon.summary());
+}
