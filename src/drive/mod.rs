@@ -36,7 +36,7 @@
 //! position), so a PLC program can check its word mapping. In the Bypass operate mode
 //! (OPTE3/E5 §5.1.2, §6.7) the card passes the raw words: the drive reads word 1 as its
 //! FBFixedControlWord (OPTE3/E5 §11.1 Table 146: b0 run, b1 reverse, b2 fault reset edge)
-//! and word 2 as the setpoint 0..10000 = 0..100 %, and answers FBFixedStatusWord (§11.3
+//! and word 2 as the setpoint 0..10000 = 0..100 % (a negative word is refused as 0), and answers FBFixedStatusWord (§11.3
 //! Table 149) and the actual speed 0..10000, the other words echoed.
 
 pub mod model;
@@ -134,6 +134,7 @@ pub struct SimStats {
 pub struct SimDrive {
     model: DriveModel,
     table: DriveTable,
+    vacon_ids: params::VaconIdTable,
     serve_parameters: bool,
     image: DriveCommandImage,
     command: DriveCommand,
@@ -151,6 +152,7 @@ impl SimDrive {
         SimDrive {
             model: DriveModel::new(config),
             table: sim_drive_table(),
+            vacon_ids: params::VACON_ID_TABLE,
             serve_parameters: true,
             image: DriveCommandImage::EMPTY,
             command: DriveCommand::default(),
@@ -190,6 +192,10 @@ impl SimDrive {
     /// The parameter table.
     pub fn params(&self) -> &DriveTable {
         &self.table
+    }
+    /// The VACON application parameters (reached through PNU 10001 and the PPO's PKW).
+    pub fn vacon_ids(&self) -> &params::VaconIdTable {
+        &self.vacon_ids
     }
     /// The parameter table, mutable.
     pub fn params_mut(&mut self) -> &mut DriveTable {
@@ -260,7 +266,18 @@ impl SimDrive {
             }
         }
         if self.serve_parameters {
-            let _ = host.serve_parameters(&mut crate::dpm::host::Table(&mut self.table));
+            let (table, ids) = (&mut self.table, &mut self.vacon_ids);
+            let _ = host.serve_parameters(&mut |req: &crate::dpm::MailboxRequest| {
+                crate::dpm::host::Answer::Now(if req.pnu == params::VACON_DRIVE_PARAMETER {
+                    // OPTE3/E5 §6.4.4.7 / §6.6.1: PNU 10001, the application ID as subindex.
+                    let mut r = *req;
+                    r.pnu = req.subindex;
+                    r.subindex = 0;
+                    crate::dpm::mailbox::execute(&r, ids)
+                } else {
+                    crate::dpm::mailbox::execute(req, table)
+                })
+            });
         }
     }
 
@@ -294,7 +311,9 @@ impl SimDrive {
     fn bypass_command(&mut self) -> DriveCommand {
         let w = self.image.extra.words();
         let cw = w.first().copied().unwrap_or(0);
-        let sp = w.get(1).copied().unwrap_or(0).min(10_000) as i32;
+        // 0..10000 = 0.00..100.00 % (OPTE3/E5 §6.7.1), the direction in b1: a negative
+        // word (above 0x7FFF) is out of range and taken as 0, never as +100 %.
+        let sp = (w.get(1).copied().unwrap_or(0) as i16).clamp(0, 10_000) as i32;
         if cw & 0x0004 != 0 && self.bypass_cw & 0x0004 == 0 {
             self.bypass_resets = self.bypass_resets.wrapping_add(1);
         }

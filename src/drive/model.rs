@@ -13,6 +13,9 @@
 //! * **Faults:** [`DriveModel::inject_fault`] trips (coast, FAULT, the code and MELD_NAMUR
 //!   bits); a new [`DriveCommand::fault_resets`] count acknowledges it. FIELDBUS_FAULT from the
 //!   card trips with [`FAULT_FIELDBUS`].
+//! * **Local / remote:** a command without FIELDBUS_CONTROL (WEG P0967 b10 = 0 or P0684 b4 =
+//!   0 "local", PROFIdrive b10 = 0) does not run the drive: the local control place has no
+//!   run command in the simulation, so the drive ramps to a stop.
 //! * **Communication loss:** while COMM_LOSS is set the drive applies the reaction asked in
 //!   [`DriveCommand::comm_loss_reaction`], or its own [`ModelConfig::comm_loss_action`] when it
 //!   is 0 (P0313-style: none, ramp stop, coast, quick stop, fault, keep the last setpoint).
@@ -211,6 +214,14 @@ impl DriveModel {
     fn effective(&mut self, cmd: &DriveCommand) -> DriveCommand {
         if !cmd.flags.contains(CommandFlags::COMM_LOSS) {
             self.last = *cmd;
+            if !cmd.flags.contains(CommandFlags::FIELDBUS_CONTROL) {
+                // LOCAL (WEG P0967 b10 = 0 / P0684 b4 = 0): the fieldbus does not command the
+                // drive; its local control place has no run command here (a ramp stop). The
+                // fault acknowledges still count (they are the card's, not a run command).
+                let mut c = *cmd;
+                c.flags.remove(CommandFlags::RUN | CommandFlags::JOG1 | CommandFlags::JOG2 | CommandFlags::PRE_EXCITE);
+                return c;
+            }
             return *cmd;
         }
         let action = CommLossAction::from_reaction(cmd.comm_loss_reaction).unwrap_or(self.config.comm_loss_action);

@@ -39,8 +39,9 @@
 //! from the slave. The slave repeats its response until it receives a new request"; reference
 //! §5.6): [`PkwServer::on_request`] gets the PKW request of every Data_Exchange output. A
 //! request that differs from the held one in any of its 8 bytes is a new job; the same bytes
-//! again are the master repeating it and change nothing. An all-zero request is "no request"
-//! and is answered with the all-zero "no response". [`PkwServer::service`] (the DP-V1 / acyclic
+//! again are the master repeating it and change nothing. A request of type 0 (INVT: PKW1 = 0)
+//! is "no request", whatever the other words hold ([`is_no_request`]), and is answered with the
+//! all-zero "no response". [`PkwServer::service`] (the DP-V1 / acyclic
 //! task, not the interrupt) executes a job once against a [`ParameterAccess`] table; the
 //! response then stays in [`PkwServer::response`] until the request changes. While a job has
 //! no answer yet — not serviced, or an asynchronous table ([`ParameterAccess::pending`]) still
@@ -277,7 +278,7 @@ impl PkwServer {
     /// The PKW request of a Data_Exchange output (the first 8 bytes of the PPO). Cheap: it only
     /// compares and copies 8 bytes, so it may run in the interrupt. A request different from
     /// the held one starts a new job (its response is zero until [`Self::service`] answers it);
-    /// the same request again changes nothing; all zero is "no request".
+    /// the same request again changes nothing; type 0 is "no request" ([`is_no_request`]).
     pub fn on_request(&mut self, request: [u8; PKW_LEN]) {
         if request == self.request {
             return;
@@ -287,7 +288,7 @@ impl PkwServer {
         }
         self.request = request;
         self.response = [0; PKW_LEN];
-        self.job = if request == [0; PKW_LEN] {
+        self.job = if is_no_request(self.dialect, request) {
             Job::Idle
         } else {
             self.counters.jobs = self.counters.jobs.wrapping_add(1);
@@ -351,6 +352,18 @@ impl PkwServer {
         self.request = [0; PKW_LEN];
         self.response = [0; PKW_LEN];
         self.job = Job::Idle;
+    }
+}
+
+/// Whether `request` is "no request" in `dialect`: request type 0 whatever the other words
+/// hold (VACON OPTE3/E5 Table 121 "0 No request — No response"; PROFIdrive 2.0 AK 0,
+/// reference §5.6), INVT PKW1 = 0 (§2.6 Table 2-10). It is answered with the all-zero "no
+/// response", so a PLC handshake that waits for "no response" after clearing the type goes on.
+pub fn is_no_request(dialect: PkwDialect, request: [u8; PKW_LEN]) -> bool {
+    let id = u16::from_be_bytes([request[0], request[1]]);
+    match dialect {
+        PkwDialect::Vacon | PkwDialect::Profidrive2 => id >> 12 == 0,
+        PkwDialect::Invt => id == 0,
     }
 }
 
@@ -1168,7 +1181,7 @@ mod tests {
             }
             let rsp = s.response();
             // Invariants after every step.
-            if s.is_busy() || s.request() == [0; 8] {
+            if s.is_busy() || is_no_request(dialect, s.request()) {
                 assert_eq!(rsp, [0; 8], "{dialect:?}: a response without an answered job");
             } else {
                 let (req, rsp) = (PkwWords::from_bytes(s.request()), PkwWords::from_bytes(rsp));
@@ -1214,7 +1227,7 @@ mod tests {
                 s.on_request(r);
                 s.service(&mut t);
                 prop_assert!(!s.is_busy());
-                prop_assert_eq!(s.response() == [0; 8], r == [0; 8]);
+                prop_assert_eq!(s.response() == [0; 8], is_no_request(d, r));
                 // Repeating it changes nothing.
                 let rsp = s.response();
                 let writes_after = t.writes;

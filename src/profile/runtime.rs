@@ -127,6 +127,13 @@ impl ControlProfile for AnyProfile {
             AnyProfile::Invt(p) => p.comm_lost(drive),
         }
     }
+    fn clear(&mut self, drive: &DriveStatus) -> DriveCommand {
+        match self {
+            AnyProfile::Profidrive(p) => p.clear(drive),
+            AnyProfile::Weg(p) => p.clear(drive),
+            AnyProfile::Invt(p) => p.clear(drive),
+        }
+    }
     fn status_word(&self, drive: &DriveStatus) -> u16 {
         match self {
             AnyProfile::Profidrive(p) => p.status_word(drive),
@@ -214,6 +221,8 @@ pub struct Runtime {
     drive_fault: u16,
     last: Option<Cycle>,
     delay: UpdateDelay,
+    /// The master is in Clear ([`Self::set_clear_mode`]).
+    clear: bool,
     /// Fault acknowledges of the profiles before this one: a new profile counts from 0, the
     /// drive must see the counter continue (a restart would acknowledge its fault).
     resets_base: u8,
@@ -240,6 +249,7 @@ impl Runtime {
             drive_fault: 0,
             last: None,
             delay: UpdateDelay { delay: Duration::ZERO, online: false, until: None },
+            clear: false,
             resets_base: 0,
             stats: RuntimeStats::default(),
         }
@@ -256,6 +266,14 @@ impl Runtime {
     pub fn io_update_delay(&self) -> Duration {
         self.delay.delay
     }
+    /// Whether the master is in Clear (its outputs are zero, reference §3.6): a lost cycle
+    /// then runs the profile's [`ControlProfile::clear`] (VACON PROFIdrive: b10 = 0 in
+    /// operation → FAULT, OPTE3/E5 §6.3.3) instead of [`ControlProfile::comm_lost`].
+    /// `app::Application` sets it from the DP slave's Clear state on every cycle.
+    pub fn set_clear_mode(&mut self, clear: bool) {
+        self.clear = clear;
+    }
+
     /// Whether the I/O update delay holds the master's outputs back at `now`.
     pub fn io_update_held(&self, now: Instant) -> bool {
         self.delay.until.is_some_and(|t| now < t)
@@ -275,8 +293,11 @@ impl Runtime {
         }
         self.delay.online = false;
         self.delay.until = None;
+        // The PPO types are VACON's (OPTE3/E5 §6.5.4, §6.6): their PKW speaks VACON's coding
+        // (application IDs, request types 1 / 2, fault codes of Table 122); INVT its own.
         let dialect = match sel.telegram {
             Telegram::Vendor(Family::Invt, _) => PkwDialect::Invt,
+            Telegram::Ppo(_) => PkwDialect::Vacon,
             _ => PkwDialect::Profidrive2,
         };
         self.pkw = PkwServer::new(dialect);
@@ -392,6 +413,8 @@ impl Runtime {
             }
             // The drive keeps the command it had before going online; the inputs are live.
             engine.hold(profile, outputs, side, self.last.as_ref())
+        } else if lost && self.clear {
+            engine.clear(profile, side)
         } else if lost {
             engine.comm_lost(profile, side)
         } else if let Some(out) = outputs {
@@ -456,7 +479,7 @@ mod tests {
     }
 
     fn sel(telegram: Telegram, mode: OperateMode) -> Selection {
-        Selection { telegram, mode, data: DataProfile::Manufacturer, comm_loss_reaction: 2 }
+        Selection { telegram, mode, data: DataProfile::Factory, comm_loss_reaction: 2 }
     }
 
     #[test]
