@@ -124,6 +124,12 @@ impl Application {
         }
     }
 
+    /// Stop (false) or restart the simulated drive's steps: a drive whose control board
+    /// stopped (its heartbeat stands still — fault injection for the drive-lost image).
+    pub fn set_drive_runs(&mut self, runs: bool) {
+        self.drive.runs = runs;
+    }
+
     /// Whether the simulated drive runs in the steps (false in [card-only](Self::card_only)
     /// mode).
     pub fn simulates_drive(&self) -> bool {
@@ -263,11 +269,7 @@ impl Application {
             let user = snap.user_prm;
             let config = self.link.config();
             let local = config.map_or(0, |c| c.operate_mode);
-            let data = match config.map(|c| c.profile) {
-                None => DataProfile::Factory,
-                Some(0) => DataProfile::Profidrive,
-                Some(_) => DataProfile::Manufacturer,
-            };
+            let data = DataProfile::of_config(config.map(|c| c.profile));
             let delay = config.map_or(0, |c| c.io_update_delay);
             self.runtime.set_io_update_delay(Duration::from_millis(100 * u64::from(delay)));
             self.runtime.select(Selection {

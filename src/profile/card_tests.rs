@@ -333,3 +333,29 @@ fn invt_needs_a_new_run_command_after_a_fault() {
     b.cycles(&invt(1, 2500), 80);
     assert_eq!(b.app.drive().actual_speed(), 0x2000, "a new run command");
 }
+
+/// Item 8 — the "drive lost" image (the drive's heartbeat stopped) uses each profile's own
+/// fault status word: PROFIdrive ZSW1 b3 (OPTE3/E5 Table 27), WEG manufacturer P0680 b15
+/// "fault" (CFW500 Table 4.2), WEG PROFIdrive P0968 b3, INVT status value 4 "faulty" (INVT
+/// Table 2-7); every other word 0.
+#[test]
+fn the_drive_lost_image_is_each_profiles_fault() {
+    for (reference, profile, pkw, fault) in
+        [(1u16, None, 0usize, 0x0008u16), (2103, None, 0, 0x8000), (2103, Some(0), 0, 0x0008), (4001, None, 4, 0x0004)]
+    {
+        let mut b = Bench::new();
+        if let Some(p) = profile {
+            b.config(HostConfig { profile: p, ..HostConfig::DEFAULT });
+        }
+        let m = module(reference);
+        b.bring_up(m);
+        let q = vec![0u8; m.outputs as usize];
+        b.cycles(&q, 5);
+        b.app.set_drive_runs(false);
+        let i = b.cycles(&q, 200);
+        assert!(b.app.link().drive_lost(), "{}", m.name);
+        let w = words(&i);
+        assert_eq!(w[pkw], fault, "{} ({profile:?})", m.name);
+        assert!(w.iter().enumerate().all(|(k, &x)| k == pkw || x == 0), "{}: {w:04X?}", m.name);
+    }
+}

@@ -83,6 +83,32 @@ pub enum DataProfile {
     Factory,
 }
 
+impl DataProfile {
+    /// The data profile of the drive's CONFIG.PROFILE (`None`: no CONFIG yet → [`Self::Factory`];
+    /// 0 PROFIdrive; anything else manufacturer).
+    pub const fn of_config(profile: Option<u8>) -> DataProfile {
+        match profile {
+            None => DataProfile::Factory,
+            Some(0) => DataProfile::Profidrive,
+            Some(_) => DataProfile::Manufacturer,
+        }
+    }
+}
+
+impl ProfileFamily {
+    /// The status word the master reads while the drive is lost (its heartbeat stopped; every
+    /// other word 0): each profile's own "fault" — PROFIdrive ZSW1 / WEG P0968 b3 "fault present"
+    /// (OPTE3/E5 Table 27, CFW500 Table 4.8), WEG P0680 b15 "fault" (CFW500 Table 4.2), INVT
+    /// status value 4 "faulty" (INVT Table 2-7).
+    pub const fn fault_status_word(self) -> u16 {
+        match self {
+            ProfileFamily::Profidrive41 | ProfileFamily::Profidrive20 | ProfileFamily::WegProfidrive => 1 << 3,
+            ProfileFamily::WegManufacturer => 1 << 15,
+            ProfileFamily::Invt => 4,
+        }
+    }
+}
+
 /// What one word of a cyclic image is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
