@@ -272,11 +272,20 @@ impl Application {
             let data = DataProfile::of_config(config.map(|c| c.profile));
             let delay = config.map_or(0, |c| c.io_update_delay);
             self.runtime.set_io_update_delay(Duration::from_millis(100 * u64::from(delay)));
+            let loss_delay = config.map_or(0, |c| c.comm_loss_delay_ms);
+            self.runtime.set_comm_loss_delay(Duration::from_millis(u64::from(loss_delay)));
+            // The master's reaction (Set_Prm) first; its 0 "the drive's own setting" takes the
+            // drive's CONFIG.COMM_LOSS_REACTION (P0313-style), so a drive that leaves the
+            // reaction to the card gets the one it configured.
+            let reaction = match user[card::PRM_COMM_LOSS_REACTION.offset] {
+                0 => config.map_or(0, |c| c.comm_loss_reaction),
+                r => r,
+            };
             self.runtime.select(Selection {
                 telegram,
                 mode: Selection::mode_of(user[card::PRM_OPERATE_MODE.offset], local),
                 data,
-                comm_loss_reaction: user[card::PRM_COMM_LOSS_REACTION.offset],
+                comm_loss_reaction: reaction,
             });
         }
         let Some(sel) = self.runtime.selection() else { return };
@@ -684,9 +693,10 @@ pub(crate) mod tests {
         // (last cycle, PKW server, fault buffer) and the drive's parameter table, plus the SPI
         // frame transport of the drive's host (the host's MOSI and MISO buffers and the
         // loopback card's reply, one longest transaction of 1034 B each, ≈ 3.1 KiB): a static
-        // in the firmware.
+        // in the firmware. The simulated drive's VACON application-ID table (PNU 10001, the
+        // PPO PKW) adds ≈ 0.1 KiB.
         let n = core::mem::size_of::<Application>();
-        assert!(n <= 4608 + 3 * crate::dpm::spi::MAX_TRANSACTION + 128, "Application is {n} bytes");
+        assert!(n <= 4608 + 3 * crate::dpm::spi::MAX_TRANSACTION + 256, "Application is {n} bytes");
     }
 
     #[test]

@@ -32,6 +32,11 @@
 //! fault reset); otherwise it reports the alarm as its warning code ([`ALARM_CLEAR_MODE`],
 //! [`ALARM_OFFLINE`], [`ALARM_ACCESS_ERROR`]), which disappears with the alarm.
 //!
+//! **Parameters:** the read-only P0680 (status word), P0681 (speed, 13 bits) and P10109
+//! (process data in words) follow the drive's state in every step; a P0100 / P0101 (ramp
+//! times) written through the card takes effect at once (until one is written, the model's
+//! configured ramps apply — the test benches run shorter ramps than P0100's factory 5.0 s).
+//!
 //! Programmable PZD words are echoed (each input word = the output word of the same
 //! position), so a PLC program can check its word mapping. In the Bypass operate mode
 //! (OPTE3/E5 §5.1.2, §6.7) the card passes the raw words: the drive reads word 1 as its
@@ -62,6 +67,12 @@ pub const DIAG_FAULTS: [(u16, u8); 6] = [
     (0x4210, 5), // drive overtemperature
     (0x2330, 6), // earth fault
 ];
+
+/// P0100 / P0101 of `t` (0.1 s).
+fn ramp_params(t: &DriveTable) -> (u16, u16) {
+    let get = |pnu| t.get(pnu, 0).map_or(0, |v| v.clamp(0, i64::from(u16::MAX)) as u16);
+    (get(params::P_ACCELERATION_TIME), get(params::P_DECELERATION_TIME))
+}
 
 /// The device-related diagnosis block of the GSD (`gsd/ODCP0F11.gsd`): header 0x03, drive
 /// status bits (b0 fault, b1 warning), fault value.
@@ -141,6 +152,8 @@ pub struct SimDrive {
     status: DriveStatus,
     bypass_cw: u16,
     bypass_resets: u8,
+    /// P0100 / P0101 as last applied to the model (module docs, "parameters").
+    ramps_applied: (u16, u16),
     diag: [u8; 3],
     alarms: CommAlarms,
     stats: SimStats,
@@ -159,6 +172,7 @@ impl SimDrive {
             status: DriveStatus::default(),
             bypass_cw: 0,
             bypass_resets: 0,
+            ramps_applied: ramp_params(&sim_drive_table()),
             diag: [0; 3],
             alarms: CommAlarms::empty(),
             stats: SimStats::default(),
@@ -240,6 +254,7 @@ impl SimDrive {
                 self.command.comm_loss_reaction = 0;
             }
         }
+        self.apply_ramps();
         self.status = self.model.step(now, &self.command);
         let action = CommLossAction::from_reaction(self.command.comm_loss_reaction)
             .unwrap_or(self.model.config().comm_loss_action);
@@ -248,6 +263,7 @@ impl SimDrive {
             self.status.flags |= StatusFlags::WARNING;
         }
         let extra = if bypass { self.bypass_words() } else { self.image.extra };
+        self.update_parameters(&extra);
         let state = DriveStateImage { status: self.status, inputs_seq: 0, extra };
         if host.write_state(&state).is_err() {
             self.stats.write_errors = self.stats.write_errors.wrapping_add(1);
@@ -278,6 +294,35 @@ impl SimDrive {
                     crate::dpm::mailbox::execute(req, table)
                 })
             });
+        }
+    }
+
+    /// P0100 / P0101 written (by the master, record 47 / 48 or the PKW): the model ramps with
+    /// them from now on. Until then the model keeps its configured ramps.
+    fn apply_ramps(&mut self) {
+        let now = ramp_params(&self.table);
+        if now.0 != self.ramps_applied.0 {
+            self.model.config_mut().ramp_time = params::acceleration_time(&self.table);
+        }
+        if now.1 != self.ramps_applied.1 {
+            self.model.set_deceleration_time(params::deceleration_time(&self.table));
+        }
+        self.ramps_applied = now;
+    }
+
+    /// The read-only parameters that show the drive's live state: P0680 status word (WEG
+    /// CFW500 Table 4.2, of the command in force), P0681 speed in 13 bits (8192 = the
+    /// reference speed P10111), P10109 process data in words (the input words sent).
+    fn update_parameters(&mut self, inputs: &PzdWords) {
+        use crate::profile::weg::{p0680, WegModel};
+        let sw = p0680(WegModel::Cfw500, self.command.flags, &self.status);
+        let _ = self.table.set(params::P_STATUS_WORD, 0, i64::from(sw));
+        let n13 = WegModel::scale_13bit(1, 1).from_n2(self.status.speed);
+        let _ = self.table.set(params::P_SPEED_13BIT, 0, i64::from(n13));
+        let w = inputs.words();
+        for k in 0..16u16 {
+            let v = w.get(usize::from(k)).copied().unwrap_or(0);
+            let _ = self.table.set(params::P_PD_IN, k, i64::from(v));
         }
     }
 

@@ -132,6 +132,9 @@ pub struct DriveModel {
     last: DriveCommand,
     accelerating: bool,
     faults: u32,
+    /// Deceleration ramp (0 → 100 % time) when it differs from [`ModelConfig::ramp_time`]
+    /// (WEG P0101 written, [`Self::set_deceleration_time`]).
+    decel_time: Option<Duration>,
 }
 
 impl DriveModel {
@@ -149,7 +152,14 @@ impl DriveModel {
             last: DriveCommand::default(),
             accelerating: false,
             faults: 0,
+            decel_time: None,
         }
+    }
+
+    /// The normal deceleration ramp (time from 100 % to 0; P0101-style); until set, the
+    /// acceleration ramp [`ModelConfig::ramp_time`] serves both ways.
+    pub fn set_deceleration_time(&mut self, t: Duration) {
+        self.decel_time = Some(t);
     }
 
     /// Settings.
@@ -255,7 +265,7 @@ impl DriveModel {
         if !run {
             if self.modulating {
                 self.stop_at_standstill();
-                return (0, normal);
+                return (0, self.decel_time.unwrap_or(normal));
             }
             return (0, self.config.coast_time);
         }

@@ -359,3 +359,98 @@ fn the_drive_lost_image_is_each_profiles_fault() {
         assert!(w.iter().enumerate().all(|(k, &x)| k == pkw || x == 0), "{}: {w:04X?}", m.name);
     }
 }
+
+/// Item 14 — the card acts on the drive's CONFIG.COMM_LOSS_REACTION: with the master's
+/// Set_Prm reaction 0 ("the drive's own setting") DRIVE_CMD carries the drive's configured
+/// reaction (here 1 = ramp stop, while the simulated drive's built-in action is "fault").
+#[test]
+fn the_drives_configured_comm_loss_reaction_is_applied() {
+    let mut b = Bench::new();
+    b.config(HostConfig { comm_loss_reaction: 1, ..HostConfig::DEFAULT });
+    b.bring_up(module(1));
+    b.cycles(&[0x04, 0x7E, 0x20, 0x00], 3);
+    b.cycles(&[0x04, 0x7F, 0x20, 0x00], 80);
+    assert_eq!(b.app.drive().image().command.comm_loss_reaction, 1);
+    b.step(1100); // the DP watchdog (1 s) expires
+    for _ in 0..80 {
+        b.step(10);
+    }
+    assert!(b.app.drive().image().command.flags.contains(CommandFlags::COMM_LOSS));
+    assert_eq!(b.app.drive().status().fault_code, 0, "ramp stop, no fault");
+    assert_eq!(b.app.drive().actual_speed(), 0);
+}
+
+/// Item 14 — CONFIG.COMM_LOSS_DELAY_MS: a loss shorter than the delay is bridged (DRIVE_CMD
+/// keeps the last command without COMM_LOSS), then the loss command follows.
+#[test]
+fn the_comm_loss_delay_bridges_a_short_loss() {
+    let mut b = Bench::new();
+    b.config(HostConfig { comm_loss_delay_ms: 300, ..HostConfig::DEFAULT });
+    b.bring_up(module(1));
+    b.cycles(&[0x04, 0x7E, 0x20, 0x00], 3);
+    b.cycles(&[0x04, 0x7F, 0x20, 0x00], 20);
+    b.step(1100);
+    let cmd = b.app.drive().image().command;
+    assert!(!cmd.flags.contains(CommandFlags::COMM_LOSS) && cmd.flags.contains(CommandFlags::RUN));
+    b.step(250);
+    assert!(!b.app.drive().image().command.flags.contains(CommandFlags::COMM_LOSS), "still bridged");
+    b.step(100);
+    b.step(1); // the drive reads the DRIVE_CMD of the step before
+    assert!(b.app.drive().image().command.flags.contains(CommandFlags::COMM_LOSS), "after 300 ms");
+    assert!(b.app.runtime().stats().bridged > 0);
+}
+
+/// Item 11 — INVT CW b8 "enable writing (mainly through PKW1 to PKW4)" (INVT Table 2-5): a
+/// PKW write (PKW1 = 4) with b8 = 0 is rejected (response 3; error 4 "operation failure" is
+/// our choice, the manual names none) and writes nothing; with b8 = 1 it writes.
+#[test]
+fn invt_pkw_writes_need_cw_b8() {
+    let mut b = Bench::new();
+    b.bring_up(module(4001));
+    let mut q = invt(5, 0);
+    q[..8].copy_from_slice(&[0x00, 0x04, 0x00, 0x64, 0x00, 0x00, 0x00, 0x4D]); // P100 = 77
+    let i = b.cycles(&q, 6);
+    assert_eq!(i[..8], [0x00, 0x03, 0x00, 0x64, 0x00, 0x04, 0x00, 0x00]);
+    assert_eq!(b.app.drive_params().get(100, 0), Some(50), "not written");
+    q[8..10].copy_from_slice(&0x0105u16.to_be_bytes());
+    let i = b.cycles(&q, 6);
+    assert_eq!(i[..8], [0x00, 0x01, 0x00, 0x64, 0x00, 0x00, 0x00, 0x4D]);
+    assert_eq!(b.app.drive_params().get(100, 0), Some(77));
+}
+
+/// Item 15 — the simulated drive's P0680 / P0681 / P10109 are live (they show what the master
+/// reads cyclically), and a P0101 written through record 47 is the deceleration ramp.
+#[test]
+fn the_simulated_drive_parameters_are_live() {
+    let mut b = Bench::new();
+    let m = module(2105);
+    b.bring_up_with(m, 0x80);
+    let q = bytes(&[0x0017, 0x1000, 0x1234, 0x5678, 0x9ABC]);
+    let i = b.cycles(&q, 80);
+    let w = words(&i);
+    let p = b.app.drive_params();
+    assert_eq!(p.get(680, 0), Some(i64::from(w[0])), "P0680 = the status word");
+    assert_eq!(p.get(681, 0), Some(i64::from(w[1] as i16)), "P0681 = the speed word");
+    assert_eq!((p.get(10109, 0), p.get(10109, 2)), (Some(0x1234), Some(0x9ABC)), "P10109");
+    // P0101 = 0.1 s: a stop from 50 % takes about 50 ms instead of the bench's 500 ms.
+    b.write47(&[7, 2, 1, 1, 0x10, 1, 0, 101, 0, 0, 0x42, 1, 0, 1]);
+    b.step(1);
+    assert_eq!(b.read47(), [7, 2, 1, 1]);
+    b.cycles(&bytes(&[0x0016, 0x1000, 0, 0, 0]), 8);
+    assert_eq!(b.app.drive().actual_speed(), 0, "P0101 applied");
+}
+
+/// Item 9 — WEG's record-47 error list (CFW500 §5.2.3): a DS_Read before the response is ready
+/// is C3h "response not available for the reading request" under a WEG telegram (B5h means
+/// "modification not allowed" there); VACON / PROFIdrive keep B5h "state conflict".
+#[test]
+fn weg_read_before_ready_is_c3() {
+    for (reference, code) in [(2103u16, 0xC3u8), (3100, 0xC3), (1, 0xB5)] {
+        let mut b = Bench::new();
+        b.bring_up_with(module(reference), 0x80);
+        b.write47(&[1, 1, 1, 1, 0x10, 1, 0, 100, 0, 0]);
+        assert_eq!(b.read47(), [0xDE, 0x80, code, 0x00], "{reference}");
+        b.step(1);
+        assert_eq!(b.read47(), [1, 1, 1, 1, 0x42, 1, 0, 50]);
+    }
+}

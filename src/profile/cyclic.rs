@@ -102,6 +102,9 @@ pub struct Cycle {
     /// The PKW request for the PKW server (telegrams with PKW, not in Echo, not while the
     /// communication is lost).
     pub pkw_request: Option<[u8; 8]>,
+    /// The control word of the output image the cycle evaluated (the first PZD word; INVT
+    /// CW b8 "enable writing" gates the PKW writes).
+    pub control_word: u16,
 }
 
 impl Cycle {
@@ -269,6 +272,7 @@ impl Cyclic {
             words: [0; PZD_SIGNALS],
             word_count: 0,
             pkw_request: None,
+            control_word: word(out, l.pkw),
         };
         if self.mode == OperateMode::Echo {
             // Both lengths are equal: ST20 (the only asymmetric telegram) is refused in new().

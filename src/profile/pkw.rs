@@ -245,6 +245,8 @@ pub struct PkwServer {
     dialect: PkwDialect,
     axis: u8,
     request: [u8; PKW_LEN],
+    /// Writes are enabled for the held request ([`Self::on_request_enabled`]).
+    enabled: bool,
     response: [u8; PKW_LEN],
     job: Job,
     counters: PkwCounters,
@@ -258,6 +260,7 @@ impl PkwServer {
             dialect,
             axis: 1,
             request: [0; PKW_LEN],
+            enabled: true,
             response: [0; PKW_LEN],
             job: Job::Idle,
             counters: PkwCounters { jobs: 0, completed: 0, rejected: 0, abandoned: 0 },
@@ -280,9 +283,19 @@ impl PkwServer {
     /// the held one starts a new job (its response is zero until [`Self::service`] answers it);
     /// the same request again changes nothing; type 0 is "no request" ([`is_no_request`]).
     pub fn on_request(&mut self, request: [u8; PKW_LEN]) {
-        if request == self.request {
+        self.on_request_enabled(request, true);
+    }
+
+    /// [`Self::on_request`] with the write permission of the cyclic data (INVT CW b8 "enable
+    /// writing", INVT §2.6 Table 2-5; `true` for the other dialects): a write request with
+    /// `write_enabled` false is rejected (INVT response 3, error 4 "operation failure" — the
+    /// manual names no number for it, this is our choice) without reaching the table. The
+    /// request together with the permission is the job: setting b8 later starts it anew.
+    pub fn on_request_enabled(&mut self, request: [u8; PKW_LEN], write_enabled: bool) {
+        if request == self.request && write_enabled == self.enabled {
             return;
         }
+        self.enabled = write_enabled;
         if matches!(self.job, Job::New | Job::Waiting) {
             self.counters.abandoned = self.counters.abandoned.wrapping_add(1);
         }
@@ -317,7 +330,7 @@ impl PkwServer {
             Job::Waiting => {}
         }
         let req = PkwWords::from_bytes(self.request);
-        let (response, rejected) = execute(self.dialect, self.axis, req, table);
+        let (response, rejected) = execute(self.dialect, self.axis, req, self.enabled, table);
         if table.pending() {
             return;
         }
@@ -403,6 +416,8 @@ impl Value {
 enum Failure {
     Param(ErrorValue),
     UnknownRequest,
+    /// A write without the cyclic data's write enable (INVT CW b8).
+    WriteDisabled,
 }
 
 impl From<ParamError> for Failure {
@@ -418,8 +433,17 @@ impl From<ErrorValue> for Failure {
 }
 
 /// Run `req` against `table`; the response words and whether it is a rejection.
-fn execute(dialect: PkwDialect, axis: u8, req: PkwWords, table: &mut impl ParameterAccess) -> (PkwWords, bool) {
-    let outcome = decode(dialect, req).and_then(|task| run(dialect, axis, task, req, table));
+fn execute(
+    dialect: PkwDialect,
+    axis: u8,
+    req: PkwWords,
+    write_enabled: bool,
+    table: &mut impl ParameterAccess,
+) -> (PkwWords, bool) {
+    let outcome = decode(dialect, req).and_then(|task| match task {
+        Task::Write { .. } if !write_enabled => Err(Failure::WriteDisabled),
+        task => run(dialect, axis, task, req, table),
+    });
     let response = encode(dialect, req, outcome);
     (response, outcome.is_err())
 }
@@ -601,6 +625,7 @@ fn encode(dialect: PkwDialect, req: PkwWords, outcome: Result<Option<Value>, Fai
                 Err(Failure::UnknownRequest) => {
                     words(pd2::REJECTED << 12 | pnu, req.index, u32::from(pd2::REQUEST_NOT_SUPPORTED))
                 }
+                Err(Failure::WriteDisabled) => words(pd2::NO_CHANGE_RIGHTS << 12 | pnu, req.index, 0),
             }
         }
     }
@@ -638,6 +663,7 @@ fn vacon_fault(f: Failure) -> u16 {
     match f {
         Failure::Param(e) => vacon_fault_code(e),
         Failure::UnknownRequest => vacon::UNKNOWN_REQUEST,
+        Failure::WriteDisabled => vacon::TEMPORARILY_REJECTED,
     }
 }
 
@@ -672,6 +698,7 @@ fn invt_error(f: Failure) -> u16 {
     match f {
         Failure::Param(e) => invt_error_number(e),
         Failure::UnknownRequest => invt::INVALID_COMMAND,
+        Failure::WriteDisabled => invt::OPERATION_FAILURE,
     }
 }
 

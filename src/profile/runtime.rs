@@ -40,6 +40,9 @@ use super::weg::{weg_profidrive, WegManufacturer, WegModel};
 use crate::dpm::{Family, Telegram};
 use crate::time::{Duration, Instant};
 
+/// INVT CW b8 "enable writing" (INVT §2.6 Table 2-5): PKW writes run only with it set.
+pub const INVT_ENABLE_WRITING: u16 = 1 << 8;
+
 /// The physical references of the speed scales (one unit for all: 0.01 Hz by default).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Scales {
@@ -195,6 +198,8 @@ pub struct RuntimeStats {
     pub delays_started: u32,
     /// Output images held back by the I/O update delay (P0799).
     pub held_outputs: u32,
+    /// Lost cycles bridged by the communication-loss delay.
+    pub bridged: u32,
 }
 
 /// The I/O update delay's bookkeeping (CFW-11 P0799, module docs).
@@ -223,6 +228,10 @@ pub struct Runtime {
     delay: UpdateDelay,
     /// The master is in Clear ([`Self::set_clear_mode`]).
     clear: bool,
+    /// The communication-loss delay ([`Self::set_comm_loss_delay`]).
+    loss_delay: Duration,
+    /// Since when the communication is lost (for the delay).
+    lost_since: Option<Instant>,
     /// Fault acknowledges of the profiles before this one: a new profile counts from 0, the
     /// drive must see the counter continue (a restart would acknowledge its fault).
     resets_base: u8,
@@ -250,6 +259,8 @@ impl Runtime {
             last: None,
             delay: UpdateDelay { delay: Duration::ZERO, online: false, until: None },
             clear: false,
+            loss_delay: Duration::ZERO,
+            lost_since: None,
             resets_base: 0,
             stats: RuntimeStats::default(),
         }
@@ -266,6 +277,16 @@ impl Runtime {
     pub fn io_update_delay(&self) -> Duration {
         self.delay.delay
     }
+    /// The drive's communication-loss delay (DPM `CONFIG.COMM_LOSS_DELAY_MS`, set by
+    /// `app::Application` on every cycle; 0 = none): a loss (watchdog, master gone, Clear)
+    /// shorter than this is bridged — the drive keeps the profile's command of the last output
+    /// image, without [`CommandFlags`](super::drive_if::CommandFlags)`::COMM_LOSS`, and the
+    /// I/O update delay does not restart; once it lasts longer, the loss command follows.
+    /// Needs the time ([`Self::cycle_at`]); counted in [`RuntimeStats::bridged`].
+    pub fn set_comm_loss_delay(&mut self, delay: Duration) {
+        self.loss_delay = delay;
+    }
+
     /// Whether the master is in Clear (its outputs are zero, reference §3.6): a lost cycle
     /// then runs the profile's [`ControlProfile::clear`] (VACON PROFIdrive: b10 = 0 in
     /// operation → FAULT, OPTE3/E5 §6.3.3) instead of [`ControlProfile::comm_lost`].
@@ -385,6 +406,20 @@ impl Runtime {
         words: &[u16],
     ) -> Option<Exchange<'_>> {
         self.track_faults(drive);
+        let grace = match (lost, now) {
+            (true, Some(n)) if self.loss_delay > Duration::ZERO => {
+                let since = *self.lost_since.get_or_insert(n);
+                n < since + self.loss_delay
+            }
+            _ => false,
+        };
+        if !lost {
+            self.lost_since = None;
+        }
+        if grace {
+            self.stats.bridged = self.stats.bridged.wrapping_add(1);
+        }
+        let lost = lost && !grace;
         let (engine, profile) = (self.engine.as_mut()?, self.profile.as_mut()?);
         let side = DriveSide { status: drive, words, pkw_response: self.pkw.response() };
         let d = &mut self.delay;
@@ -429,7 +464,9 @@ impl Runtime {
             engine.step(profile, side)
         };
         if let Some(req) = cycle.pkw_request {
-            self.pkw.on_request(req);
+            // INVT CW b8 "enable writing (mainly through PKW1 to PKW4)", INVT Table 2-5.
+            let enabled = self.pkw.dialect() != PkwDialect::Invt || cycle.control_word & INVT_ENABLE_WRITING != 0;
+            self.pkw.on_request_enabled(req, enabled);
         }
         if let Some(c) = cycle.command.as_mut().filter(|_| !continued) {
             c.fault_resets = c.fault_resets.wrapping_add(self.resets_base);

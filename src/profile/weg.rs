@@ -138,6 +138,36 @@ bitflags::bitflags! {
     }
 }
 
+/// P0680, the WEG status word (CFW500 Table 4.2, CFW-11 Tabela 3.2), of the drive's status
+/// and the command in force (`c`: the run command, quick stop, general enable, remote) — the
+/// manufacturer profile's status word, and the simulated drive's parameter P0680.
+pub fn p0680(model: WegModel, c: CommandFlags, drive: &DriveStatus) -> u16 {
+    let f = drive.flags;
+    let mut s = P0680::empty();
+    if model == WegModel::Cfw500 {
+        s.set(P0680::RUN_COMMAND, c.intersects(CommandFlags::RUN | CommandFlags::JOG1));
+    }
+    s.set(P0680::QUICK_STOP, c.contains(CommandFlags::QUICK_STOP) && f.contains(StatusFlags::RUNNING));
+    s.set(P0680::SECOND_RAMP, f.contains(StatusFlags::RAMP_SET_2));
+    s.set(P0680::ALARM, f.contains(StatusFlags::WARNING));
+    s.set(P0680::RUNNING, f.contains(StatusFlags::RUNNING));
+    s.set(
+        P0680::GENERAL_ENABLE,
+        !c.contains(CommandFlags::COAST)
+            && f.intersects(StatusFlags::READY | StatusFlags::RUNNING)
+            && !f.contains(StatusFlags::FAULT),
+    );
+    let forward = if drive.speed != 0 { drive.speed > 0 } else { !f.contains(StatusFlags::REVERSE) };
+    s.set(P0680::FORWARD, forward);
+    s.set(P0680::JOG, f.contains(StatusFlags::JOGGING));
+    // b12 LOC/REM: remote while the drive's control place is the fieldbus and P0684 b4 asks
+    // for remote.
+    s.set(P0680::REMOTE, f.contains(StatusFlags::FIELDBUS_CONTROL) && c.contains(CommandFlags::FIELDBUS_CONTROL));
+    s.set(P0680::UNDERVOLTAGE, f.contains(StatusFlags::UNDERVOLTAGE));
+    s.set(P0680::FAULT, f.contains(StatusFlags::FAULT));
+    s.bits()
+}
+
 /// WEG's manufacturer profile (P0741 = 1): P0684 → [`DriveCommand`], [`DriveStatus`] →
 /// P0680, P0685 / P0681 in the 13-bit scale.
 ///
@@ -201,31 +231,7 @@ impl ControlProfile for WegManufacturer {
     }
 
     fn status_word(&self, drive: &DriveStatus) -> u16 {
-        let f = drive.flags;
-        let c = self.command.flags;
-        let mut s = P0680::empty();
-        if self.model == WegModel::Cfw500 {
-            s.set(P0680::RUN_COMMAND, c.intersects(CommandFlags::RUN | CommandFlags::JOG1));
-        }
-        s.set(P0680::QUICK_STOP, c.contains(CommandFlags::QUICK_STOP) && f.contains(StatusFlags::RUNNING));
-        s.set(P0680::SECOND_RAMP, f.contains(StatusFlags::RAMP_SET_2));
-        s.set(P0680::ALARM, f.contains(StatusFlags::WARNING));
-        s.set(P0680::RUNNING, f.contains(StatusFlags::RUNNING));
-        s.set(
-            P0680::GENERAL_ENABLE,
-            !c.contains(CommandFlags::COAST)
-                && f.intersects(StatusFlags::READY | StatusFlags::RUNNING)
-                && !f.contains(StatusFlags::FAULT),
-        );
-        let forward = if drive.speed != 0 { drive.speed > 0 } else { !f.contains(StatusFlags::REVERSE) };
-        s.set(P0680::FORWARD, forward);
-        s.set(P0680::JOG, f.contains(StatusFlags::JOGGING));
-        // b12 LOC/REM: remote while the drive's control place is the fieldbus and P0684 b4
-        // asks for remote.
-        s.set(P0680::REMOTE, f.contains(StatusFlags::FIELDBUS_CONTROL) && c.contains(CommandFlags::FIELDBUS_CONTROL));
-        s.set(P0680::UNDERVOLTAGE, f.contains(StatusFlags::UNDERVOLTAGE));
-        s.set(P0680::FAULT, f.contains(StatusFlags::FAULT));
-        s.bits()
+        p0680(self.model, self.command.flags, drive)
     }
 
     fn actual_value(&self, drive: &DriveStatus) -> u16 {
