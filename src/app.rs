@@ -964,7 +964,7 @@ pub(crate) mod tests {
     mod process_data_semantics {
         use super::*;
         use crate::dpm::CardEvent;
-        use crate::drive::model::{CommLossAction, FAULT_FIELDBUS};
+        use crate::drive::model::{CommLossAction, FAULT_OFFLINE};
         use crate::drive::CommAlarms;
 
         /// Global_Control commands (reference §3.6).
@@ -1197,7 +1197,7 @@ pub(crate) mod tests {
         }
 
         /// Watchdog expiry (A139): the CARD events, the communication-loss command, and the
-        /// drive's factory action "fault" (F239-style, kept until reset after the master is back).
+        /// drive's factory action "fault" (F239, kept until reset after the master is back).
         #[test]
         fn watchdog_expiry_trips_the_drive_with_its_action() {
             for m in family_modules() {
@@ -1212,14 +1212,14 @@ pub(crate) mod tests {
                 assert_eq!(b.card_event(CardEvent::Offline), off.wrapping_add(1));
                 assert!(b.app.drive().command().flags.contains(CommandFlags::COMM_LOSS), "{}", m.name);
                 assert_eq!(b.app.drive().comm_alarms(), CommAlarms::OFFLINE, "{}", m.name);
-                assert_eq!(b.app.drive().status().fault_code, FAULT_FIELDBUS, "{}", m.name);
+                assert_eq!(b.app.drive().status().fault_code, FAULT_OFFLINE, "{}: F239", m.name);
                 assert!(!b.app.drive().model().modulating());
                 // The master comes back: the alarm goes, the fault stays.
                 b.bring_up_sync_freeze(m);
                 let (_, run, _) = control_words(m);
                 b.cycle(&image(m, run, setpoint(m, 25)), 10);
                 assert!(b.app.drive().comm_alarms().is_empty(), "{}", m.name);
-                assert_eq!(b.app.drive().status().fault_code, FAULT_FIELDBUS, "{}: until reset", m.name);
+                assert_eq!(b.app.drive().status().fault_code, FAULT_OFFLINE, "{}: until reset", m.name);
             }
         }
     }

@@ -28,8 +28,10 @@
 //! the last setpoint): the command gets [`CommandFlags::COMM_LOSS`] even before the card's
 //! next DRIVE_CMD carries it, and with A140 (the card is gone, its DRIVE_CMD is stale) the
 //! drive's own setting decides rather than the card's Set_Prm reaction. With the action
-//! "fault" the drive trips ([`model::FAULT_FIELDBUS`], F238/F239/F240-style, kept until a
-//! fault reset); otherwise it reports the alarm as its warning code ([`ALARM_CLEAR_MODE`],
+//! "fault" the drive trips with WEG's fault number of the alarm — F238 ([`model::FAULT_CLEAR_MODE`]),
+//! F239 ([`model::FAULT_OFFLINE`]), F240 ([`model::FAULT_ACCESS_ERROR`]) — kept until a
+//! fault reset (the card's own FIELDBUS_FAULT trips with [`model::FAULT_FIELDBUS`]); otherwise it
+//! reports the alarm as its warning code ([`ALARM_CLEAR_MODE`],
 //! [`ALARM_OFFLINE`], [`ALARM_ACCESS_ERROR`]), which disappears with the alarm.
 //!
 //! **Parameters:** the read-only P0680 (status word), P0681 (speed, 13 bits) and P10109
@@ -255,6 +257,15 @@ impl SimDrive {
             }
         }
         self.apply_ramps();
+        self.model.set_comm_fault_code(if self.alarms.contains(CommAlarms::ACCESS_ERROR) {
+            model::FAULT_ACCESS_ERROR
+        } else if self.alarms.contains(CommAlarms::OFFLINE) {
+            model::FAULT_OFFLINE
+        } else if self.alarms.contains(CommAlarms::CLEAR_MODE) {
+            model::FAULT_CLEAR_MODE
+        } else {
+            model::FAULT_FIELDBUS
+        });
         self.status = self.model.step(now, &self.command);
         let action = CommLossAction::from_reaction(self.command.comm_loss_reaction)
             .unwrap_or(self.model.config().comm_loss_action);
@@ -422,7 +433,7 @@ mod tests {
     use crate::dpm::host::{DpmTransport, Options};
     use crate::dpm::{CardReport, Dpm, Status};
     use crate::time::Duration;
-    use model::FAULT_FIELDBUS;
+    use model::{FAULT_ACCESS_ERROR, FAULT_OFFLINE};
 
     /// The card's side of the DPM, scripted: heartbeat, event counters, STATUS, DRIVE_CMD.
     struct Card {
@@ -532,13 +543,13 @@ mod tests {
             r.card.status.comm = CommState::Offline;
             r.run(10);
             assert_eq!(r.drive.comm_alarms(), CommAlarms::OFFLINE, "{event:?}");
-            assert_eq!(r.drive.status().fault_code, FAULT_FIELDBUS);
+            assert_eq!(r.drive.status().fault_code, FAULT_OFFLINE, "F239");
             assert_eq!(r.drive.status().warning_code, 0, "a fault, not an alarm");
-            assert_eq!(r.host.drive_report().fault_code, FAULT_FIELDBUS);
+            assert_eq!(r.host.drive_report().fault_code, FAULT_OFFLINE);
             r.back_online();
             r.run(10);
             assert!(r.drive.comm_alarms().is_empty());
-            assert_eq!(r.drive.status().fault_code, FAULT_FIELDBUS, "kept until a fault reset");
+            assert_eq!(r.drive.status().fault_code, FAULT_OFFLINE, "kept until a fault reset");
             r.card.command.command.fault_resets = 1;
             r.run(10);
             assert_eq!(r.drive.status().fault_code, 0);
@@ -580,7 +591,7 @@ mod tests {
                     assert_eq!(r.drive.actual_speed(), 0);
                 }
                 CommLossAction::KeepLast => assert!(r.drive.actual_speed() > 0x1F00),
-                _ => assert_eq!(r.drive.status().fault_code, FAULT_FIELDBUS),
+                _ => assert_eq!(r.drive.status().fault_code, FAULT_ACCESS_ERROR, "F240"),
             }
             if action != CommLossAction::Fault {
                 assert_eq!(r.drive.status().warning_code, ALARM_ACCESS_ERROR);

@@ -8,7 +8,7 @@ use crate::app::tests::{words, Bench};
 use crate::card;
 use crate::dp::DpState;
 use crate::dpm::HostConfig;
-use crate::drive::model::FAULT_FIELDBUS;
+use crate::drive::model::FAULT_CLEAR_MODE;
 use crate::fdl::telegram;
 use crate::profile::drive_if::{CommandFlags, StatusFlags};
 use crate::profile::profidrive::State;
@@ -246,7 +246,10 @@ fn leaving_clear_needs_an_acknowledge_on_vacon() {
     let i = b.cycles(&[0x04, 0x7F, 0x20, 0x00], 150);
     assert_eq!(b.app.profidrive_state(), Some(State::Fault));
     assert_eq!(words(&i)[0] & 0x0008, 0x0008, "ZSW1 b3 fault");
-    assert_eq!(b.app.drive().status().fault_code, FAULT_FIELDBUS);
+    // The drive's own action "fault" tripped it in Clear first (F238, CFW500 §6); the card's
+    // frozen FIELDBUS_FAULT after Clear keeps it tripped.
+    assert_eq!(b.app.drive().status().fault_code, FAULT_CLEAR_MODE);
+    assert!(b.app.drive().command().flags.contains(CommandFlags::FIELDBUS_FAULT));
     assert!(!b.app.drive().model().modulating(), "no restart: the motor coasts");
     // The process data stay frozen (the last valid command) with the fieldbus fault.
     assert!(b.app.drive().command().flags.contains(CommandFlags::FIELDBUS_FAULT));

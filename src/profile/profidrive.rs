@@ -21,7 +21,9 @@
 //! | S5 switching off (quick) | b0 b1 | #11 b1 = 0 → S1; #15 standstill or b3 = 0 → S1 | QUICK_STOP |
 //! | fault | b3 | a b7 0 → 1 edge, then the drive's fault cleared → S1 | pulses off |
 //!
-//! A drive fault ([`StatusFlags::FAULT`]) puts every state into the fault state. Transitions
+//! A drive fault ([`StatusFlags::FAULT`]) puts every state into the fault state; it is taken
+//! before the control word's acknowledge, so a b7 edge in the cycle the drive trips is not
+//! lost. The drive losing READY without a fault takes S2, S3 and S4 back to S1. Transitions
 //! chain within one evaluation (0x047F takes S2 through S3 to S4), and the cyclic engine calls
 //! [`ControlProfile::command`] on every housekeeping step with the last image, so transitions
 //! that wait for the drive (standstill, fault cleared, READY, fieldbus control place) happen
@@ -36,10 +38,19 @@
 //! [`CommandFlags::FIELDBUS_FAULT`] set; the drive reacts as it is parameterised. A b7 edge in
 //! a valid word acknowledges it. The frozen command keeps `FIELDBUS_CONTROL` set on purpose: the
 //! drive must not fall back to another control place while the fieldbus fault is pending.
+//! Clear mode counts as b10 = 0 (its outputs are zero; [`ControlProfile::clear`]): leaving
+//! Clear needs the acknowledge and a new switch-on. WEG's P0967 reads b10 as LOCAL / REMOTE
+//! only ([`ProfidriveConfig::b10_is_local_remote`], `super::weg::weg_profidrive`).
+//!
+//! # Setpoint freeze (STW1 b5, OPTE3/E5 Table 26)
+//!
+//! b5 = 0 holds the setpoint (the setpoint word is not taken over); the ramp-function
+//! generator runs on to it — no [`CommandFlags::RAMP_HOLD`].
 //!
 //! # Fault acknowledge (STW1 b7)
 //!
-//! Every 0 → 1 edge of b7 in a valid control word adds one to [`DriveCommand::fault_resets`]
+//! Every 0 → 1 edge of b7 (WEG: b7 = 1 in the fault state, once per fault,
+//! [`ProfidriveConfig::ack_on_level`]) in a valid control word adds one to [`DriveCommand::fault_resets`]
 //! (also outside the fault state: the drive resets warnings and infos too, OPTE3/E5 §11.1
 //! Table 146 b2). An edge in the fault state also arms the exit: the profile leaves the fault
 //! state for S1 once the drive reports its fault cleared.
