@@ -124,6 +124,12 @@ impl Application {
         }
     }
 
+    /// Stop (false) or restart the simulated drive's steps: a drive whose control board
+    /// stopped (its heartbeat stands still — fault injection for the drive-lost image).
+    pub fn set_drive_runs(&mut self, runs: bool) {
+        self.drive.runs = runs;
+    }
+
     /// Whether the simulated drive runs in the steps (false in [card-only](Self::card_only)
     /// mode).
     pub fn simulates_drive(&self) -> bool {
@@ -263,22 +269,29 @@ impl Application {
             let user = snap.user_prm;
             let config = self.link.config();
             let local = config.map_or(0, |c| c.operate_mode);
-            let data = match config.map_or(1, |c| c.profile) {
-                0 => DataProfile::Profidrive,
-                _ => DataProfile::Manufacturer,
-            };
+            let data = DataProfile::of_config(config.map(|c| c.profile));
             let delay = config.map_or(0, |c| c.io_update_delay);
             self.runtime.set_io_update_delay(Duration::from_millis(100 * u64::from(delay)));
+            let loss_delay = config.map_or(0, |c| c.comm_loss_delay_ms);
+            self.runtime.set_comm_loss_delay(Duration::from_millis(u64::from(loss_delay)));
+            // The master's reaction (Set_Prm) first; its 0 "the drive's own setting" takes the
+            // drive's CONFIG.COMM_LOSS_REACTION (P0313-style), so a drive that leaves the
+            // reaction to the card gets the one it configured.
+            let reaction = match user[card::PRM_COMM_LOSS_REACTION.offset] {
+                0 => config.map_or(0, |c| c.comm_loss_reaction),
+                r => r,
+            };
             self.runtime.select(Selection {
                 telegram,
                 mode: Selection::mode_of(user[card::PRM_OPERATE_MODE.offset], local),
                 data,
-                comm_loss_reaction: user[card::PRM_COMM_LOSS_REACTION.offset],
+                comm_loss_reaction: reaction,
             });
         }
         let Some(sel) = self.runtime.selection() else { return };
         // Watchdog expired / master gone (left data exchange) or master in Clear.
         let lost = !in_dx || snap.is_clear();
+        self.runtime.set_clear_mode(in_dx && snap.is_clear());
         let state = *self.link.read_drive_state(self.host.transport().dpm());
         let outputs = (events.contains(Events::OUTPUTS_UPDATED) && !lost).then(|| snap.outputs());
         let drive_lost = self.link.drive_lost();
@@ -360,7 +373,7 @@ impl Application {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::card;
     use crate::dp::{DpSlave, DpState};
@@ -374,15 +387,15 @@ mod tests {
     const SLAVE: u8 = 5;
 
     /// A scripted master: builds SRD requests and feeds them byte by byte.
-    struct Bench {
-        node: Node,
-        app: Application,
-        now: Instant,
+    pub(crate) struct Bench {
+        pub(crate) node: Node,
+        pub(crate) app: Application,
+        pub(crate) now: Instant,
         fcb: bool,
     }
 
     impl Bench {
-        fn new() -> Self {
+        pub(crate) fn new() -> Self {
             let mut app = Application::new(DriveConfig {
                 ramp_time: Duration::from_millis(1000),
                 quick_stop_time: Duration::from_millis(100),
@@ -393,11 +406,11 @@ mod tests {
         }
 
         /// Send one SRD request; returns the response bytes.
-        fn srd(&mut self, dsap: Option<u8>, pdu: &[u8]) -> Vec<u8> {
+        pub(crate) fn srd(&mut self, dsap: Option<u8>, pdu: &[u8]) -> Vec<u8> {
             self.send(dsap, dsap.map(|_| 62), pdu)
         }
 
-        fn send(&mut self, dsap: Option<u8>, ssap: Option<u8>, pdu: &[u8]) -> Vec<u8> {
+        pub(crate) fn send(&mut self, dsap: Option<u8>, ssap: Option<u8>, pdu: &[u8]) -> Vec<u8> {
             self.fcb = !self.fcb;
             let hdr = Header { da: SLAVE, sa: MASTER, fc: FunctionCode::request(0xD, self.fcb, true), dsap, ssap };
             let mut buf = [0u8; telegram::MAX_FRAME_LEN];
@@ -411,16 +424,16 @@ mod tests {
             resp.expect("no response")
         }
 
-        fn step(&mut self, ms: u64) -> Events {
+        pub(crate) fn step(&mut self, ms: u64) -> Events {
             self.now = self.now + Duration::from_millis(ms);
             self.app.step(self.now, &mut self.node)
         }
 
-        fn bring_up(&mut self, module: &card::Module) {
+        pub(crate) fn bring_up(&mut self, module: &card::Module) {
             self.bring_up_with(module, card::USER_PRM_DEFAULTS[0]);
         }
 
-        fn bring_up_with(&mut self, module: &card::Module, dpv1_status_1: u8) {
+        pub(crate) fn bring_up_with(&mut self, module: &card::Module, dpv1_status_1: u8) {
             let mut prm = vec![0x88, 1, 100, 11, (card::IDENT_NUMBER >> 8) as u8, card::IDENT_NUMBER as u8, 0];
             prm.extend_from_slice(&card::USER_PRM_DEFAULTS);
             prm[7] = dpv1_status_1;
@@ -433,7 +446,7 @@ mod tests {
 
         /// One MSAC_C1 request, one run of the DP-V1 task over the mailbox-backed parameters,
         /// one poll; returns the DP-V1 response PDU.
-        fn c1(&mut self, pdu: &[u8]) -> Vec<u8> {
+        pub(crate) fn c1(&mut self, pdu: &[u8]) -> Vec<u8> {
             assert_eq!(self.send(Some(51), Some(51), pdu), [telegram::SC], "request acknowledged");
             self.acyclic();
             let r = self.send(Some(51), Some(51), &[]);
@@ -442,19 +455,19 @@ mod tests {
         }
 
         /// The DP-V1 task: process_acyclic with the mailbox-backed parameters.
-        fn acyclic(&mut self) {
+        pub(crate) fn acyclic(&mut self) {
             let now = self.now;
             self.node.process_acyclic(now, &mut self.app.parameters(now));
         }
 
         /// DS_Write `req` to record 47 (checking the write response).
-        fn write47(&mut self, req: &[u8]) {
+        pub(crate) fn write47(&mut self, req: &[u8]) {
             let n = req.len() as u8;
             assert_eq!(self.c1(&[&[0x5F, 0, 47, n][..], req].concat()), [0x5F, 0, 47, n]);
         }
 
         /// DS_Read record 47: the parameter response, or the DP-V1 error PDU.
-        fn read47(&mut self) -> Vec<u8> {
+        pub(crate) fn read47(&mut self) -> Vec<u8> {
             let r = self.c1(&[0x5E, 0, 47, 240]);
             if r[0] == 0x5E {
                 assert_eq!(r[3] as usize, r.len() - 4);
@@ -464,19 +477,19 @@ mod tests {
             }
         }
 
-        fn requests(&self) -> u32 {
+        pub(crate) fn requests(&self) -> u32 {
             self.app.link().mailbox().stats().requests
         }
 
         /// One Data_Exchange with `outputs`, then a step of `ms`; returns the inputs received.
-        fn cycle(&mut self, outputs: &[u8], ms: u64) -> Vec<u8> {
+        pub(crate) fn cycle(&mut self, outputs: &[u8], ms: u64) -> Vec<u8> {
             let r = self.srd(None, outputs);
             self.step(ms);
             r[telegram::pdu_range(r.len(), self.node.slave().input_len())].to_vec()
         }
     }
 
-    fn words(b: &[u8]) -> Vec<u16> {
+    pub(crate) fn words(b: &[u8]) -> Vec<u16> {
         b.chunks(2).map(|w| u16::from_be_bytes([w[0], w[1]])).collect()
     }
 
@@ -680,9 +693,10 @@ mod tests {
         // (last cycle, PKW server, fault buffer) and the drive's parameter table, plus the SPI
         // frame transport of the drive's host (the host's MOSI and MISO buffers and the
         // loopback card's reply, one longest transaction of 1034 B each, ≈ 3.1 KiB): a static
-        // in the firmware.
+        // in the firmware. The simulated drive's VACON application-ID table (PNU 10001, the
+        // PPO PKW) adds ≈ 0.1 KiB.
         let n = core::mem::size_of::<Application>();
-        assert!(n <= 4608 + 3 * crate::dpm::spi::MAX_TRANSACTION + 128, "Application is {n} bytes");
+        assert!(n <= 4608 + 3 * crate::dpm::spi::MAX_TRANSACTION + 256, "Application is {n} bytes");
     }
 
     #[test]
@@ -810,7 +824,8 @@ mod tests {
 
     /// The PKW channel of PPO 1 end to end: the request goes through the PKW server and the
     /// DPM mailbox to the drive's table; the response is repeated until the request changes
-    /// (PROFIdrive 2.0 PKW, reference §5.6: AK 1 read word → AK 1 value word).
+    /// (VACON PKW, OPTE3/E5 §6.6.2: type 1 read word → type 1 value; type 2 write → type 1
+    /// with value 0, Table 130; the PNU is the drive's application ID).
     #[cfg(not(feature = "bench"))]
     #[test]
     fn ppo1_pkw_reads_and_writes_a_drive_parameter() {
@@ -818,27 +833,27 @@ mod tests {
         let mut b = Bench::new();
         b.bring_up(m);
         let mut q = [0u8; 12];
-        q[..8].copy_from_slice(&[0x10, 100, 0, 0, 0, 0, 0, 0]); // AK 1, PNU 100
+        q[..8].copy_from_slice(&[0x10, 103, 0, 0, 0, 0, 0, 0]); // read ID 103
         q[8..].copy_from_slice(&[0x04, 0x7E, 0, 0]);
         let mut i = vec![];
         for _ in 0..6 {
             i = b.cycle(&q, 2);
         }
-        assert_eq!(&words(&i)[..4], &[0x1064, 0, 0, 50], "P100 = 50 (5.0 s)");
-        // Write P100 = 85 (AK 2 word), then the response is held while the request stays.
-        q[..8].copy_from_slice(&[0x20, 100, 0, 0, 0, 0, 0, 85]);
+        assert_eq!(&words(&i)[..4], &[0x1067, 0, 0, 30], "ID 103 = 30 (3.0 s)");
+        // Write ID 103 = 85 (type 2), then the response is held while the request stays.
+        q[..8].copy_from_slice(&[0x20, 103, 0, 0, 0, 0, 0, 85]);
         for _ in 0..6 {
             i = b.cycle(&q, 2);
         }
-        assert_eq!(&words(&i)[..4], &[0x1064, 0, 0, 85]);
-        assert_eq!(b.app.drive_params().get(100, 0), Some(85));
+        assert_eq!(&words(&i)[..4], &[0x1067, 0, 0, 0], "Table 130: type 1, value 0");
+        assert_eq!(b.app.drive().vacon_ids().get(103, 0), Some(85));
         let requests = b.requests();
         for _ in 0..5 {
             i = b.cycle(&q, 2);
         }
-        assert_eq!(&words(&i)[..4], &[0x1064, 0, 0, 85], "held");
+        assert_eq!(&words(&i)[..4], &[0x1067, 0, 0, 0], "held");
         assert_eq!(b.requests(), requests, "executed once");
-        // Unknown PNU 999: AK 7 with error number 0 (PROFIdrive: impermissible PNU).
+        // Unknown ID 999: type 7 with fault code 0 (Table 122: illegal parameter).
         q[..8].copy_from_slice(&[0x13, 0xE7, 0, 0, 0, 0, 0, 0]);
         for _ in 0..6 {
             i = b.cycle(&q, 2);
@@ -949,7 +964,7 @@ mod tests {
     mod process_data_semantics {
         use super::*;
         use crate::dpm::CardEvent;
-        use crate::drive::model::{CommLossAction, FAULT_FIELDBUS};
+        use crate::drive::model::{CommLossAction, FAULT_OFFLINE};
         use crate::drive::CommAlarms;
 
         /// Global_Control commands (reference §3.6).
@@ -1130,7 +1145,9 @@ mod tests {
 
         /// Clear mode (A138): the drive gets the communication-loss command and the CARD
         /// event; with the drive's action "ramp stop" it stops and shows A138, which goes away
-        /// when the master leaves Clear; the outputs then apply again.
+        /// when the master leaves Clear; the outputs then apply again — for the VACON
+        /// PROFIdrive profiles only after a b7 acknowledge and a new switch-on (OPTE3/E5 §6.3.3
+        /// bit 10: Clear's zero outputs drop b10 in operation → FAULT).
         #[test]
         fn clear_mode_gives_the_drive_its_comm_loss_action() {
             for m in family_modules() {
@@ -1154,6 +1171,21 @@ mod tests {
                 assert_eq!(b.app.drive().status().warning_code, crate::drive::ALARM_CLEAR_MODE);
                 // Operate again (Global_Control without Clear_Data): the alarm goes, it runs.
                 b.global_control(0x00);
+                if b.app.profidrive_state().is_some() {
+                    // VACON PROFIdrive (OPTE3/E5 §6.3.3 bit 10): Clear's zero outputs dropped
+                    // STW1 b10 in operation — FAULT; leaving Clear does not restart the motor.
+                    for _ in 0..20 {
+                        b.cycle(&q, 10);
+                    }
+                    assert_eq!(b.app.profidrive_state(), Some(DriveState::Fault), "{}", m.name);
+                    assert_eq!(b.app.drive().actual_speed(), 0, "{}: no restart without acknowledge", m.name);
+                    // b7 acknowledge, then the switch-on sequence again.
+                    b.cycle(&image(m, 0x04FE, setpoint(m, 25)), 10);
+                    for _ in 0..5 {
+                        b.cycle(&image(m, 0x047E, setpoint(m, 25)), 10);
+                    }
+                    assert_eq!(b.app.profidrive_state(), Some(DriveState::ReadyToSwitchOn), "{}", m.name);
+                }
                 for _ in 0..60 {
                     b.cycle(&q, 10);
                 }
@@ -1211,7 +1243,7 @@ mod tests {
         }
 
         /// Watchdog expiry (A139): the CARD events, the communication-loss command, and the
-        /// drive's factory action "fault" (F239-style, kept until reset after the master is back).
+        /// drive's factory action "fault" (F239, kept until reset after the master is back).
         #[test]
         fn watchdog_expiry_trips_the_drive_with_its_action() {
             for m in family_modules() {
@@ -1226,14 +1258,14 @@ mod tests {
                 assert_eq!(b.card_event(CardEvent::Offline), off.wrapping_add(1));
                 assert!(b.app.drive().command().flags.contains(CommandFlags::COMM_LOSS), "{}", m.name);
                 assert_eq!(b.app.drive().comm_alarms(), CommAlarms::OFFLINE, "{}", m.name);
-                assert_eq!(b.app.drive().status().fault_code, FAULT_FIELDBUS, "{}", m.name);
+                assert_eq!(b.app.drive().status().fault_code, FAULT_OFFLINE, "{}: F239", m.name);
                 assert!(!b.app.drive().model().modulating());
                 // The master comes back: the alarm goes, the fault stays.
                 b.bring_up_sync_freeze(m);
                 let (_, run, _) = control_words(m);
                 b.cycle(&image(m, run, setpoint(m, 25)), 10);
                 assert!(b.app.drive().comm_alarms().is_empty(), "{}", m.name);
-                assert_eq!(b.app.drive().status().fault_code, FAULT_FIELDBUS, "{}: until reset", m.name);
+                assert_eq!(b.app.drive().status().fault_code, FAULT_OFFLINE, "{}: until reset", m.name);
             }
         }
     }

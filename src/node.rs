@@ -179,6 +179,7 @@ impl Node {
             fault_counter: 0,
             faults: [0; FAULT_BUFFER_LEN],
         };
+        self.records.set_errors(crate::profile::records::RecordErrors::for_telegram(info.telegram));
         let mut table = CardTable { info, drive: parameters };
         self.records.retry(&mut table);
         let mut records = self.records.with(&mut table);

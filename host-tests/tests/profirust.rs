@@ -479,7 +479,7 @@ impl SlaveApp for DriveApp {
         self.rt.select(Selection {
             telegram,
             mode: OperateMode::Profidrive,
-            data: pbcard::profile::telegram::DataProfile::Manufacturer,
+            data: pbcard::profile::telegram::DataProfile::Factory,
             comm_loss_reaction: 0,
         });
         let x = self.rt.cycle(Some(slave.outputs()), false, &self.status, &self.words).unwrap();

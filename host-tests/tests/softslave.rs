@@ -400,7 +400,8 @@ fn watchdog_expiry_is_logged_and_faults_the_running_drive() {
         }
         std::thread::sleep(Duration::from_millis(50));
     }
-    assert!(slave.logged("drive fault 7510 (fieldbus: communication lost)"), "{}", slave.dump());
+    // F239 (0xEF): the drive's "fault" action with A139 offline (CFW500 §6).
+    assert!(slave.logged("drive fault 00EF (fieldbus: communication lost)"), "{}", slave.dump());
     assert!(slave.logged("P0740 = 2 (offline)"), "{}", slave.dump());
     // The master comes back; the PLC acknowledges the fault (b7 edge) and runs the drive again.
     if !m.run_until(DEADLINE, running) {

@@ -251,11 +251,15 @@ fn drive_summary(app: &Application) -> String {
     let st = app.drive().status();
     let f = st.flags;
     if f.contains(pbcard::profile::drive_if::StatusFlags::FAULT) {
-        format!(
-            "drive fault {:04X}{}",
-            st.fault_code,
-            if st.fault_code == pbcard::drive::model::FAULT_FIELDBUS { " (fieldbus: communication lost)" } else { "" }
-        )
+        format!("drive fault {:04X}{}", st.fault_code, {
+            use pbcard::drive::model::{FAULT_ACCESS_ERROR, FAULT_CLEAR_MODE, FAULT_FIELDBUS, FAULT_OFFLINE};
+            let fieldbus = [FAULT_FIELDBUS, FAULT_CLEAR_MODE, FAULT_OFFLINE, FAULT_ACCESS_ERROR];
+            if fieldbus.contains(&st.fault_code) {
+                " (fieldbus: communication lost)"
+            } else {
+                ""
+            }
+        })
     } else if f.contains(pbcard::profile::drive_if::StatusFlags::RUNNING) {
         format!("drive running, speed {:+}", st.speed)
     } else {

@@ -293,7 +293,7 @@ impl Link {
             self.inputs_seq = 0;
             node.slave_mut().set_inputs(&[]);
             if self.drive_lost {
-                set_fault_image(node, telegram);
+                set_fault_image(node, telegram, self.config.map(|c| c.profile));
             }
         }
         self.snapshot(node, events)
@@ -402,7 +402,7 @@ impl Link {
             return;
         }
         if update.fault_image {
-            set_fault_image(node, update.telegram);
+            set_fault_image(node, update.telegram, self.config.map(|c| c.profile));
         } else if let Some(inputs) = update.inputs() {
             node.slave_mut().set_inputs(inputs);
         }
@@ -561,14 +561,19 @@ struct ConfigTakeover {
     module: Option<&'static crate::card::Module>,
 }
 
-/// Serve ZSW1 = [`ZSW1_FAULT`] (after the PKW), every other word 0.
-fn set_fault_image(node: &mut Node, telegram: Telegram) {
+/// Serve the profile's fault status word (after the PKW; [`ZSW1_FAULT`] for PROFIdrive, WEG
+/// P0680 b15, INVT state 4: `profile::telegram::ProfileFamily::fault_status_word`), every
+/// other word 0. `profile` is the drive's CONFIG.PROFILE (WEG P0741; `None` without CONFIG).
+fn set_fault_image(node: &mut Node, telegram: Telegram, profile: Option<u8>) {
+    use crate::profile::telegram::{DataProfile, Layout};
+    let word =
+        Layout::of(telegram).map_or(ZSW1_FAULT, |l| l.profile(DataProfile::of_config(profile)).fault_status_word());
     let (pkw, pzd) = (telegram.pkw_words(), telegram.pzd_words());
     if pzd == 0 {
         return;
     }
     let mut bytes = [0u8; super::layout::PD_CAPACITY];
-    bytes[2 * pkw..2 * pkw + 2].copy_from_slice(&ZSW1_FAULT.to_be_bytes());
+    bytes[2 * pkw..2 * pkw + 2].copy_from_slice(&word.to_be_bytes());
     node.slave_mut().set_inputs(&bytes[..2 * (pkw + pzd)]);
 }
 

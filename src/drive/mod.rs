@@ -28,15 +28,22 @@
 //! the last setpoint): the command gets [`CommandFlags::COMM_LOSS`] even before the card's
 //! next DRIVE_CMD carries it, and with A140 (the card is gone, its DRIVE_CMD is stale) the
 //! drive's own setting decides rather than the card's Set_Prm reaction. With the action
-//! "fault" the drive trips ([`model::FAULT_FIELDBUS`], F238/F239/F240-style, kept until a
-//! fault reset); otherwise it reports the alarm as its warning code ([`ALARM_CLEAR_MODE`],
+//! "fault" the drive trips with WEG's fault number of the alarm — F238 ([`model::FAULT_CLEAR_MODE`]),
+//! F239 ([`model::FAULT_OFFLINE`]), F240 ([`model::FAULT_ACCESS_ERROR`]) — kept until a
+//! fault reset (the card's own FIELDBUS_FAULT trips with [`model::FAULT_FIELDBUS`]); otherwise it
+//! reports the alarm as its warning code ([`ALARM_CLEAR_MODE`],
 //! [`ALARM_OFFLINE`], [`ALARM_ACCESS_ERROR`]), which disappears with the alarm.
+//!
+//! **Parameters:** the read-only P0680 (status word), P0681 (speed, 13 bits) and P10109
+//! (process data in words) follow the drive's state in every step; a P0100 / P0101 (ramp
+//! times) written through the card takes effect at once (until one is written, the model's
+//! configured ramps apply — the test benches run shorter ramps than P0100's factory 5.0 s).
 //!
 //! Programmable PZD words are echoed (each input word = the output word of the same
 //! position), so a PLC program can check its word mapping. In the Bypass operate mode
 //! (OPTE3/E5 §5.1.2, §6.7) the card passes the raw words: the drive reads word 1 as its
 //! FBFixedControlWord (OPTE3/E5 §11.1 Table 146: b0 run, b1 reverse, b2 fault reset edge)
-//! and word 2 as the setpoint 0..10000 = 0..100 %, and answers FBFixedStatusWord (§11.3
+//! and word 2 as the setpoint 0..10000 = 0..100 % (a negative word is refused as 0), and answers FBFixedStatusWord (§11.3
 //! Table 149) and the actual speed 0..10000, the other words echoed.
 
 pub mod model;
@@ -62,6 +69,12 @@ pub const DIAG_FAULTS: [(u16, u8); 6] = [
     (0x4210, 5), // drive overtemperature
     (0x2330, 6), // earth fault
 ];
+
+/// P0100 / P0101 of `t` (0.1 s).
+fn ramp_params(t: &DriveTable) -> (u16, u16) {
+    let get = |pnu| t.get(pnu, 0).map_or(0, |v| v.clamp(0, i64::from(u16::MAX)) as u16);
+    (get(params::P_ACCELERATION_TIME), get(params::P_DECELERATION_TIME))
+}
 
 /// The device-related diagnosis block of the GSD (`gsd/ODCP0F11.gsd`): header 0x03, drive
 /// status bits (b0 fault, b1 warning), fault value.
@@ -134,12 +147,15 @@ pub struct SimStats {
 pub struct SimDrive {
     model: DriveModel,
     table: DriveTable,
+    vacon_ids: params::VaconIdTable,
     serve_parameters: bool,
     image: DriveCommandImage,
     command: DriveCommand,
     status: DriveStatus,
     bypass_cw: u16,
     bypass_resets: u8,
+    /// P0100 / P0101 as last applied to the model (module docs, "parameters").
+    ramps_applied: (u16, u16),
     diag: [u8; 3],
     alarms: CommAlarms,
     stats: SimStats,
@@ -151,12 +167,14 @@ impl SimDrive {
         SimDrive {
             model: DriveModel::new(config),
             table: sim_drive_table(),
+            vacon_ids: params::VACON_ID_TABLE,
             serve_parameters: true,
             image: DriveCommandImage::EMPTY,
             command: DriveCommand::default(),
             status: DriveStatus::default(),
             bypass_cw: 0,
             bypass_resets: 0,
+            ramps_applied: ramp_params(&sim_drive_table()),
             diag: [0; 3],
             alarms: CommAlarms::empty(),
             stats: SimStats::default(),
@@ -190,6 +208,10 @@ impl SimDrive {
     /// The parameter table.
     pub fn params(&self) -> &DriveTable {
         &self.table
+    }
+    /// The VACON application parameters (reached through PNU 10001 and the PPO's PKW).
+    pub fn vacon_ids(&self) -> &params::VaconIdTable {
+        &self.vacon_ids
     }
     /// The parameter table, mutable.
     pub fn params_mut(&mut self) -> &mut DriveTable {
@@ -234,6 +256,16 @@ impl SimDrive {
                 self.command.comm_loss_reaction = 0;
             }
         }
+        self.apply_ramps();
+        self.model.set_comm_fault_code(if self.alarms.contains(CommAlarms::ACCESS_ERROR) {
+            model::FAULT_ACCESS_ERROR
+        } else if self.alarms.contains(CommAlarms::OFFLINE) {
+            model::FAULT_OFFLINE
+        } else if self.alarms.contains(CommAlarms::CLEAR_MODE) {
+            model::FAULT_CLEAR_MODE
+        } else {
+            model::FAULT_FIELDBUS
+        });
         self.status = self.model.step(now, &self.command);
         let action = CommLossAction::from_reaction(self.command.comm_loss_reaction)
             .unwrap_or(self.model.config().comm_loss_action);
@@ -242,6 +274,7 @@ impl SimDrive {
             self.status.flags |= StatusFlags::WARNING;
         }
         let extra = if bypass { self.bypass_words() } else { self.image.extra };
+        self.update_parameters(&extra);
         let state = DriveStateImage { status: self.status, inputs_seq: 0, extra };
         if host.write_state(&state).is_err() {
             self.stats.write_errors = self.stats.write_errors.wrapping_add(1);
@@ -260,7 +293,47 @@ impl SimDrive {
             }
         }
         if self.serve_parameters {
-            let _ = host.serve_parameters(&mut crate::dpm::host::Table(&mut self.table));
+            let (table, ids) = (&mut self.table, &mut self.vacon_ids);
+            let _ = host.serve_parameters(&mut |req: &crate::dpm::MailboxRequest| {
+                crate::dpm::host::Answer::Now(if req.pnu == params::VACON_DRIVE_PARAMETER {
+                    // OPTE3/E5 §6.4.4.7 / §6.6.1: PNU 10001, the application ID as subindex.
+                    let mut r = *req;
+                    r.pnu = req.subindex;
+                    r.subindex = 0;
+                    crate::dpm::mailbox::execute(&r, ids)
+                } else {
+                    crate::dpm::mailbox::execute(req, table)
+                })
+            });
+        }
+    }
+
+    /// P0100 / P0101 written (by the master, record 47 / 48 or the PKW): the model ramps with
+    /// them from now on. Until then the model keeps its configured ramps.
+    fn apply_ramps(&mut self) {
+        let now = ramp_params(&self.table);
+        if now.0 != self.ramps_applied.0 {
+            self.model.config_mut().ramp_time = params::acceleration_time(&self.table);
+        }
+        if now.1 != self.ramps_applied.1 {
+            self.model.set_deceleration_time(params::deceleration_time(&self.table));
+        }
+        self.ramps_applied = now;
+    }
+
+    /// The read-only parameters that show the drive's live state: P0680 status word (WEG
+    /// CFW500 Table 4.2, of the command in force), P0681 speed in 13 bits (8192 = the
+    /// reference speed P10111), P10109 process data in words (the input words sent).
+    fn update_parameters(&mut self, inputs: &PzdWords) {
+        use crate::profile::weg::{p0680, WegModel};
+        let sw = p0680(WegModel::Cfw500, self.command.flags, &self.status);
+        let _ = self.table.set(params::P_STATUS_WORD, 0, i64::from(sw));
+        let n13 = WegModel::scale_13bit(1, 1).from_n2(self.status.speed);
+        let _ = self.table.set(params::P_SPEED_13BIT, 0, i64::from(n13));
+        let w = inputs.words();
+        for k in 0..16u16 {
+            let v = w.get(usize::from(k)).copied().unwrap_or(0);
+            let _ = self.table.set(params::P_PD_IN, k, i64::from(v));
         }
     }
 
@@ -294,7 +367,9 @@ impl SimDrive {
     fn bypass_command(&mut self) -> DriveCommand {
         let w = self.image.extra.words();
         let cw = w.first().copied().unwrap_or(0);
-        let sp = w.get(1).copied().unwrap_or(0).min(10_000) as i32;
+        // 0..10000 = 0.00..100.00 % (OPTE3/E5 §6.7.1), the direction in b1: a negative
+        // word (above 0x7FFF) is out of range and taken as 0, never as +100 %.
+        let sp = (w.get(1).copied().unwrap_or(0) as i16).clamp(0, 10_000) as i32;
         if cw & 0x0004 != 0 && self.bypass_cw & 0x0004 == 0 {
             self.bypass_resets = self.bypass_resets.wrapping_add(1);
         }
@@ -358,7 +433,7 @@ mod tests {
     use crate::dpm::host::{DpmTransport, Options};
     use crate::dpm::{CardReport, Dpm, Status};
     use crate::time::Duration;
-    use model::FAULT_FIELDBUS;
+    use model::{FAULT_ACCESS_ERROR, FAULT_OFFLINE};
 
     /// The card's side of the DPM, scripted: heartbeat, event counters, STATUS, DRIVE_CMD.
     struct Card {
@@ -468,13 +543,13 @@ mod tests {
             r.card.status.comm = CommState::Offline;
             r.run(10);
             assert_eq!(r.drive.comm_alarms(), CommAlarms::OFFLINE, "{event:?}");
-            assert_eq!(r.drive.status().fault_code, FAULT_FIELDBUS);
+            assert_eq!(r.drive.status().fault_code, FAULT_OFFLINE, "F239");
             assert_eq!(r.drive.status().warning_code, 0, "a fault, not an alarm");
-            assert_eq!(r.host.drive_report().fault_code, FAULT_FIELDBUS);
+            assert_eq!(r.host.drive_report().fault_code, FAULT_OFFLINE);
             r.back_online();
             r.run(10);
             assert!(r.drive.comm_alarms().is_empty());
-            assert_eq!(r.drive.status().fault_code, FAULT_FIELDBUS, "kept until a fault reset");
+            assert_eq!(r.drive.status().fault_code, FAULT_OFFLINE, "kept until a fault reset");
             r.card.command.command.fault_resets = 1;
             r.run(10);
             assert_eq!(r.drive.status().fault_code, 0);
@@ -516,7 +591,7 @@ mod tests {
                     assert_eq!(r.drive.actual_speed(), 0);
                 }
                 CommLossAction::KeepLast => assert!(r.drive.actual_speed() > 0x1F00),
-                _ => assert_eq!(r.drive.status().fault_code, FAULT_FIELDBUS),
+                _ => assert_eq!(r.drive.status().fault_code, FAULT_ACCESS_ERROR, "F240"),
             }
             if action != CommLossAction::Fault {
                 assert_eq!(r.drive.status().warning_code, ALARM_ACCESS_ERROR);

@@ -13,6 +13,9 @@
 //! * **Faults:** [`DriveModel::inject_fault`] trips (coast, FAULT, the code and MELD_NAMUR
 //!   bits); a new [`DriveCommand::fault_resets`] count acknowledges it. FIELDBUS_FAULT from the
 //!   card trips with [`FAULT_FIELDBUS`].
+//! * **Local / remote:** a command without FIELDBUS_CONTROL (WEG P0967 b10 = 0 or P0684 b4 =
+//!   0 "local", PROFIdrive b10 = 0) does not run the drive: the local control place has no
+//!   run command in the simulation, so the drive ramps to a stop.
 //! * **Communication loss:** while COMM_LOSS is set the drive applies the reaction asked in
 //!   [`DriveCommand::comm_loss_reaction`], or its own [`ModelConfig::comm_loss_action`] when it
 //!   is 0 (P0313-style: none, ramp stop, coast, quick stop, fault, keep the last setpoint).
@@ -32,6 +35,13 @@ const MICRO: i64 = 1_000_000;
 /// Fault code of a fieldbus fault (the card's profile reported FIELDBUS_FAULT or the
 /// communication-loss action "fault"; WEG F238 / F239 / F240 with P0313 = 5, CFW500 §6).
 pub const FAULT_FIELDBUS: u16 = 0x7510;
+/// Fault F238 "PROFIBUS DP interface in Clear mode" (CFW500 §6): the communication-loss action
+/// "fault" with alarm A138 active.
+pub const FAULT_CLEAR_MODE: u16 = 238;
+/// Fault F239 "PROFIBUS DP interface offline" (CFW500 §6): the action "fault" with A139.
+pub const FAULT_OFFLINE: u16 = 239;
+/// Fault F240 "PROFIBUS DP module access error" (CFW500 §6): the action "fault" with A140.
+pub const FAULT_ACCESS_ERROR: u16 = 240;
 /// MELD_NAMUR b7 "error communication bus" (OPTE3/E5 Table 21).
 pub const NAMUR_BUS: u16 = 1 << 7;
 /// MELD_NAMUR b15 "miscellaneous faults" (the only bit OPTE3/E5 sets, §6.3.2.2 note).
@@ -49,7 +59,8 @@ pub enum CommLossAction {
     Coast,
     /// Quick stop (OFF3).
     QuickStop,
-    /// Trip with [`FAULT_FIELDBUS`].
+    /// Trip (the drive's communication fault code, [`DriveModel::set_comm_fault_code`]:
+    /// F238 / F239 / F240 with the alarm, else [`FAULT_FIELDBUS`]).
     Fault,
     /// Keep running with the last setpoint.
     KeepLast,
@@ -129,6 +140,11 @@ pub struct DriveModel {
     last: DriveCommand,
     accelerating: bool,
     faults: u32,
+    /// The fault code of the communication-loss action "fault" ([`Self::set_comm_fault_code`]).
+    comm_fault_code: u16,
+    /// Deceleration ramp (0 → 100 % time) when it differs from [`ModelConfig::ramp_time`]
+    /// (WEG P0101 written, [`Self::set_deceleration_time`]).
+    decel_time: Option<Duration>,
 }
 
 impl DriveModel {
@@ -146,7 +162,23 @@ impl DriveModel {
             last: DriveCommand::default(),
             accelerating: false,
             faults: 0,
+            comm_fault_code: FAULT_FIELDBUS,
+            decel_time: None,
         }
+    }
+
+    /// The fault code the communication-loss action "fault" trips with (the drive sets it from
+    /// its active alarm: [`FAULT_CLEAR_MODE`], [`FAULT_OFFLINE`], [`FAULT_ACCESS_ERROR`];
+    /// default [`FAULT_FIELDBUS`]). The card's FIELDBUS_FAULT always trips with
+    /// [`FAULT_FIELDBUS`].
+    pub fn set_comm_fault_code(&mut self, code: u16) {
+        self.comm_fault_code = code;
+    }
+
+    /// The normal deceleration ramp (time from 100 % to 0; P0101-style); until set, the
+    /// acceleration ramp [`ModelConfig::ramp_time`] serves both ways.
+    pub fn set_deceleration_time(&mut self, t: Duration) {
+        self.decel_time = Some(t);
     }
 
     /// Settings.
@@ -199,7 +231,8 @@ impl DriveModel {
         self.resets_seen = Some(cmd.fault_resets);
         let cmd = self.effective(cmd);
         let f = cmd.flags;
-        if f.contains(CommandFlags::FIELDBUS_FAULT) {
+        if f.contains(CommandFlags::FIELDBUS_FAULT) && self.fault.is_none() {
+            // A drive already tripped keeps its first fault (F238 / F239 / F240 of the loss).
             self.inject_fault(FAULT_FIELDBUS, NAMUR_BUS);
         }
         let (target, rate) = self.decide(&cmd);
@@ -211,6 +244,14 @@ impl DriveModel {
     fn effective(&mut self, cmd: &DriveCommand) -> DriveCommand {
         if !cmd.flags.contains(CommandFlags::COMM_LOSS) {
             self.last = *cmd;
+            if !cmd.flags.contains(CommandFlags::FIELDBUS_CONTROL) {
+                // LOCAL (WEG P0967 b10 = 0 / P0684 b4 = 0): the fieldbus does not command the
+                // drive; its local control place has no run command here (a ramp stop). The
+                // fault acknowledges still count (they are the card's, not a run command).
+                let mut c = *cmd;
+                c.flags.remove(CommandFlags::RUN | CommandFlags::JOG1 | CommandFlags::JOG2 | CommandFlags::PRE_EXCITE);
+                return c;
+            }
             return *cmd;
         }
         let action = CommLossAction::from_reaction(cmd.comm_loss_reaction).unwrap_or(self.config.comm_loss_action);
@@ -221,7 +262,12 @@ impl DriveModel {
             CommLossAction::RampStop => c.flags.remove(CommandFlags::RUN),
             CommLossAction::Coast => c.flags.insert(CommandFlags::COAST),
             CommLossAction::QuickStop => c.flags.insert(CommandFlags::QUICK_STOP),
-            CommLossAction::Fault => c.flags.insert(CommandFlags::FIELDBUS_FAULT),
+            CommLossAction::Fault => {
+                c.flags.remove(CommandFlags::FIELDBUS_FAULT);
+                if self.fault.is_none() {
+                    self.inject_fault(self.comm_fault_code, NAMUR_BUS);
+                }
+            }
         }
         c
     }
@@ -244,7 +290,7 @@ impl DriveModel {
         if !run {
             if self.modulating {
                 self.stop_at_standstill();
-                return (0, normal);
+                return (0, self.decel_time.unwrap_or(normal));
             }
             return (0, self.config.coast_time);
         }

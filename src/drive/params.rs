@@ -99,6 +99,42 @@ pub const DRIVE_PARAMS: &[ParamDef] = &[
         .scaled(1.0, VAR_SPEED, CONV_PER_MINUTE),
 ];
 
+/// PNU 10001 "parameter in drive" (OPTE3/E5 Table 108, §6.4.4.7): the VACON application ID
+/// as subindex; the PPO types' PKW addresses the same IDs (§6.6.1).
+pub use crate::profile::pkw::VACON_DRIVE_PARAMETER;
+
+/// VACON ID 101 minimum frequency, 0.01 Hz.
+pub const ID_MIN_FREQUENCY: u16 = 101;
+/// VACON ID 102 maximum frequency, 0.01 Hz (OPTE3/E5 §6.6.3.1: 50.00 Hz read as 5000).
+pub const ID_MAX_FREQUENCY: u16 = 102;
+/// VACON ID 103 acceleration time 1, 0.1 s (OPTE3/E5 §6.4.4.7 example: 3.0 s as 30).
+pub const ID_ACCELERATION_TIME: u16 = 103;
+/// VACON ID 104 deceleration time 1, 0.1 s.
+pub const ID_DECELERATION_TIME: u16 = 104;
+/// VACON ID 125 control place (OPTE3/E5 §6.6.3.2 writes 2): 1 I/O terminal, 2 keypad,
+/// 3 fieldbus.
+pub const ID_CONTROL_PLACE: u16 = 125;
+
+/// The simulated drive's VACON application parameters (the IDs the manual's examples use),
+/// a table of their own: VACON's IDs overlap WEG's P numbers (ID 101 is a frequency, P0101 a
+/// ramp time), so PNU 10001 / the PPO PKW never reach the WEG-numbered table.
+pub const VACON_IDS: &[ParamDef] = &[
+    ParamDef::new(ID_MIN_FREQUENCY, "Min Frequency", Type::U16).limits(0, 32000).with_default(0),
+    ParamDef::new(ID_MAX_FREQUENCY, "Max Frequency", Type::U16).limits(0, 32000).with_default(5000),
+    ParamDef::new(ID_ACCELERATION_TIME, "Accel Time 1", Type::U16).limits(1, 30000).with_default(30),
+    ParamDef::new(ID_DECELERATION_TIME, "Decel Time 1", Type::U16).limits(1, 30000).with_default(30),
+    ParamDef::new(ID_CONTROL_PLACE, "Control Place", Type::U16).limits(1, 3).with_default(3),
+];
+
+/// The VACON application parameter table.
+pub type VaconIdTable = Table<VACON_ID_SLOTS>;
+
+/// Value slots of [`VACON_IDS`].
+pub const VACON_ID_SLOTS: usize = slots(VACON_IDS);
+
+/// [`VACON_IDS`] at their factory settings.
+pub const VACON_ID_TABLE: VaconIdTable = Table::new(VACON_IDS);
+
 /// Value slots of [`DRIVE_PARAMS`].
 pub const DRIVE_SLOTS: usize = slots(DRIVE_PARAMS);
 

@@ -14,7 +14,12 @@
 //! * **Bypass** (§5.1.2, §6.7): every PZD word passes unchanged both ways — the drive gets
 //!   the whole output PZD as [`Cycle::drive_words`] and answers the whole input PZD in
 //!   `drive_words`; no [`DriveCommand`] (the drive reads the raw words itself) except the
-//!   communication-loss one.
+//!   communication-loss one. The drive interface (DPM `DRIVE_CMD.EXTRA` / `DRIVE_STATE.EXTRA`)
+//!   carries [`MAX_DRIVE_WORDS`] = 16 words each way; VACON telegram 139 has 18, so in Bypass
+//!   the drive gets words 1..16 — the control word, the setpoint and PDO1..PDO14 — and PDO15 /
+//!   PDO16 stay on the card (counted in [`CyclicStats::words_cut`]); PDI15 / PDI16 read 0. In
+//!   PROFIdrive mode 139's control word and setpoint go through the [`DriveCommand`], so its
+//!   16 programmable words all fit.
 //! * **Echo** (§5.1.3, §6.8): the input image is the output image; nothing reaches the drive.
 //!
 //! ST20 runs in PROFIdrive mode only (§5.1.5): [`Cyclic::new`] refuses Bypass / Echo with it
@@ -29,6 +34,10 @@
 use super::drive_if::{ControlProfile, DriveCommand, DriveStatus};
 use super::telegram::{Layout, Word, PZD_SIGNALS};
 use crate::dpm::Telegram;
+
+/// The raw words the drive interface carries each way (DPM `EXTRA`, 16 words): the most
+/// programmable words of any telegram.
+pub const MAX_DRIVE_WORDS: usize = super::telegram::MAX_PROGRAMMABLE;
 
 /// The largest image in bytes (PKW + 18 PZD words).
 pub const MAX_IMAGE: usize = 2 * (4 + PZD_SIGNALS);
@@ -93,6 +102,9 @@ pub struct Cycle {
     /// The PKW request for the PKW server (telegrams with PKW, not in Echo, not while the
     /// communication is lost).
     pub pkw_request: Option<[u8; 8]>,
+    /// The control word of the output image the cycle evaluated (the first PZD word; INVT
+    /// CW b8 "enable writing" gates the PKW writes).
+    pub control_word: u16,
 }
 
 impl Cycle {
@@ -114,6 +126,9 @@ pub struct CyclicStats {
     pub wrong_length: u32,
     /// Cycles run while the communication was lost.
     pub comm_lost: u32,
+    /// Bypass cycles whose output PZD had more words than the drive interface carries
+    /// ([`MAX_DRIVE_WORDS`]; VACON 139: PDO15 / PDO16 not passed).
+    pub words_cut: u32,
 }
 
 /// The cyclic engine for one telegram and operate mode.
@@ -124,6 +139,8 @@ pub struct Cyclic {
     comm_loss_reaction: u8,
     last: [u8; MAX_IMAGE],
     have_last: bool,
+    /// The next [`Self::run`] is a Clear cycle ([`Self::clear`]).
+    clear_next: bool,
     stats: CyclicStats,
 }
 
@@ -145,6 +162,7 @@ impl Cyclic {
             comm_loss_reaction,
             last: [0; MAX_IMAGE],
             have_last: false,
+            clear_next: false,
             stats: CyclicStats::default(),
         })
     }
@@ -196,6 +214,16 @@ impl Cyclic {
         self.run(profile, drive, true)
     }
 
+    /// The master is in Clear: as [`Self::comm_lost`], with the profile's
+    /// [`ControlProfile::clear`] (its reaction to the zero outputs of Clear).
+    pub fn clear(&mut self, profile: &mut impl ControlProfile, drive: DriveSide<'_>) -> Cycle {
+        self.stats.comm_lost = self.stats.comm_lost.wrapping_add(1);
+        self.clear_next = true;
+        let c = self.run(profile, drive, true);
+        self.clear_next = false;
+        c
+    }
+
     /// The master's outputs are held back (the I/O update delay after going online, CFW-11
     /// P0799): a new image of the right length (`outputs`) is only kept for
     /// [`Self::resume`]; the inputs come from the drive's latest status as in
@@ -244,6 +272,7 @@ impl Cyclic {
             words: [0; PZD_SIGNALS],
             word_count: 0,
             pkw_request: None,
+            control_word: word(out, l.pkw),
         };
         if self.mode == OperateMode::Echo {
             // Both lengths are equal: ST20 (the only asymmetric telegram) is refused in new().
@@ -275,9 +304,17 @@ impl Cyclic {
                     cmd.comm_loss_reaction = self.comm_loss_reaction;
                     c.command = Some(cmd);
                 }
+                if l.pzd_out > MAX_DRIVE_WORDS {
+                    // VACON 139 (18 words): the drive interface carries 16; PDO15 / PDO16 stay
+                    // on the card (module docs, "Bypass").
+                    self.stats.words_cut = self.stats.words_cut.wrapping_add(1);
+                    c.word_count = MAX_DRIVE_WORDS;
+                }
             }
             OperateMode::Profidrive | OperateMode::Echo => {
-                let mut cmd = if lost {
+                let mut cmd = if lost && self.clear_next {
+                    profile.clear(drive.status)
+                } else if lost {
                     profile.comm_lost(drive.status)
                 } else {
                     profile.command(word(out, l.pkw), word(out, l.pkw + 1), drive.status)

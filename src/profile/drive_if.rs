@@ -40,7 +40,9 @@ bitflags::bitflags! {
         /// b3 Quick stop (OFF3): decelerate along the quick-stop ramp, pulses off at
         /// standstill.
         const QUICK_STOP = 1 << 3;
-        /// b4 Hold the ramp-function generator output (PROFIdrive STW1 b5 = 0 "freeze").
+        /// b4 Hold the ramp-function generator output. No profile sets it today: PROFIdrive
+        /// STW1 b5 = 0 freezes the setpoint only (OPTE3/E5 Table 26), which the profile does
+        /// itself by holding [`DriveCommand::speed_setpoint`].
         const RAMP_HOLD = 1 << 4;
         /// b5 Setpoint to zero (PROFIdrive STW1 b6 = 0): decelerate along the normal ramp to
         /// zero speed while still running.
@@ -171,6 +173,12 @@ pub trait ControlProfile {
     /// The command while the communication is lost (the profile keeps its state; the drive
     /// applies its communication-error action, [`CommandFlags::COMM_LOSS`]).
     fn comm_lost(&mut self, drive: &DriveStatus) -> DriveCommand;
+    /// The command while the master is in Clear (its outputs are zero, reference §3.6): by
+    /// default [`Self::comm_lost`]; a profile whose zero control word has a meaning of its own
+    /// reacts to it too (VACON PROFIdrive: b10 = 0 in operation → FAULT, OPTE3/E5 §6.3.3).
+    fn clear(&mut self, drive: &DriveStatus) -> DriveCommand {
+        self.comm_lost(drive)
+    }
     /// The status word for the PLC.
     fn status_word(&self, drive: &DriveStatus) -> u16;
     /// The main actual value (speed) for the PLC, in the profile's scale, as a raw word.

@@ -23,6 +23,13 @@
 //! passed on; b15 (heartbeat) is echoed in the status word's b15. The INVT words have no
 //! "control by PLC" bit: every evaluated word carries [`CommandFlags::FIELDBUS_CONTROL`].
 //!
+//! **After a fault (our safety choice; the manual is silent):** a drive trip ends the latched
+//! running command — the motor does not restart by itself when the fault is reset (code 7, or
+//! at the drive). A run / inching code (1–4) sent while the fault is active is not taken, and
+//! after the trip the code must be *new*: a control word whose code differs from the previous
+//! word's (send 1, trip, send 7 → stays stopped; then 1 → runs). [`Invt::refused_runs`]
+//! counts the codes not taken.
+//!
 //! The main setpoint is the set frequency (P15.02 = 1, Table 2-6: 0–Fmax in 0.01 Hz,
 //! unsigned; the direction comes from the command code); the main actual value is the
 //! running frequency (P15.13 = 1, Table 2-8: ×100 Hz), reported as a magnitude — the
@@ -89,6 +96,11 @@ pub struct Invt {
     last_cw: u16,
     command: DriveCommand,
     unknown: u32,
+    /// The drive tripped since the last accepted run code: a run / inching code needs an
+    /// edge (a word whose code differs from the previous word's) to be taken.
+    tripped: bool,
+    /// Run / inching codes refused because they were not new after a trip.
+    refused_runs: u32,
 }
 
 impl Invt {
@@ -100,7 +112,16 @@ impl Invt {
 
     /// A stopped profile with the set-frequency scale `scale` ([`Invt::scale`]).
     pub fn new(scale: SpeedScale) -> Self {
-        Invt { scale, run: RunCommand::Stop, last_code: 0, last_cw: 0, command: DriveCommand::default(), unknown: 0 }
+        Invt {
+            scale,
+            run: RunCommand::Stop,
+            last_code: 0,
+            last_cw: 0,
+            command: DriveCommand::default(),
+            unknown: 0,
+            tripped: false,
+            refused_runs: 0,
+        }
     }
 
     /// The running command in force.
@@ -112,12 +133,35 @@ impl Invt {
     pub fn unknown_codes(&self) -> u32 {
         self.unknown
     }
+
+    /// Run / inching codes not taken because they were repeated from before a trip (module
+    /// docs, "after a fault").
+    pub fn refused_runs(&self) -> u32 {
+        self.refused_runs
+    }
 }
 
 impl ControlProfile for Invt {
-    fn command(&mut self, cw: u16, setpoint: u16, _drive: &DriveStatus) -> DriveCommand {
-        let code = (cw & 0xFF) as u8;
+    fn command(&mut self, cw: u16, setpoint: u16, drive: &DriveStatus) -> DriveCommand {
+        let raw = (cw & 0xFF) as u8;
         let mut resets = self.command.fault_resets;
+        let faulted = drive.flags.contains(StatusFlags::FAULT);
+        if faulted {
+            // A trip ends the latched running command (our safety choice, module docs).
+            self.run = RunCommand::Stop;
+            self.tripped = true;
+        }
+        let run_code = matches!(raw, 1..=4);
+        let code = if run_code && (faulted || (self.tripped && raw == self.last_code)) {
+            // A run code from before the trip (or sent while the fault is active): not new.
+            self.refused_runs = self.refused_runs.saturating_add(1);
+            0
+        } else {
+            if run_code {
+                self.tripped = false;
+            }
+            raw
+        };
         match code {
             0 => {}
             1 => self.run = RunCommand::Run { reverse: false },
@@ -139,7 +183,7 @@ impl ControlProfile for Invt {
             9 => self.run = RunCommand::PreExcite,
             _ => self.unknown = self.unknown.saturating_add(1),
         }
-        self.last_code = code;
+        self.last_code = raw;
         self.last_cw = cw;
         let mut flags = CommandFlags::FIELDBUS_CONTROL;
         match self.run {

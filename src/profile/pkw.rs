@@ -39,8 +39,9 @@
 //! from the slave. The slave repeats its response until it receives a new request"; reference
 //! §5.6): [`PkwServer::on_request`] gets the PKW request of every Data_Exchange output. A
 //! request that differs from the held one in any of its 8 bytes is a new job; the same bytes
-//! again are the master repeating it and change nothing. An all-zero request is "no request"
-//! and is answered with the all-zero "no response". [`PkwServer::service`] (the DP-V1 / acyclic
+//! again are the master repeating it and change nothing. A request of type 0 (INVT: PKW1 = 0)
+//! is "no request", whatever the other words hold ([`is_no_request`]), and is answered with the
+//! all-zero "no response". [`PkwServer::service`] (the DP-V1 / acyclic
 //! task, not the interrupt) executes a job once against a [`ParameterAccess`] table; the
 //! response then stays in [`PkwServer::response`] until the request changes. While a job has
 //! no answer yet — not serviced, or an asynchronous table ([`ParameterAccess::pending`]) still
@@ -244,6 +245,8 @@ pub struct PkwServer {
     dialect: PkwDialect,
     axis: u8,
     request: [u8; PKW_LEN],
+    /// Writes are enabled for the held request ([`Self::on_request_enabled`]).
+    enabled: bool,
     response: [u8; PKW_LEN],
     job: Job,
     counters: PkwCounters,
@@ -257,6 +260,7 @@ impl PkwServer {
             dialect,
             axis: 1,
             request: [0; PKW_LEN],
+            enabled: true,
             response: [0; PKW_LEN],
             job: Job::Idle,
             counters: PkwCounters { jobs: 0, completed: 0, rejected: 0, abandoned: 0 },
@@ -277,17 +281,27 @@ impl PkwServer {
     /// The PKW request of a Data_Exchange output (the first 8 bytes of the PPO). Cheap: it only
     /// compares and copies 8 bytes, so it may run in the interrupt. A request different from
     /// the held one starts a new job (its response is zero until [`Self::service`] answers it);
-    /// the same request again changes nothing; all zero is "no request".
+    /// the same request again changes nothing; type 0 is "no request" ([`is_no_request`]).
     pub fn on_request(&mut self, request: [u8; PKW_LEN]) {
-        if request == self.request {
+        self.on_request_enabled(request, true);
+    }
+
+    /// [`Self::on_request`] with the write permission of the cyclic data (INVT CW b8 "enable
+    /// writing", INVT §2.6 Table 2-5; `true` for the other dialects): a write request with
+    /// `write_enabled` false is rejected (INVT response 3, error 4 "operation failure" — the
+    /// manual names no number for it, this is our choice) without reaching the table. The
+    /// request together with the permission is the job: setting b8 later starts it anew.
+    pub fn on_request_enabled(&mut self, request: [u8; PKW_LEN], write_enabled: bool) {
+        if request == self.request && write_enabled == self.enabled {
             return;
         }
+        self.enabled = write_enabled;
         if matches!(self.job, Job::New | Job::Waiting) {
             self.counters.abandoned = self.counters.abandoned.wrapping_add(1);
         }
         self.request = request;
         self.response = [0; PKW_LEN];
-        self.job = if request == [0; PKW_LEN] {
+        self.job = if is_no_request(self.dialect, request) {
             Job::Idle
         } else {
             self.counters.jobs = self.counters.jobs.wrapping_add(1);
@@ -316,7 +330,7 @@ impl PkwServer {
             Job::Waiting => {}
         }
         let req = PkwWords::from_bytes(self.request);
-        let (response, rejected) = execute(self.dialect, self.axis, req, table);
+        let (response, rejected) = execute(self.dialect, self.axis, req, self.enabled, table);
         if table.pending() {
             return;
         }
@@ -351,6 +365,18 @@ impl PkwServer {
         self.request = [0; PKW_LEN];
         self.response = [0; PKW_LEN];
         self.job = Job::Idle;
+    }
+}
+
+/// Whether `request` is "no request" in `dialect`: request type 0 whatever the other words
+/// hold (VACON OPTE3/E5 Table 121 "0 No request — No response"; PROFIdrive 2.0 AK 0,
+/// reference §5.6), INVT PKW1 = 0 (§2.6 Table 2-10). It is answered with the all-zero "no
+/// response", so a PLC handshake that waits for "no response" after clearing the type goes on.
+pub fn is_no_request(dialect: PkwDialect, request: [u8; PKW_LEN]) -> bool {
+    let id = u16::from_be_bytes([request[0], request[1]]);
+    match dialect {
+        PkwDialect::Vacon | PkwDialect::Profidrive2 => id >> 12 == 0,
+        PkwDialect::Invt => id == 0,
     }
 }
 
@@ -390,6 +416,8 @@ impl Value {
 enum Failure {
     Param(ErrorValue),
     UnknownRequest,
+    /// A write without the cyclic data's write enable (INVT CW b8).
+    WriteDisabled,
 }
 
 impl From<ParamError> for Failure {
@@ -405,8 +433,17 @@ impl From<ErrorValue> for Failure {
 }
 
 /// Run `req` against `table`; the response words and whether it is a rejection.
-fn execute(dialect: PkwDialect, axis: u8, req: PkwWords, table: &mut impl ParameterAccess) -> (PkwWords, bool) {
-    let outcome = decode(dialect, req).and_then(|task| run(dialect, axis, task, req, table));
+fn execute(
+    dialect: PkwDialect,
+    axis: u8,
+    req: PkwWords,
+    write_enabled: bool,
+    table: &mut impl ParameterAccess,
+) -> (PkwWords, bool) {
+    let outcome = decode(dialect, req).and_then(|task| match task {
+        Task::Write { .. } if !write_enabled => Err(Failure::WriteDisabled),
+        task => run(dialect, axis, task, req, table),
+    });
     let response = encode(dialect, req, outcome);
     (response, outcome.is_err())
 }
@@ -588,6 +625,7 @@ fn encode(dialect: PkwDialect, req: PkwWords, outcome: Result<Option<Value>, Fai
                 Err(Failure::UnknownRequest) => {
                     words(pd2::REJECTED << 12 | pnu, req.index, u32::from(pd2::REQUEST_NOT_SUPPORTED))
                 }
+                Err(Failure::WriteDisabled) => words(pd2::NO_CHANGE_RIGHTS << 12 | pnu, req.index, 0),
             }
         }
     }
@@ -625,6 +663,7 @@ fn vacon_fault(f: Failure) -> u16 {
     match f {
         Failure::Param(e) => vacon_fault_code(e),
         Failure::UnknownRequest => vacon::UNKNOWN_REQUEST,
+        Failure::WriteDisabled => vacon::TEMPORARILY_REJECTED,
     }
 }
 
@@ -659,6 +698,7 @@ fn invt_error(f: Failure) -> u16 {
     match f {
         Failure::Param(e) => invt_error_number(e),
         Failure::UnknownRequest => invt::INVALID_COMMAND,
+        Failure::WriteDisabled => invt::OPERATION_FAILURE,
     }
 }
 
@@ -1168,7 +1208,7 @@ mod tests {
             }
             let rsp = s.response();
             // Invariants after every step.
-            if s.is_busy() || s.request() == [0; 8] {
+            if s.is_busy() || is_no_request(dialect, s.request()) {
                 assert_eq!(rsp, [0; 8], "{dialect:?}: a response without an answered job");
             } else {
                 let (req, rsp) = (PkwWords::from_bytes(s.request()), PkwWords::from_bytes(rsp));
@@ -1214,7 +1254,7 @@ mod tests {
                 s.on_request(r);
                 s.service(&mut t);
                 prop_assert!(!s.is_busy());
-                prop_assert_eq!(s.response() == [0; 8], r == [0; 8]);
+                prop_assert_eq!(s.response() == [0; 8], is_no_request(d, r));
                 // Repeating it changes nothing.
                 let rsp = s.response();
                 let writes_after = t.writes;

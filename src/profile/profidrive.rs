@@ -21,7 +21,9 @@
 //! | S5 switching off (quick) | b0 b1 | #11 b1 = 0 → S1; #15 standstill or b3 = 0 → S1 | QUICK_STOP |
 //! | fault | b3 | a b7 0 → 1 edge, then the drive's fault cleared → S1 | pulses off |
 //!
-//! A drive fault ([`StatusFlags::FAULT`]) puts every state into the fault state. Transitions
+//! A drive fault ([`StatusFlags::FAULT`]) puts every state into the fault state; it is taken
+//! before the control word's acknowledge, so a b7 edge in the cycle the drive trips is not
+//! lost. The drive losing READY without a fault takes S2, S3 and S4 back to S1. Transitions
 //! chain within one evaluation (0x047F takes S2 through S3 to S4), and the cyclic engine calls
 //! [`ControlProfile::command`] on every housekeeping step with the last image, so transitions
 //! that wait for the drive (standstill, fault cleared, READY, fieldbus control place) happen
@@ -36,10 +38,19 @@
 //! [`CommandFlags::FIELDBUS_FAULT`] set; the drive reacts as it is parameterised. A b7 edge in
 //! a valid word acknowledges it. The frozen command keeps `FIELDBUS_CONTROL` set on purpose: the
 //! drive must not fall back to another control place while the fieldbus fault is pending.
+//! Clear mode counts as b10 = 0 (its outputs are zero; [`ControlProfile::clear`]): leaving
+//! Clear needs the acknowledge and a new switch-on. WEG's P0967 reads b10 as LOCAL / REMOTE
+//! only ([`ProfidriveConfig::b10_is_local_remote`], `super::weg::weg_profidrive`).
+//!
+//! # Setpoint freeze (STW1 b5, OPTE3/E5 Table 26)
+//!
+//! b5 = 0 holds the setpoint (the setpoint word is not taken over); the ramp-function
+//! generator runs on to it — no [`CommandFlags::RAMP_HOLD`].
 //!
 //! # Fault acknowledge (STW1 b7)
 //!
-//! Every 0 → 1 edge of b7 in a valid control word adds one to [`DriveCommand::fault_resets`]
+//! Every 0 → 1 edge of b7 (WEG: b7 = 1 in the fault state, once per fault,
+//! [`ProfidriveConfig::ack_on_level`]) in a valid control word adds one to [`DriveCommand::fault_resets`]
 //! (also outside the fault state: the drive resets warnings and infos too, OPTE3/E5 §11.1
 //! Table 146 b2). An edge in the fault state also arms the exit: the profile leaves the fault
 //! state for S1 once the drive reports its fault cleared.
@@ -61,7 +72,8 @@ bitflags::bitflags! {
         const ENABLE_OPERATION = 1 << 3;
         /// b4 enable the ramp-function generator (0: reset it, the speed goes to zero fast).
         const ENABLE_RAMP = 1 << 4;
-        /// b5 unfreeze (0: freeze the setpoint / ramp-function generator).
+        /// b5 unfreeze (0: freeze the setpoint; the ramp-function generator runs on — OPTE3/E5
+        /// Table 26 "freeze setpoint").
         const UNFREEZE_RAMP = 1 << 5;
         /// b6 enable the setpoint (0: setpoint 0).
         const ENABLE_SETPOINT = 1 << 6;
@@ -195,7 +207,11 @@ pub fn transition(state: State, stw: Stw1, drive: &DriveStatus) -> State {
     let enable = stw.contains(Stw1::ENABLE_OPERATION);
     let ready = drive.flags.contains(StatusFlags::READY);
     let fieldbus = drive.flags.contains(StatusFlags::FIELDBUS_CONTROL);
+    let fault = drive.flags.contains(StatusFlags::FAULT);
     match state {
+        // The drive is no longer ready (ZSW1 b13 drops) without a fault: S2..S4 fall back
+        // to S1 (Figure 11: S2 and above need "ready"; a fault is the fault state instead).
+        ReadyToSwitchOn | SwitchedOn | Operation if !ready && !fault => SwitchingOnInhibited,
         // #1: requires that the drive is READY (ZSW1 b13).
         SwitchingOnInhibited if !on && !off2 && !off3 && ready => ReadyToSwitchOn,
         // #2, #4.
@@ -376,6 +392,26 @@ pub struct ProfidriveConfig {
     pub setpoint_enable_bit: bool,
     /// STW1 b8 is jog 1 (WEG P0967).
     pub jog_bit: bool,
+    /// STW1 b10 = 0 means "the drive goes to LOCAL" (WEG P0967 Table 4.7 "Control By PLC:
+    /// 0: The drive goes to the LOCAL situation"): the command loses
+    /// [`CommandFlags::FIELDBUS_CONTROL`] and nothing else happens — no frozen data, no fault.
+    /// `false` (VACON, OPTE3/E5 §6.3.3 bit 10): b10 dropping in operation freezes the process
+    /// data and goes to FAULT.
+    pub b10_is_local_remote: bool,
+    /// STW1 b4 = 0 is "disable the drive via the deceleration ramp" (WEG P0967 Table 4.7 bit
+    /// 4): RUN is cleared (a ramp stop, the state stays S4). `false` (VACON Table 26): b4 = 0
+    /// resets the ramp-function generator ([`CommandFlags::RAMP_RESET`], quick-stop ramp to 0
+    /// while running).
+    pub b4_is_ramp_stop: bool,
+    /// STW1 b7 acts on its level (WEG P0967 bit 7 "1: If in a fault condition, it executes
+    /// the fault reset"): in the fault state a word with b7 = 1 acknowledges, once per fault.
+    /// `false` (VACON Table 26, PROFIdrive): a 0 → 1 edge acknowledges.
+    pub ack_on_level: bool,
+    /// Clear mode (the master's outputs are zero, reference §3.6) counts as STW1 b10 dropping
+    /// (OPTE3/E5 §6.3.3 bit 10: in operation → FAULT, acknowledge with b7 once the master
+    /// operates again). `false` (WEG: b10 = 0 is only LOCAL): Clear is the communication-loss
+    /// command alone.
+    pub clear_faults: bool,
     /// The ZSW1 bits the product reports (the others are sent as 0).
     pub zsw1_mask: u16,
     /// The speed scale of the setpoint and the actual value.
@@ -391,6 +427,10 @@ impl ProfidriveConfig {
         freeze_bit: true,
         setpoint_enable_bit: true,
         jog_bit: false,
+        b10_is_local_remote: false,
+        b4_is_ramp_stop: false,
+        ack_on_level: false,
+        clear_faults: true,
         zsw1_mask: 0x37FF,
         scale: SpeedScale::N2,
     };
@@ -411,6 +451,10 @@ impl ProfidriveConfig {
             freeze_bit: false,
             setpoint_enable_bit: false,
             jog_bit: false,
+            b10_is_local_remote: false,
+            b4_is_ramp_stop: false,
+            ack_on_level: false,
+            clear_faults: true,
             zsw1_mask: 0x33FF,
             scale,
         }
@@ -499,6 +543,13 @@ impl Profidrive {
         self.ignored
     }
 
+    /// §6.3.3 bit 10 dropped in operation: the last command is kept (frozen), state FAULT.
+    fn freeze_and_fault(&mut self) {
+        self.frozen = Some(self.command);
+        self.state = State::Fault;
+        self.ack_pending = false;
+    }
+
     fn enter_fault_if_drive_faulted(&mut self, drive: &DriveStatus) {
         if drive.flags.contains(StatusFlags::FAULT) && self.state != State::Fault {
             self.state = State::Fault;
@@ -535,11 +586,15 @@ impl Profidrive {
             State::Operation => {
                 flags |= CommandFlags::RUN;
                 if cfg.ramp_enable_bit && !stw.contains(Stw1::ENABLE_RAMP) {
-                    flags |= CommandFlags::RAMP_RESET;
+                    if cfg.b4_is_ramp_stop {
+                        // WEG P0967 b4 = 0: disable via the deceleration ramp.
+                        flags.remove(CommandFlags::RUN);
+                    } else {
+                        flags |= CommandFlags::RAMP_RESET;
+                    }
                 }
-                if cfg.freeze_bit && !stw.contains(Stw1::UNFREEZE_RAMP) {
-                    flags |= CommandFlags::RAMP_HOLD;
-                }
+                // b5 = 0 freezes the setpoint only (OPTE3/E5 Table 26 "freeze setpoint"): the
+                // held setpoint is in `self.setpoint`, the ramp-function generator runs on.
                 if cfg.jog_bit && stw.contains(Stw1::JOG1) {
                     flags |= CommandFlags::JOG1;
                 }
@@ -567,9 +622,18 @@ impl ControlProfile for Profidrive {
         let edge = stw.contains(Stw1::FAULT_ACK) && self.last_cw & Stw1::FAULT_ACK.bits() == 0;
         self.last_cw = cw;
         self.valid = stw.contains(Stw1::CONTROL_BY_PLC);
+        // A drive trip is taken first, so an acknowledge in the word of the cycle the drive
+        // trips is not spent before the state becomes FAULT (issue 15 item 13).
+        self.enter_fault_if_drive_faulted(drive);
         if self.valid {
             self.last_valid = stw;
-            if edge {
+            let ack = if self.config.ack_on_level {
+                // WEG P0967 b7 "1: if in a fault condition, executes the reset": once per fault.
+                stw.contains(Stw1::FAULT_ACK) && self.state == State::Fault && !self.ack_pending
+            } else {
+                edge
+            };
+            if ack {
                 self.fault_resets = self.fault_resets.wrapping_add(1);
                 if self.state == State::Fault {
                     self.ack_pending = true;
@@ -582,14 +646,11 @@ impl ControlProfile for Profidrive {
             }
         } else {
             self.ignored = self.ignored.saturating_add(1);
-            if self.state.is_operating() {
+            if !self.config.b10_is_local_remote && self.state.is_operating() {
                 // §6.3.3 bit 10: freeze the process data, state FAULT.
-                self.frozen = Some(self.command);
-                self.state = State::Fault;
-                self.ack_pending = false;
+                self.freeze_and_fault();
             }
         }
-        self.enter_fault_if_drive_faulted(drive);
         if self.state == State::Fault
             && self.ack_pending
             && self.frozen.is_none()
@@ -614,6 +675,23 @@ impl ControlProfile for Profidrive {
         let mut c = self.command;
         c.flags |= CommandFlags::COMM_LOSS;
         c
+    }
+
+    /// Clear mode: the master's outputs are zero, so STW1 b10 is 0 (OPTE3/E5 §6.3.3 bit 10):
+    /// in operation the process data freeze and the state becomes FAULT — leaving Clear does
+    /// not restart the motor, a b7 acknowledge is needed ([`ProfidriveConfig::clear_faults`]).
+    /// The drive also gets the communication-loss command (A138).
+    fn clear(&mut self, drive: &DriveStatus) -> DriveCommand {
+        if self.config.clear_faults {
+            // The zero word: the next b7 = 1 is an edge.
+            self.last_cw = 0;
+            self.valid = false;
+            if self.state.is_operating() {
+                self.freeze_and_fault();
+                self.command = self.build();
+            }
+        }
+        self.comm_lost(drive)
     }
 
     fn status_word(&self, drive: &DriveStatus) -> u16 {

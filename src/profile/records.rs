@@ -35,6 +35,53 @@ pub const INDEX_WEG_SIMPLE: u8 = 48;
 /// The axis WEG's simple access addresses (DO-ID 0).
 const WEG_AXIS: u8 = 0;
 
+/// Which product's DP-V1 error list the records answer with (issue 15 item 9).
+///
+/// WEG (CFW500 §5.2.3, CFW-11 §4.2.3) lists B0h, B2h, B5h "modification not allowed for the
+/// parameter", B6h, B7h, B8h and C3h "response not available for the reading request" — no
+/// C2h, and B5h means something else there. Under a WEG telegram the card therefore answers
+/// C3h where it answers B5h "state conflict" (DS_Read of record 47 before the response is
+/// ready) or C2h "resource busy" (record 48 while the value is on its way; a DS_Write(47)
+/// while another relation's job waits) for the others (OPTE3/E5 Table 46, reference §5.1).
+/// WEG's list names B0h "invalid slot" and B2h "invalid index", the reverse of IEC 61158-6
+/// (B0h invalid index, B2h invalid slot) that VACON and our slot/index routing follow; we keep
+/// the standard's coding for every product (a contradiction of the WEG manual with the
+/// standard, resolved for the standard).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum RecordErrors {
+    /// PROFIdrive / VACON (OPTE3/E5 Table 46): B5h not ready, C2h busy.
+    #[default]
+    Profidrive,
+    /// WEG CFW500 / CFW-11: C3h for both.
+    Weg,
+}
+
+impl RecordErrors {
+    /// The list for the active telegram (WEG telegrams: [`RecordErrors::Weg`]).
+    pub const fn for_telegram(t: crate::dpm::Telegram) -> RecordErrors {
+        use crate::dpm::{Family, Telegram};
+        match t {
+            Telegram::Vendor(Family::WegCfw500 | Family::WegCfw11, _) => RecordErrors::Weg,
+            _ => RecordErrors::Profidrive,
+        }
+    }
+
+    const fn not_ready(self) -> ErrorCode1 {
+        match self {
+            RecordErrors::Profidrive => ErrorCode1::STATE_CONFLICT,
+            RecordErrors::Weg => ErrorCode1::RESOURCE_UNAVAILABLE,
+        }
+    }
+
+    const fn busy(self) -> ErrorCode1 {
+        match self {
+            RecordErrors::Profidrive => ErrorCode1::RESOURCE_BUSY,
+            RecordErrors::Weg => ErrorCode1::RESOURCE_UNAVAILABLE,
+        }
+    }
+}
+
 /// Relations with a record-47 response of their own: MSAC_C1 and every MSAC_C2 connection.
 pub const RELATIONS: usize = 1 + card::C2_MAX_COUNT_CHANNELS;
 
@@ -53,6 +100,7 @@ pub struct DriveRecords {
     responses: [[u8; MAX_LEN]; RELATIONS],
     response_lens: [usize; RELATIONS],
     weg: SimpleAccess,
+    errors: RecordErrors,
 }
 
 impl Default for DriveRecords {
@@ -74,7 +122,13 @@ impl DriveRecords {
             responses: [[0; MAX_LEN]; RELATIONS],
             response_lens: [0; RELATIONS],
             weg: SimpleAccess::new(),
+            errors: RecordErrors::Profidrive,
         }
+    }
+
+    /// Answer with `errors`' codes from now on ([`RecordErrors::for_telegram`]).
+    pub fn set_errors(&mut self, errors: RecordErrors) {
+        self.errors = errors;
     }
 
     /// Forget a waiting response or job (the relation that carried the request ended).
@@ -152,7 +206,7 @@ impl<T: ParameterAccess> RecordHandler for Bound<'_, T> {
                 let rel = r.relation as usize;
                 let n = r.response_lens.get(rel).copied().unwrap_or(0);
                 if n == 0 {
-                    return Err(ErrorCode1::STATE_CONFLICT);
+                    return Err(r.errors.not_ready());
                 }
                 if out.len() < n {
                     return Err(ErrorCode1::WRITE_LENGTH_ERROR);
@@ -180,7 +234,7 @@ impl<T: ParameterAccess> RecordHandler for Bound<'_, T> {
                 ParamRequest::parse(data).map_err(|e| e.error_code1())?;
                 if r.busy && r.owner != r.relation {
                     // Another relation's job is waiting for the drive.
-                    return Err(ErrorCode1::RESOURCE_BUSY);
+                    return Err(r.errors.busy());
                 }
                 r.start(data, self.table);
                 Ok(())
@@ -203,7 +257,7 @@ fn weg_done<R>(
     result: Result<R, ErrorCode1>,
 ) -> Result<R, ErrorCode1> {
     if table.pending() {
-        return Err(ErrorCode1::RESOURCE_BUSY);
+        return Err(r.errors.busy());
     }
     if !r.busy {
         table.start_job();

@@ -40,6 +40,9 @@ use super::weg::{weg_profidrive, WegManufacturer, WegModel};
 use crate::dpm::{Family, Telegram};
 use crate::time::{Duration, Instant};
 
+/// INVT CW b8 "enable writing" (INVT §2.6 Table 2-5): PKW writes run only with it set.
+pub const INVT_ENABLE_WRITING: u16 = 1 << 8;
+
 /// The physical references of the speed scales (one unit for all: 0.01 Hz by default).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Scales {
@@ -127,6 +130,13 @@ impl ControlProfile for AnyProfile {
             AnyProfile::Invt(p) => p.comm_lost(drive),
         }
     }
+    fn clear(&mut self, drive: &DriveStatus) -> DriveCommand {
+        match self {
+            AnyProfile::Profidrive(p) => p.clear(drive),
+            AnyProfile::Weg(p) => p.clear(drive),
+            AnyProfile::Invt(p) => p.clear(drive),
+        }
+    }
     fn status_word(&self, drive: &DriveStatus) -> u16 {
         match self {
             AnyProfile::Profidrive(p) => p.status_word(drive),
@@ -188,6 +198,8 @@ pub struct RuntimeStats {
     pub delays_started: u32,
     /// Output images held back by the I/O update delay (P0799).
     pub held_outputs: u32,
+    /// Lost cycles bridged by the communication-loss delay.
+    pub bridged: u32,
 }
 
 /// The I/O update delay's bookkeeping (CFW-11 P0799, module docs).
@@ -214,6 +226,12 @@ pub struct Runtime {
     drive_fault: u16,
     last: Option<Cycle>,
     delay: UpdateDelay,
+    /// The master is in Clear ([`Self::set_clear_mode`]).
+    clear: bool,
+    /// The communication-loss delay ([`Self::set_comm_loss_delay`]).
+    loss_delay: Duration,
+    /// Since when the communication is lost (for the delay).
+    lost_since: Option<Instant>,
     /// Fault acknowledges of the profiles before this one: a new profile counts from 0, the
     /// drive must see the counter continue (a restart would acknowledge its fault).
     resets_base: u8,
@@ -240,6 +258,9 @@ impl Runtime {
             drive_fault: 0,
             last: None,
             delay: UpdateDelay { delay: Duration::ZERO, online: false, until: None },
+            clear: false,
+            loss_delay: Duration::ZERO,
+            lost_since: None,
             resets_base: 0,
             stats: RuntimeStats::default(),
         }
@@ -256,6 +277,24 @@ impl Runtime {
     pub fn io_update_delay(&self) -> Duration {
         self.delay.delay
     }
+    /// The drive's communication-loss delay (DPM `CONFIG.COMM_LOSS_DELAY_MS`, set by
+    /// `app::Application` on every cycle; 0 = none): a loss (watchdog, master gone, Clear)
+    /// shorter than this is bridged — the drive keeps the profile's command of the last output
+    /// image, without [`CommandFlags`](super::drive_if::CommandFlags)`::COMM_LOSS`, and the
+    /// I/O update delay does not restart; once it lasts longer, the loss command follows.
+    /// Needs the time ([`Self::cycle_at`]); counted in [`RuntimeStats::bridged`].
+    pub fn set_comm_loss_delay(&mut self, delay: Duration) {
+        self.loss_delay = delay;
+    }
+
+    /// Whether the master is in Clear (its outputs are zero, reference §3.6): a lost cycle
+    /// then runs the profile's [`ControlProfile::clear`] (VACON PROFIdrive: b10 = 0 in
+    /// operation → FAULT, OPTE3/E5 §6.3.3) instead of [`ControlProfile::comm_lost`].
+    /// `app::Application` sets it from the DP slave's Clear state on every cycle.
+    pub fn set_clear_mode(&mut self, clear: bool) {
+        self.clear = clear;
+    }
+
     /// Whether the I/O update delay holds the master's outputs back at `now`.
     pub fn io_update_held(&self, now: Instant) -> bool {
         self.delay.until.is_some_and(|t| now < t)
@@ -275,8 +314,11 @@ impl Runtime {
         }
         self.delay.online = false;
         self.delay.until = None;
+        // The PPO types are VACON's (OPTE3/E5 §6.5.4, §6.6): their PKW speaks VACON's coding
+        // (application IDs, request types 1 / 2, fault codes of Table 122); INVT its own.
         let dialect = match sel.telegram {
             Telegram::Vendor(Family::Invt, _) => PkwDialect::Invt,
+            Telegram::Ppo(_) => PkwDialect::Vacon,
             _ => PkwDialect::Profidrive2,
         };
         self.pkw = PkwServer::new(dialect);
@@ -364,6 +406,20 @@ impl Runtime {
         words: &[u16],
     ) -> Option<Exchange<'_>> {
         self.track_faults(drive);
+        let grace = match (lost, now) {
+            (true, Some(n)) if self.loss_delay > Duration::ZERO => {
+                let since = *self.lost_since.get_or_insert(n);
+                n < since + self.loss_delay
+            }
+            _ => false,
+        };
+        if !lost {
+            self.lost_since = None;
+        }
+        if grace {
+            self.stats.bridged = self.stats.bridged.wrapping_add(1);
+        }
+        let lost = lost && !grace;
         let (engine, profile) = (self.engine.as_mut()?, self.profile.as_mut()?);
         let side = DriveSide { status: drive, words, pkw_response: self.pkw.response() };
         let d = &mut self.delay;
@@ -392,6 +448,8 @@ impl Runtime {
             }
             // The drive keeps the command it had before going online; the inputs are live.
             engine.hold(profile, outputs, side, self.last.as_ref())
+        } else if lost && self.clear {
+            engine.clear(profile, side)
         } else if lost {
             engine.comm_lost(profile, side)
         } else if let Some(out) = outputs {
@@ -406,7 +464,9 @@ impl Runtime {
             engine.step(profile, side)
         };
         if let Some(req) = cycle.pkw_request {
-            self.pkw.on_request(req);
+            // INVT CW b8 "enable writing (mainly through PKW1 to PKW4)", INVT Table 2-5.
+            let enabled = self.pkw.dialect() != PkwDialect::Invt || cycle.control_word & INVT_ENABLE_WRITING != 0;
+            self.pkw.on_request_enabled(req, enabled);
         }
         if let Some(c) = cycle.command.as_mut().filter(|_| !continued) {
             c.fault_resets = c.fault_resets.wrapping_add(self.resets_base);
@@ -456,7 +516,7 @@ mod tests {
     }
 
     fn sel(telegram: Telegram, mode: OperateMode) -> Selection {
-        Selection { telegram, mode, data: DataProfile::Manufacturer, comm_loss_reaction: 2 }
+        Selection { telegram, mode, data: DataProfile::Factory, comm_loss_reaction: 2 }
     }
 
     #[test]

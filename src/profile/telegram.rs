@@ -61,7 +61,16 @@ pub enum ProfileFamily {
 
 /// Which data profile the drive selected for the control and status words where the
 /// telegram leaves it open (WEG P0741; the DPM `HostConfig::profile`: 0 PROFIdrive, 1
-/// manufacturer).
+/// manufacturer; no CONFIG block: [`DataProfile::Factory`]).
+///
+/// Standard Telegram 1 is the one telegram two products share: VACON's (PROFIdrive 4.1,
+/// OPTE3/E5 §6.3.2.1) and WEG's P0922 = 2 (CFW500 §4, the factory setting, with P0741's
+/// factory setting 1 = manufacturer words P0684 / P0680). Our reading: ST1 runs WEG's
+/// manufacturer profile when the drive's CONFIG says "manufacturer" (a VACON drive has no
+/// manufacturer data profile with ST1 — its own words are the Bypass operate mode), and
+/// PROFIdrive 4.1 otherwise (CONFIG "PROFIdrive", or no CONFIG). ST1 with CONFIG
+/// "PROFIdrive" is VACON's PROFIdrive 4.1, not WEG's P0967 reading: a WEG drive that wants
+/// P0967 uses a WEG telegram (103..108 / 100..107).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub enum DataProfile {
@@ -69,6 +78,35 @@ pub enum DataProfile {
     Profidrive,
     /// The manufacturer's words.
     Manufacturer,
+    /// No CONFIG from the drive: each telegram's factory reading (WEG telegrams: P0741 = 1
+    /// manufacturer; ST1: PROFIdrive 4.1).
+    Factory,
+}
+
+impl DataProfile {
+    /// The data profile of the drive's CONFIG.PROFILE (`None`: no CONFIG yet → [`Self::Factory`];
+    /// 0 PROFIdrive; anything else manufacturer).
+    pub const fn of_config(profile: Option<u8>) -> DataProfile {
+        match profile {
+            None => DataProfile::Factory,
+            Some(0) => DataProfile::Profidrive,
+            Some(_) => DataProfile::Manufacturer,
+        }
+    }
+}
+
+impl ProfileFamily {
+    /// The status word the master reads while the drive is lost (its heartbeat stopped; every
+    /// other word 0): each profile's own "fault" — PROFIdrive ZSW1 / WEG P0968 b3 "fault present"
+    /// (OPTE3/E5 Table 27, CFW500 Table 4.8), WEG P0680 b15 "fault" (CFW500 Table 4.2), INVT
+    /// status value 4 "faulty" (INVT Table 2-7).
+    pub const fn fault_status_word(self) -> u16 {
+        match self {
+            ProfileFamily::Profidrive41 | ProfileFamily::Profidrive20 | ProfileFamily::WegProfidrive => 1 << 3,
+            ProfileFamily::WegManufacturer => 1 << 15,
+            ProfileFamily::Invt => 4,
+        }
+    }
 }
 
 /// What one word of a cyclic image is.
@@ -204,16 +242,19 @@ impl Layout {
             Telegram::Vendor(Family::Invt, _) => ProfileFamily::Invt,
             Telegram::Vendor(Family::WegCfw500 | Family::WegCfw11, _) => match data {
                 DataProfile::Profidrive => ProfileFamily::WegProfidrive,
-                DataProfile::Manufacturer => ProfileFamily::WegManufacturer,
+                DataProfile::Manufacturer | DataProfile::Factory => ProfileFamily::WegManufacturer,
             },
+            // WEG P0922 = 2 with P0741 = 1 (see [`DataProfile`]).
+            Telegram::Standard(1) if matches!(data, DataProfile::Manufacturer) => ProfileFamily::WegManufacturer,
             _ => ProfileFamily::Profidrive41,
         }
     }
 
     /// The family with the drive's factory data profile (WEG P0741 default 1 =
-    /// manufacturer, CFW500 and CFW-11 manuals) — what PNU 915 / 916 describe.
+    /// manufacturer, CFW500 and CFW-11 manuals; ST1 PROFIdrive 4.1) — what PNU 915 / 916
+    /// describe without a CONFIG.
     pub const fn default_profile(&self) -> ProfileFamily {
-        self.profile(DataProfile::Manufacturer)
+        self.profile(DataProfile::Factory)
     }
 
     /// PNU 915: the signal number of each output PZD (OPTE3/E5 Table 37), 0 = unused.

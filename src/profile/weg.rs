@@ -50,9 +50,19 @@ impl WegModel {
     }
 }
 
-/// WEG's PROFIdrive profile (P0741 = 0): P0967 control word (Table 4.7: b5 reserved, b8
-/// JOG 1, b10 control by PLC = LOC/REM), P0968 status word (Table 4.8 / 3.9), speeds with
-/// 16384 = P0134.
+/// WEG's PROFIdrive profile (P0741 = 0): P0967 control word (CFW500 Table 4.7), P0968 status
+/// word (Table 4.8 / 3.9), speeds with 16384 = P0134. Where WEG's P0967 differs from VACON's
+/// STW1 (OPTE3/E5 Table 26) the card follows WEG:
+///
+/// * b4 = 0 "disables the drive via deceleration ramp" (a ramp stop, not a ramp-function
+///   generator reset);
+/// * b5 reserved (no setpoint freeze); b8 JOG 1;
+/// * b7 "1: if in a fault condition, it executes the fault reset" — on the level, once per
+///   fault, not on an edge;
+/// * b10 "0: the drive goes to the LOCAL situation, 1: REMOTE" — b10 = 0 only takes the
+///   fieldbus control away ([`CommandFlags::FIELDBUS_CONTROL`] cleared); it never freezes
+///   the data or faults (VACON's §6.3.3 reading), and Clear mode is only the
+///   communication-loss command (A138 with P0313).
 pub fn weg_profidrive(model: WegModel, scale: SpeedScale) -> Profidrive {
     Profidrive::new(ProfidriveConfig {
         st20: false,
@@ -60,6 +70,10 @@ pub fn weg_profidrive(model: WegModel, scale: SpeedScale) -> Profidrive {
         freeze_bit: false,
         setpoint_enable_bit: true,
         jog_bit: true,
+        b10_is_local_remote: true,
+        b4_is_ramp_stop: true,
+        ack_on_level: true,
+        clear_faults: false,
         zsw1_mask: model.p0968_mask(),
         scale,
     })
@@ -122,6 +136,36 @@ bitflags::bitflags! {
         /// b15 fault.
         const FAULT = 1 << 15;
     }
+}
+
+/// P0680, the WEG status word (CFW500 Table 4.2, CFW-11 Tabela 3.2), of the drive's status
+/// and the command in force (`c`: the run command, quick stop, general enable, remote) — the
+/// manufacturer profile's status word, and the simulated drive's parameter P0680.
+pub fn p0680(model: WegModel, c: CommandFlags, drive: &DriveStatus) -> u16 {
+    let f = drive.flags;
+    let mut s = P0680::empty();
+    if model == WegModel::Cfw500 {
+        s.set(P0680::RUN_COMMAND, c.intersects(CommandFlags::RUN | CommandFlags::JOG1));
+    }
+    s.set(P0680::QUICK_STOP, c.contains(CommandFlags::QUICK_STOP) && f.contains(StatusFlags::RUNNING));
+    s.set(P0680::SECOND_RAMP, f.contains(StatusFlags::RAMP_SET_2));
+    s.set(P0680::ALARM, f.contains(StatusFlags::WARNING));
+    s.set(P0680::RUNNING, f.contains(StatusFlags::RUNNING));
+    s.set(
+        P0680::GENERAL_ENABLE,
+        !c.contains(CommandFlags::COAST)
+            && f.intersects(StatusFlags::READY | StatusFlags::RUNNING)
+            && !f.contains(StatusFlags::FAULT),
+    );
+    let forward = if drive.speed != 0 { drive.speed > 0 } else { !f.contains(StatusFlags::REVERSE) };
+    s.set(P0680::FORWARD, forward);
+    s.set(P0680::JOG, f.contains(StatusFlags::JOGGING));
+    // b12 LOC/REM: remote while the drive's control place is the fieldbus and P0684 b4 asks
+    // for remote.
+    s.set(P0680::REMOTE, f.contains(StatusFlags::FIELDBUS_CONTROL) && c.contains(CommandFlags::FIELDBUS_CONTROL));
+    s.set(P0680::UNDERVOLTAGE, f.contains(StatusFlags::UNDERVOLTAGE));
+    s.set(P0680::FAULT, f.contains(StatusFlags::FAULT));
+    s.bits()
 }
 
 /// WEG's manufacturer profile (P0741 = 1): P0684 → [`DriveCommand`], [`DriveStatus`] →
@@ -187,29 +231,7 @@ impl ControlProfile for WegManufacturer {
     }
 
     fn status_word(&self, drive: &DriveStatus) -> u16 {
-        let f = drive.flags;
-        let c = self.command.flags;
-        let mut s = P0680::empty();
-        if self.model == WegModel::Cfw500 {
-            s.set(P0680::RUN_COMMAND, c.intersects(CommandFlags::RUN | CommandFlags::JOG1));
-        }
-        s.set(P0680::QUICK_STOP, c.contains(CommandFlags::QUICK_STOP) && f.contains(StatusFlags::RUNNING));
-        s.set(P0680::SECOND_RAMP, f.contains(StatusFlags::RAMP_SET_2));
-        s.set(P0680::ALARM, f.contains(StatusFlags::WARNING));
-        s.set(P0680::RUNNING, f.contains(StatusFlags::RUNNING));
-        s.set(
-            P0680::GENERAL_ENABLE,
-            !c.contains(CommandFlags::COAST)
-                && f.intersects(StatusFlags::READY | StatusFlags::RUNNING)
-                && !f.contains(StatusFlags::FAULT),
-        );
-        let forward = if drive.speed != 0 { drive.speed > 0 } else { !f.contains(StatusFlags::REVERSE) };
-        s.set(P0680::FORWARD, forward);
-        s.set(P0680::JOG, f.contains(StatusFlags::JOGGING));
-        s.set(P0680::REMOTE, f.contains(StatusFlags::FIELDBUS_CONTROL));
-        s.set(P0680::UNDERVOLTAGE, f.contains(StatusFlags::UNDERVOLTAGE));
-        s.set(P0680::FAULT, f.contains(StatusFlags::FAULT));
-        s.bits()
+        p0680(self.model, self.command.flags, drive)
     }
 
     fn actual_value(&self, drive: &DriveStatus) -> u16 {

@@ -330,9 +330,10 @@ fn ramp_generator_freeze_and_setpoint_enable() {
     assert!(c.flags.contains(CommandFlags::RAMP_RESET | CommandFlags::RUN));
     assert_eq!(r.d.speed, 0);
     r.run(0x047F, 0x2000, 10);
-    // b5 = 0: freeze; the setpoint word is not taken over.
+    // b5 = 0: freeze the setpoint (Table 26); the setpoint word is not taken over, the
+    // ramp-function generator is not held.
     let (c, _) = r.cycle(0x045F, 0x3000);
-    assert!(c.flags.contains(CommandFlags::RAMP_HOLD));
+    assert!(!c.flags.contains(CommandFlags::RAMP_HOLD));
     assert_eq!(c.speed_setpoint, 0x2000);
     assert_eq!(r.d.speed, 0x2000);
     let (c, _) = r.cycle(0x047F, 0x3000);
@@ -587,5 +588,27 @@ proptest! {
             };
             check(&r.p, &c, z, valid)?;
         }
+    }
+}
+
+/// Issue 15 item 13: the drive losing READY (ZSW1 b13) without a fault takes S2..S4 back to
+/// S1 (Figure 11: "ready" is a condition of S2 and above); with a fault it is the fault state.
+#[test]
+fn losing_ready_without_a_fault_falls_back_to_s1() {
+    let ready = DriveStatus { flags: StatusFlags::READY | StatusFlags::FIELDBUS_CONTROL, ..DriveStatus::default() };
+    let not_ready = DriveStatus { flags: StatusFlags::FIELDBUS_CONTROL, ..DriveStatus::default() };
+    for (words, state) in [
+        (&[0x047E][..], State::ReadyToSwitchOn),
+        (&[0x047E, 0x0477][..], State::SwitchedOn),
+        (&[0x047E, 0x047F][..], State::Operation),
+    ] {
+        let mut p = Profidrive::st1();
+        for &w in words {
+            p.command(w, 0, &ready);
+        }
+        assert_eq!(p.state(), state);
+        let c = p.command(*words.last().unwrap(), 0, &not_ready);
+        assert_eq!(p.state(), State::SwitchingOnInhibited, "from {state:?}");
+        assert!(c.flags.contains(CommandFlags::COAST));
     }
 }
