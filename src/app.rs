@@ -943,6 +943,38 @@ mod tests {
         assert_eq!(b.requests(), 3);
     }
 
+    /// Issue 12 item 1: I&M0 and I&M1 over MSAC_C1 through the shipped card (Node +
+    /// Application), I&M1 stored in the power-cut-safe journal and back after a reboot.
+    #[test]
+    fn identification_and_maintenance_through_the_card() {
+        use crate::store::tests::SimFlash;
+        use crate::store::ImJournal;
+        let mut b = Bench::new();
+        b.bring_up_with(&card::MODULES[0], 0x80);
+        assert_eq!(b.c1(&[0x5F, 0x00, 0xFF, 0x04, 0x08, 0x00, 0xFD, 0xE8]), [0x5F, 0x00, 0xFF, 0x04]);
+        let r = b.c1(&[0x5E, 0x00, 0xFF, 0xF0]);
+        assert_eq!(&r[..8], &[0x5E, 0x00, 0xFF, 68, 0x08, 0x00, 0xFD, 0xE8]);
+        assert_eq!(&r[8 + 12..8 + 19], b"ODC-PB1", "ORDER_ID");
+        assert_eq!(&r[8 + 56..8 + 58], &[0x3A, 0x00], "PROFILE_ID PROFIdrive");
+        // I&M3 DESCRIPTOR written by the master, stored by the platform.
+        let mut rec = vec![0u8; 10];
+        rec.extend_from_slice(&[b'd'; 54]);
+        let w = [&[0x5F, 0x00, 0xFF, 68, 0x08, 0x00, 0xFD, 0xEB][..], &rec].concat();
+        assert_eq!(b.c1(&w), [0x5F, 0x00, 0xFF, 68]);
+        let mut journal = ImJournal::new(SimFlash::<1024>::new());
+        let changed = b.node.im_mut().take_changed().expect("I&M3 changed");
+        journal.save(&changed).unwrap();
+        // Power cycle: a new card loads I&M1-4 from the journal.
+        let mut b = Bench::new();
+        if let Some(d) = journal.load() {
+            b.node.im_mut().set_data(d);
+        }
+        b.bring_up_with(&card::MODULES[0], 0x80);
+        assert_eq!(b.c1(&[0x5F, 0x00, 0xFF, 0x04, 0x08, 0x00, 0xFD, 0xEB]), [0x5F, 0x00, 0xFF, 0x04]);
+        let r = b.c1(&[0x5E, 0x00, 0xFF, 0xF0]);
+        assert_eq!(&r[8 + 10..], &[b'd'; 54]);
+    }
+
     /// Issue 6 item 5: SYNC / FREEZE / Clear / watchdog on live data through the whole card
     /// (DP slave → profile layer → DPM → simulated drive and back), one module of each family
     /// (CFW500 §5.1.2 SYNC/FREEZE, §6 A138 / A139 with P0313).

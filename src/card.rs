@@ -358,3 +358,17 @@ mod bench_tests {
         }
     }
 }
+
+// ---- Identification & Maintenance (I&M0, reference §4.7; `dpv1::im`) ----
+
+/// I&M0 MANUFACTURER_ID: the PI vendor ID. **Placeholder** 0 until registered (as PNU 964).
+pub const IM_MANUFACTURER_ID: u16 = 0;
+/// I&M0 ORDER_ID (≤ 20 characters, blank-padded): the GSD's `OrderNumber`.
+pub const IM_ORDER_ID: &str = "ODC-PB1";
+/// I&M0 HARDWARE_REVISION when the drive reports none (DPM `IDENT`): the GSD's
+/// `Hardware_Release` "V0.1" as 1.
+pub const IM_HARDWARE_REVISION: u16 = 1;
+/// I&M0 SOFTWARE_REVISION: `V` + major, minor, patch — the GSD's `Software_Release` "V0.1.0".
+pub const IM_SOFTWARE_REVISION: [u8; 4] = [b'V', 0, 1, 0];
+/// GSD `Ident_Maintenance_supp`: I&M0–I&M4 at slot 0 / index 255 over MSAC_C1 and MSAC_C2.
+pub const IDENT_MAINTENANCE_SUPP: bool = true;

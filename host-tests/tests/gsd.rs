@@ -141,6 +141,17 @@ fn services_match_card() {
     let scan = Scan::new(&gsd_text());
     assert_eq!(scan.number("DPV1_Slave"), Some(i64::from(card::DPV1_SLAVE)), "DPV1_Slave");
     assert_eq!(scan.number("WD_Base_1ms_supp"), Some(i64::from(card::WD_BASE_1MS_SUPP)), "WD_Base_1ms_supp");
+    assert_eq!(
+        scan.number("Ident_Maintenance_supp"),
+        Some(i64::from(card::IDENT_MAINTENANCE_SUPP)),
+        "Ident_Maintenance_supp (I&M0-4 at slot 0 index 255)"
+    );
+    // I&M0 ORDER_ID is the GSD's OrderNumber.
+    assert_eq!(
+        scan.setting("OrderNumber").map(|s| s.trim_matches('"').to_string()).as_deref(),
+        Some(card::IM_ORDER_ID),
+        "OrderNumber = I&M0 ORDER_ID"
+    );
     assert_eq!(scan.number("C1_Read_Write_supp"), Some(i64::from(card::C1_READ_WRITE_SUPP)), "C1_Read_Write_supp");
     assert_eq!(scan.number("C1_Max_Data_Len"), Some(card::C1_MAX_DATA_LEN as i64), "C1_Max_Data_Len");
     assert_eq!(
