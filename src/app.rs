@@ -674,7 +674,7 @@ mod tests {
 
     #[test]
     fn size_stays_small() {
-        // DPM image 728 B (layout 3) with the host's state, last status, outputs, drive
+        // DPM image 752 B (layout 4) with the host's state, last status, outputs, drive
         // report, command, drive state and a mailbox answer in the link, two parameter caches
         // (record 47 and PKW, 8 mailbox answers each, ≈ 1.1 KiB each), the profile layer
         // (last cycle, PKW server, fault buffer) and the drive's parameter table, plus the SPI
@@ -955,6 +955,9 @@ mod tests {
         let r = b.c1(&[0x5E, 0x00, 0xFF, 0xF0]);
         assert_eq!(&r[..8], &[0x5E, 0x00, 0xFF, 68, 0x08, 0x00, 0xFD, 0xE8]);
         assert_eq!(&r[8 + 12..8 + 19], b"ODC-PB1", "ORDER_ID");
+        // SERIAL_NUMBER and HARDWARE_REVISION from the drive (DPM DEVICE, the simulated drive's).
+        assert_eq!(&r[8 + 32..8 + 48], b"SIM-DRIVE-000001");
+        assert_eq!(&r[8 + 48..8 + 50], &[0, 2]);
         assert_eq!(&r[8 + 56..8 + 58], &[0x3A, 0x00], "PROFILE_ID PROFIdrive");
         // I&M3 DESCRIPTOR written by the master, stored by the platform.
         let mut rec = vec![0u8; 10];
