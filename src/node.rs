@@ -215,7 +215,7 @@ impl Node {
         self.track_relations();
         let mut drive_records = self.records.with(&mut table);
         let mut records = self.im.with(&mut drive_records);
-        self.c1.process(now, &self.slave, &mut records);
+        self.c1.process(now, &mut self.slave, &mut records);
         self.c2.process(now, &mut records);
     }
 

@@ -520,3 +520,35 @@ fn identification_and_maintenance_over_c1_and_c2() {
     assert_eq!(m.send(M1, Some(62), Some(62), card::MODULES[0].cfg, true), Ans::Sc);
     assert_eq!(m.transact(&[0x5E, 0x00, 0xFF, 0xF0]), [0xDE, 0x80, 0xB5, 0x00]);
 }
+
+/// Issue 12 items 2 and 3 on the bus: with DPV1_Enable and Enable_Diagnostic_Alarm a drive
+/// fault becomes a diagnostic alarm (announced by DH, carried in Slave_Diag as
+/// `06 01 00 <Seq_Nr|appears> <fault code>`), acknowledged by Alarm_Ack `5C 00 01 01` on
+/// SAP 51; a wrong acknowledgement gets `DC 80 B5 00`; the status block follows.
+#[test]
+fn diagnostic_alarm_and_alarm_ack_on_sap_51() {
+    let mut m = Master::new();
+    let prm = SetPrm::CARD.watchdog(10, 10).user([0x80, 0x20, 0x00, 0, 0]).pdu();
+    assert_eq!(m.send(M1, Some(61), Some(62), &prm, true), Ans::Sc);
+    assert_eq!(m.send(M1, Some(62), Some(62), card::MODULES[0].cfg, true), Ans::Sc);
+    assert_eq!(m.node.slave().state(), DpState::DataExch);
+    let diag = |m: &mut Master| match m.send(M1, Some(60), Some(62), &[], true) {
+        Ans::Pdu(p) => p,
+        other => panic!("diag {other:?}"),
+    };
+    assert_eq!(diag(&mut m)[6..], [] as [u8; 0]);
+    // The drive faults (what the DPM link hands the slave).
+    m.node.slave_mut().set_ext_diag(&[0x03, 0x01, 0x01], true).unwrap();
+    m.node.slave_mut().set_drive_fault(0x2310);
+    let f = m.master.request(M1, None, None, &[0x04, 0x7E, 0, 0], true);
+    m.now += 500;
+    let r = testkit::feed(&mut m.node, Instant::from_micros(m.now), &f).expect("Data_Exchange answered");
+    assert_eq!(r[6], 0x0A, "DH: new diagnosis");
+    let d = diag(&mut m);
+    assert_eq!(d[0] & 0x08, 0x08, "Ext_Diag");
+    assert_eq!(d[6..], [0x06, 0x01, 0x00, 0x01, 0x23, 0x10]);
+    assert_eq!(diag(&mut m)[6..], [0x06, 0x81, 0x00, 0x00, 0x01, 0x01], "then the Status_Message");
+    assert_eq!(m.transact(&[0x5C, 0x00, 0x01, 0x02]), [0xDC, 0x80, 0xB5, 0x00], "wrong specifier");
+    assert_eq!(m.transact(&[0x5C, 0x00, 0x01, 0x01]), [0x5C, 0x00, 0x01, 0x01]);
+    assert_eq!(m.transact(&[0x5C, 0x00, 0x01, 0x01]), [0xDC, 0x80, 0xB5, 0x00], "acknowledged once");
+}

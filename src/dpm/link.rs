@@ -401,10 +401,15 @@ impl Link {
             self.apply_config(node, t);
         }
         if update.ext_diag {
+            // Ext_Diag (Station_Status_1 b3) only for a fault: a PLC raises OB82 and shows the
+            // slave faulty on it; a warning is carried in the block without it (issue 12).
             let ext = self.drive.ext_diag();
-            if node.slave_mut().set_ext_diag(ext, !ext.is_empty()).is_err() {
+            let fault = self.drive.fault_code;
+            if node.slave_mut().set_ext_diag(ext, fault != 0).is_err() {
                 self.stats.bad_ext_diag = self.stats.bad_ext_diag.wrapping_add(1);
             }
+            // A fault appearing or clearing: a diagnostic alarm when the master enabled them.
+            node.slave_mut().set_drive_fault(fault);
         }
         if let Some(on) = update.stat_diag {
             node.slave_mut().set_stat_diag(on);
@@ -471,7 +476,7 @@ impl Link {
         match dpm.drive_report() {
             Ok(r) => {
                 if r != self.drive {
-                    if r.ext_diag() != self.drive.ext_diag() {
+                    if r.ext_diag() != self.drive.ext_diag() || r.fault_code != self.drive.fault_code {
                         update.ext_diag = true;
                     }
                     self.drive = r;
