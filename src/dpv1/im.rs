@@ -29,8 +29,8 @@
 //! | 60..62 | IM_VERSION | 0x0101 (1.1) |
 //! | 62..64 | IM_SUPPORTED | [`IM_SUPPORTED`]: I&M1–I&M4 |
 //!
-//! I&M1 TAG_FUNCTION (32) + TAG_LOCATION (22); I&M2 INSTALLATION_DATE (16, "YYYY-MM-DD hh:mm")
-//! + 38 reserved; I&M3 DESCRIPTOR (54); I&M4 SIGNATURE (54). I&M1–3 are blanks (0x20) and
+//! I&M1 TAG_FUNCTION (32) and TAG_LOCATION (22); I&M2 INSTALLATION_DATE (16, "YYYY-MM-DD
+//! hh:mm") and 38 reserved bytes; I&M3 DESCRIPTOR (54); I&M4 SIGNATURE (54). I&M1–3 are blanks (0x20) and
 //! I&M4 zeros until written (as the ABB adapters ship them). They are kept in RAM here
 //! ([`Im::data`]); [`Im::take_changed`] hands a written set to the platform, which stores it in
 //! its power-cut-safe journal ([`crate::store::ImJournal`]) and gives it back at boot

@@ -46,6 +46,9 @@ pub struct ImRecord {
 }
 
 /// What a record slot holds.
+// A slot is decoded one at a time on the stack and there is no heap (no_std): the size of
+// `Valid` is the point, not a waste.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ImSlot {
     /// Erased (all 0xFF).
