@@ -687,7 +687,7 @@ pub(crate) mod tests {
 
     #[test]
     fn size_stays_small() {
-        // DPM image 728 B (layout 3) with the host's state, last status, outputs, drive
+        // DPM image 752 B (layout 4) with the host's state, last status, outputs, drive
         // report, command, drive state and a mailbox answer in the link, two parameter caches
         // (record 47 and PKW, 8 mailbox answers each, ≈ 1.1 KiB each), the profile layer
         // (last cycle, PKW server, fault buffer) and the drive's parameter table, plus the SPI
@@ -956,6 +956,188 @@ pub(crate) mod tests {
         b.step(1);
         assert_eq!(b.read47(), [7, 2, 1, 1]);
         assert_eq!(b.requests(), 3);
+    }
+
+    /// Set_Prm with DPV1_Status_1..3 `dpv1`, Chk_Cfg of `module`: data exchange.
+    fn bring_up_dpv1(b: &mut Bench, module: &card::Module, dpv1: [u8; 3]) {
+        let mut prm = vec![0x88, 1, 100, 11, (card::IDENT_NUMBER >> 8) as u8, card::IDENT_NUMBER as u8, 0];
+        prm.extend_from_slice(&card::USER_PRM_DEFAULTS);
+        prm[7..10].copy_from_slice(&dpv1);
+        assert_eq!(b.srd(Some(61), &prm), [telegram::SC]);
+        b.step(1);
+        assert_eq!(b.srd(Some(62), module.cfg), [telegram::SC]);
+        b.step(1);
+        assert_eq!(b.node.slave().state(), DpState::DataExch);
+    }
+
+    /// Slave_Diag: (Station_Status_1, the extended diagnosis after the 6 octets).
+    fn diag(b: &mut Bench) -> (u8, Vec<u8>) {
+        let r = b.srd(Some(60), &[]);
+        // SD2 (68 LE LEr 68 DA SA FC DSAP SSAP …) or SD3 for 8 data bytes (A2 DA SA FC …).
+        let start = if r[0] == telegram::SD2 { 9 } else { 6 };
+        let d = &r[start..r.len() - 2];
+        (d[0], d[6..].to_vec())
+    }
+
+    /// The FC byte of a Data_Exchange answer with `outputs` (DL 0x08 / DH 0x0A), then a step.
+    fn dx_fc(b: &mut Bench, outputs: &[u8]) -> u8 {
+        let r = b.srd(None, outputs);
+        b.step(2);
+        if r[0] == telegram::SD2 {
+            r[6]
+        } else {
+            r[3]
+        }
+    }
+
+    const EXT_DIAG: u8 = 0x08;
+    const DL: u8 = 0x08;
+    const DH: u8 = 0x0A;
+
+    /// Issue 12 item 2: without DPV1_Enable the vendor block `03 bits value` stays; with it the
+    /// device-related block is a DP-V1 Status_Message `06 81 00 00 bits value`; Ext_Diag only
+    /// for a fault, never for a warning alone.
+    #[test]
+    fn diagnosis_format_and_ext_diag_only_for_faults() {
+        for dpv1 in [false, true] {
+            let mut b = Bench::new();
+            bring_up_dpv1(&mut b, &card::MODULES[0], [if dpv1 { 0x80 } else { 0 }, 0, 0]);
+            let run = [0x04, 0x7E, 0x00, 0x00];
+            b.cycle(&run, 2);
+            assert_eq!(diag(&mut b), (0, vec![]), "nothing to report");
+            b.app.drive_mut().model_mut().set_warning(0x0102);
+            b.step(2);
+            b.step(2);
+            assert_eq!(dx_fc(&mut b, &run), DH, "new diagnosis announced");
+            let (s1, ext) = diag(&mut b);
+            assert_eq!(s1 & EXT_DIAG, 0, "a warning alone: no Ext_Diag (dpv1 {dpv1})");
+            let want: &[u8] = if dpv1 { &[0x06, 0x81, 0x00, 0x00, 0x02, 0x00] } else { &[0x03, 0x02, 0x00] };
+            assert_eq!(&ext[..], want, "warning block (dpv1 {dpv1})");
+            b.app.drive_mut().inject_fault(0x2310, 0);
+            b.step(2);
+            b.step(2);
+            let (s1, ext) = diag(&mut b);
+            assert_eq!(s1 & EXT_DIAG, EXT_DIAG, "a fault: Ext_Diag");
+            let want: &[u8] = if dpv1 { &[0x06, 0x81, 0x00, 0x00, 0x03, 0x01] } else { &[0x03, 0x03, 0x01] };
+            assert_eq!(&ext[..], want, "fault block (dpv1 {dpv1})");
+            assert!(b.node.slave().alarms().outstanding().is_empty(), "alarms not enabled");
+        }
+    }
+
+    /// Issue 12 item 3: a diagnostic alarm when the drive faults and when the fault clears,
+    /// announced by DH, carried in Slave_Diag, acknowledged by Alarm_Ack on SAP 51; a wrong
+    /// acknowledgement gets the DP-V1 error PDU; leaving data exchange drops the alarms.
+    #[test]
+    fn diagnostic_alarms_when_the_drive_faults_and_clears() {
+        let mut b = Bench::new();
+        bring_up_dpv1(&mut b, &card::MODULES[0], [0x80, 0x20, 0x00]);
+        let run = [0x04, 0x7E, 0x00, 0x00];
+        for _ in 0..3 {
+            assert_eq!(dx_fc(&mut b, &run), DL);
+        }
+        assert_eq!(b.c1(&[0x5C, 0x00, 0x01, 0x01]), [0xDC, 0x80, 0xB5, 0x00], "no alarm outstanding");
+        b.app.drive_mut().inject_fault(0x2310, 0);
+        b.step(2);
+        b.step(2);
+        assert_eq!(dx_fc(&mut b, &run), DH, "the alarm is announced");
+        let (s1, ext) = diag(&mut b);
+        assert_eq!(s1 & EXT_DIAG, EXT_DIAG);
+        assert_eq!(
+            ext,
+            [0x06, 0x01, 0x00, 0x01, 0x23, 0x10],
+            "diagnostic alarm, slot 0, Seq_Nr 0, appears, fault 0x2310"
+        );
+        // Delivered: the next diagnosis carries the status block.
+        assert_eq!(diag(&mut b).1, [0x06, 0x81, 0x00, 0x00, 0x01, 0x01]);
+        // Wrong acknowledgements: sequence number, alarm type, slot.
+        assert_eq!(b.c1(&[0x5C, 0x00, 0x01, 0x09]), [0xDC, 0x80, 0xB5, 0x00]);
+        assert_eq!(b.c1(&[0x5C, 0x00, 0x02, 0x01]), [0xDC, 0x80, 0xB5, 0x00]);
+        assert_eq!(b.c1(&[0x5C, 0x01, 0x01, 0x01]), [0xDC, 0x80, 0xB2, 0x00]);
+        assert_eq!(b.node.slave().alarms().outstanding().len(), 1);
+        assert_eq!(b.c1(&[0x5C, 0x00, 0x01, 0x01]), [0x5C, 0x00, 0x01, 0x01], "acknowledged");
+        assert!(b.node.slave().alarms().outstanding().is_empty());
+        // The master acknowledges the fault (STW1 bit 7): the fault clears → "disappears".
+        dx_fc(&mut b, &[0x04, 0xFE, 0x00, 0x00]);
+        let mut fc = DL;
+        for _ in 0..10 {
+            fc = dx_fc(&mut b, &run);
+            if fc == DH {
+                break;
+            }
+        }
+        assert_eq!(fc, DH);
+        let (s1, ext) = diag(&mut b);
+        assert_eq!(s1 & EXT_DIAG, 0, "no fault any more");
+        assert_eq!(ext, [0x06, 0x01, 0x00, 0x0A, 0x23, 0x10], "Seq_Nr 1, disappears");
+        assert_eq!(diag(&mut b).1, Vec::<u8>::new(), "delivered; nothing else to report");
+        // A new fault before the ack: held back (Alarm_Mode 0 = one outstanding), then raised
+        // after the ack.
+        b.app.drive_mut().inject_fault(0x3210, 0);
+        b.step(2);
+        b.step(2);
+        assert_eq!(b.node.slave().alarms().outstanding().len(), 1, "one per type");
+        assert_eq!(b.c1(&[0x5C, 0x00, 0x01, 0x0A]), [0x5C, 0x00, 0x01, 0x0A]);
+        assert_eq!(dx_fc(&mut b, &run), DH);
+        assert_eq!(diag(&mut b).1, [0x06, 0x01, 0x00, 0x11, 0x32, 0x10], "Seq_Nr 2, appears, 0x3210");
+        // Leaving data exchange (a new Set_Prm) drops the unacknowledged alarm; the numbering
+        // starts again (the drive's fieldbus fault F-code of the interruption is the next one).
+        bring_up_dpv1(&mut b, &card::MODULES[0], [0x80, 0x20, 0x00]);
+        assert_eq!(b.node.slave().alarms().stats().dropped, 1);
+        let fieldbus = crate::drive::model::FAULT_FIELDBUS;
+        assert!(b.node.slave().alarms().outstanding().iter().all(|a| a.seq == 0 && a.fault_code == fieldbus));
+    }
+
+    /// Issue 12 item 3: a Set_Prm asking for alarm types the card does not offer is a
+    /// Prm_Fault; the diagnostic alarm without DPV1_Enable too.
+    #[test]
+    fn set_prm_with_alarms_the_card_does_not_offer_is_a_prm_fault() {
+        for dpv1 in
+            [[0x80, 0x40, 0], [0x80, 0x80, 0], [0x80, 0x08, 0], [0x80, 0x04, 0], [0x80, 0x10, 0], [0x00, 0x20, 0]]
+        {
+            let mut b = Bench::new();
+            let mut prm = vec![0x88, 1, 100, 11, (card::IDENT_NUMBER >> 8) as u8, card::IDENT_NUMBER as u8, 0];
+            prm.extend_from_slice(&card::USER_PRM_DEFAULTS);
+            prm[7..10].copy_from_slice(&dpv1);
+            assert_eq!(b.srd(Some(61), &prm), [telegram::SC]);
+            b.step(1);
+            assert_eq!(diag(&mut b).0 & 0x40, 0x40, "Prm_Fault for {dpv1:02X?}");
+            assert_eq!(b.node.slave().state(), DpState::WaitPrm);
+        }
+    }
+
+    /// Issue 12 item 1: I&M0 and I&M1 over MSAC_C1 through the shipped card (Node +
+    /// Application), I&M1 stored in the power-cut-safe journal and back after a reboot.
+    #[test]
+    fn identification_and_maintenance_through_the_card() {
+        use crate::store::tests::SimFlash;
+        use crate::store::ImJournal;
+        let mut b = Bench::new();
+        b.bring_up_with(&card::MODULES[0], 0x80);
+        assert_eq!(b.c1(&[0x5F, 0x00, 0xFF, 0x04, 0x08, 0x00, 0xFD, 0xE8]), [0x5F, 0x00, 0xFF, 0x04]);
+        let r = b.c1(&[0x5E, 0x00, 0xFF, 0xF0]);
+        assert_eq!(&r[..8], &[0x5E, 0x00, 0xFF, 68, 0x08, 0x00, 0xFD, 0xE8]);
+        assert_eq!(&r[8 + 12..8 + 19], b"ODC-PB1", "ORDER_ID");
+        // SERIAL_NUMBER and HARDWARE_REVISION from the drive (DPM DEVICE, the simulated drive's).
+        assert_eq!(&r[8 + 32..8 + 48], b"SIM-DRIVE-000001");
+        assert_eq!(&r[8 + 48..8 + 50], &[0, 2]);
+        assert_eq!(&r[8 + 56..8 + 58], &[0x3A, 0x00], "PROFILE_ID PROFIdrive");
+        // I&M3 DESCRIPTOR written by the master, stored by the platform.
+        let mut rec = vec![0u8; 10];
+        rec.extend_from_slice(&[b'd'; 54]);
+        let w = [&[0x5F, 0x00, 0xFF, 68, 0x08, 0x00, 0xFD, 0xEB][..], &rec].concat();
+        assert_eq!(b.c1(&w), [0x5F, 0x00, 0xFF, 68]);
+        let mut journal = ImJournal::new(SimFlash::<1024>::new());
+        let changed = b.node.im_mut().take_changed().expect("I&M3 changed");
+        journal.save(&changed).unwrap();
+        // Power cycle: a new card loads I&M1-4 from the journal.
+        let mut b = Bench::new();
+        if let Some(d) = journal.load() {
+            b.node.im_mut().set_data(d);
+        }
+        b.bring_up_with(&card::MODULES[0], 0x80);
+        assert_eq!(b.c1(&[0x5F, 0x00, 0xFF, 0x04, 0x08, 0x00, 0xFD, 0xEB]), [0x5F, 0x00, 0xFF, 0x04]);
+        let r = b.c1(&[0x5E, 0x00, 0xFF, 0xF0]);
+        assert_eq!(&r[8 + 10..], &[b'd'; 54]);
     }
 
     /// Issue 6 item 5: SYNC / FREEZE / Clear / watchdog on live data through the whole card

@@ -358,3 +358,33 @@ mod bench_tests {
         }
     }
 }
+
+// ---- Identification & Maintenance (I&M0, reference §4.7; `dpv1::im`) ----
+
+/// I&M0 MANUFACTURER_ID: the PI vendor ID. **Placeholder** 0 until registered (as PNU 964).
+pub const IM_MANUFACTURER_ID: u16 = 0;
+/// I&M0 ORDER_ID (≤ 20 characters, blank-padded): the GSD's `OrderNumber`.
+pub const IM_ORDER_ID: &str = "ODC-PB1";
+/// I&M0 HARDWARE_REVISION when the drive reports none (DPM `IDENT`): the GSD's
+/// `Hardware_Release` "V0.1" as 1.
+pub const IM_HARDWARE_REVISION: u16 = 1;
+/// I&M0 SOFTWARE_REVISION: `V` + major, minor, patch — the GSD's `Software_Release` "V0.1.0".
+pub const IM_SOFTWARE_REVISION: [u8; 4] = [b'V', 0, 1, 0];
+/// GSD `Ident_Maintenance_supp`: I&M0–I&M4 at slot 0 / index 255 over MSAC_C1 and MSAC_C2.
+pub const IDENT_MAINTENANCE_SUPP: bool = true;
+
+// ---- DP-V1 alarms (reference §4.4; `dp::alarm`) ----
+
+/// GSD `Diagnostic_Alarm_supp`: diagnostic alarms when the drive faults and when the fault
+/// clears, enabled by DPV1_Status_2 b5.
+pub const DIAGNOSTIC_ALARM_SUPP: bool = true;
+/// GSD `Process_Alarm_supp`, `Pull_Plug_Alarm_supp`, `Status_Alarm_supp`, `Update_Alarm_supp`,
+/// `Manufacturer_Specific_Alarm_supp`: not offered (status travels in the Status_Message
+/// block of the diagnosis, which needs no acknowledgement).
+pub const OTHER_ALARMS_SUPP: bool = false;
+/// GSD `Extra_Alarm_SAP_supp`: Alarm_Ack on SAP 51 only (not SAP 50).
+pub const EXTRA_ALARM_SAP_SUPP: bool = false;
+/// GSD `Alarm_Sequence_Mode_Count`: outstanding alarms at most in sequence mode.
+pub const ALARM_SEQUENCE_MODE_COUNT: usize = crate::dp::alarm::MAX_OUTSTANDING;
+/// GSD `Alarm_Type_Mode_supp`: type mode (Alarm_Mode 0, one alarm per type) supported.
+pub const ALARM_TYPE_MODE_SUPP: bool = true;

@@ -16,6 +16,8 @@ use crate::dp::{DpSlave, Events};
 use crate::dpv1::c1::{self, C1};
 use crate::dpv1::c2::{C2Answer, C2};
 use crate::dpv1::channel::Answer;
+use crate::dpv1::im::Im;
+use crate::dpv1::records::{relation_c2, RELATION_C1};
 use crate::fdl::framer::{Framer, Push};
 use crate::fdl::station::{FdlApplication, Reply, Station, Tx};
 use crate::fdl::telegram::{DataTelegram, RequestFunction, ResponseStatus};
@@ -33,6 +35,8 @@ pub struct Node {
     c1: C1,
     c2: C2<{ card::C2_MAX_COUNT_CHANNELS }>,
     records: DriveRecords,
+    /// I&M0–I&M4 at slot 0 / index 255, in front of `records`.
+    im: Im,
     baudrate: Option<Baudrate>,
 }
 
@@ -116,6 +120,7 @@ impl Node {
             c1: C1::new(),
             c2: C2::new(),
             records: DriveRecords::new(),
+            im: Im::new(),
             baudrate: None,
         }
     }
@@ -127,6 +132,7 @@ impl Node {
             Push::Frame(_) => {
                 let mut router = Router { dp: &mut self.slave, c1: &mut self.c1, c2: &mut self.c2 };
                 let tx = self.station.decide(now, self.framer.frame(), &mut router)?;
+                self.track_relations();
                 Some(self.bytes(tx))
             }
             Push::Pending | Push::Dropped(_) => None,
@@ -137,7 +143,32 @@ impl Node {
     pub fn on_frame(&mut self, now: Instant, frame: &[u8]) -> Option<&[u8]> {
         let mut router = Router { dp: &mut self.slave, c1: &mut self.c1, c2: &mut self.c2 };
         let tx = self.station.decide(now, frame, &mut router)?;
+        self.track_relations();
         Some(self.bytes(tx))
+    }
+
+    /// Forget the I&M call of a relation that ended (MSAC_C1 closed with data exchange, an
+    /// MSAC_C2 connection no longer open).
+    fn track_relations(&mut self) {
+        if !C1::is_open(&self.slave) {
+            self.im.end_relation(RELATION_C1);
+        }
+        for n in 0..card::C2_MAX_COUNT_CHANNELS {
+            if self.c2.connection(n).is_none_or(|c| c.state != crate::dpv1::c2::ConnectionState::Open) {
+                self.im.end_relation(relation_c2(n));
+            }
+        }
+    }
+
+    /// The I&M function (I&M0–I&M4, [`crate::dpv1::im`]): load the stored I&M1–4 at boot
+    /// ([`Im::set_data`]), give it the drive's identity ([`Im::set_ident`]), and persist what
+    /// [`Im::take_changed`] returns.
+    pub fn im_mut(&mut self) -> &mut Im {
+        &mut self.im
+    }
+    /// The I&M function.
+    pub fn im(&self) -> &Im {
+        &self.im
     }
 
     fn bytes(&self, tx: Tx) -> &[u8] {
@@ -182,8 +213,10 @@ impl Node {
         self.records.set_errors(crate::profile::records::RecordErrors::for_telegram(info.telegram));
         let mut table = CardTable { info, drive: parameters };
         self.records.retry(&mut table);
-        let mut records = self.records.with(&mut table);
-        self.c1.process(now, &self.slave, &mut records);
+        self.track_relations();
+        let mut drive_records = self.records.with(&mut table);
+        let mut records = self.im.with(&mut drive_records);
+        self.c1.process(now, &mut self.slave, &mut records);
         self.c2.process(now, &mut records);
     }
 
@@ -204,6 +237,7 @@ impl Node {
         self.slave.poll(now);
         self.c1.track(&self.slave);
         self.c2.poll(now);
+        self.track_relations();
         let ev = self.slave.take_events();
         if ev.contains(Events::ADDRESS_CHANGED) {
             self.station.reset();

@@ -139,6 +139,10 @@ fn every_field_crosses_the_transport_both_ways() {
     let cfg_seq = host.write_config(&cfg).unwrap();
     let (iseq, sseq) = host.write_process_data(&ins, &state()).unwrap();
     host.respond(0x0102, Ok(values)).unwrap();
+    let mut serial = [0u8; 16];
+    serial.copy_from_slice(&bytes(16, 0x70));
+    let device = pbcard::dpv1::im::DeviceIdent { serial_number: serial, hardware_revision: 0x0A0B };
+    let dseq = host.write_device_ident(&device).unwrap();
     {
         let dpm = shared.borrow_mut();
         let back = dpm.inputs().unwrap();
@@ -152,6 +156,7 @@ fn every_field_crosses_the_transport_both_ways() {
         assert_eq!(dpm.config(), Ok((cfg_seq, cfg)));
         assert_eq!(dpm.drive_state(), Ok((sseq, DriveStateImage { inputs_seq: iseq, ..state() })));
         assert_eq!(dpm.response(), Ok((1, MailboxResponse { id: 0x0102, outcome: Ok(values) })));
+        assert_eq!(dpm.device_ident(), Ok((dseq, device)));
     }
     mark(&mut seen, shared.borrow_mut().as_bytes());
     // The error variant of the response carries ERROR / ERROR_INFO / HAS_INFO.
@@ -197,7 +202,7 @@ fn open_checks_magic_version_size_and_capabilities() {
     small.as_bytes_mut()[layout::header::IMAGE_SIZE..][..2].copy_from_slice(&624u16.to_be_bytes());
     assert_eq!(
         Host::open(DpmTransport::new(&mut small), Options::DEFAULT).err(),
-        Some(OpenError::BadImageSize { version: 3, size: 624 })
+        Some(OpenError::BadImageSize { version: 4, size: 624 })
     );
 
     // A version-2 card (624 bytes, no DRIVE_CMD / DRIVE_STATE): opens, and says what it lacks.

@@ -1,5 +1,6 @@
 //! The DP parameter parsers on untrusted PDUs: Set_Prm, Chk_Cfg, extended diagnosis blocks,
-//! Set_Slave_Add, Global_Control. No panic, and what they accept is consistent.
+//! Set_Slave_Add, Global_Control, the DP-V1 diagnosis blocks made of the drive's blocks. No
+//! panic, and what they accept is consistent.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
@@ -25,6 +26,15 @@ fuzz_target!(|data: &[u8]| {
         assert_eq!(m.cfg, data);
         let io = io.expect("check accepted what io_lengths refused");
         assert_eq!((io.inputs, io.outputs), (m.inputs as usize, m.outputs as usize));
+    }
+    // The drive's blocks (untrusted DPM bytes) in the DP-V1 format, with and without an alarm.
+    let mut out = [0u8; card::MAX_EXT_DIAG_LEN];
+    let alarm = pbcard::dp::alarm::Alarm { seq: data.len() as u8 % 32, kind: 1, fault_code: 0x2310, delivered: false };
+    for a in [None, Some(&alarm)] {
+        let n = pbcard::dp::alarm::device_block(data, true, a, &mut out);
+        if validate_ext_diag(data).is_ok() && data.len() <= 32 {
+            assert!(validate_ext_diag(&out[..n]).is_ok(), "DP-V1 blocks malformed: {:02x?}", &out[..n]);
+        }
     }
     if validate_ext_diag(data).is_ok() {
         assert!(data.len() <= card::MAX_EXT_DIAG_LEN);

@@ -466,3 +466,89 @@ fn card_pnu_descriptions() {
     m.transact(&[0x5F, 0, 47, 10, 0x32, 1, 1, 1, 0x20, 1, 0x03, 0xC5, 0, 0]);
     assert_eq!(m.transact(&[0x5E, 0, 47, 240]), [0x5E, 0, 47, 8, 0x32, 0x81, 1, 1, 0x44, 1, 0, 0x09]);
 }
+
+/// Issue 12 item 1: I&M0 over MSAC_C1 and MSAC_C2 (reference §4.7, ABB FPBA-01 p. 128):
+/// DS_Write slot 0 index 255 `08 00 FD E8` → `5F 00 FF 04`; DS_Read → `08 00 FD E8` + the
+/// 64-byte I&M0; I&M1 written over C1 is read back over C2; the guideline's error answers.
+#[test]
+fn identification_and_maintenance_over_c1_and_c2() {
+    let mut m = Master::new();
+    m.bring_up(0x80);
+    let mut im0 = vec![0u8; 10];
+    im0.extend_from_slice(&card::IM_MANUFACTURER_ID.to_be_bytes());
+    im0.extend_from_slice(b"ODC-PB1             ");
+    im0.extend_from_slice(&[b' '; 16]); // no serial number from a drive here
+    im0.extend_from_slice(&card::IM_HARDWARE_REVISION.to_be_bytes());
+    im0.extend_from_slice(&card::IM_SOFTWARE_REVISION);
+    im0.extend_from_slice(&[0, 0, 0x3A, 0x00, 0, 0, 0x01, 0x01, 0x00, 0x0F]);
+    assert_eq!(im0.len(), 64);
+    let read_answer = [&[0x5E, 0x00, 0xFF, 68, 0x08, 0x00, 0xFD, 0xE8][..], &im0].concat();
+
+    // MSAC_C1.
+    assert_eq!(m.transact(&[0x5E, 0x00, 0xFF, 0xF0]), [0xDE, 0x80, 0xB5, 0x00], "read without a call");
+    assert_eq!(m.transact(&[0x5F, 0x00, 0xFF, 0x04, 0x08, 0x00, 0xFD, 0xE8]), [0x5F, 0x00, 0xFF, 0x04]);
+    assert_eq!(m.transact(&[0x5E, 0x00, 0xFF, 0xF0]), read_answer);
+    // I&M1: TAG_FUNCTION + TAG_LOCATION.
+    let mut im1 = vec![0u8; 10];
+    im1.extend_from_slice(b"Conveyor 3 main drive           ");
+    im1.extend_from_slice(b"Hall B, cabinet 12    ");
+    let write = [&[0x5F, 0x00, 0xFF, 68, 0x08, 0x00, 0xFD, 0xE9][..], &im1].concat();
+    assert_eq!(m.transact(&write), [0x5F, 0x00, 0xFF, 68]);
+    assert_eq!(m.node.im_mut().take_changed().map(|d| d.records[0].to_vec()), Some(im1[10..].to_vec()));
+    // Errors: write to I&M0, unknown FI_Index, wrong length, not a call, another slot.
+    let mut w0 = vec![0x5F, 0x00, 0xFF, 68, 0x08, 0x00, 0xFD, 0xE8];
+    w0.extend_from_slice(&[0; 64]);
+    assert_eq!(m.transact(&w0), [0xDF, 0x80, 0xB6, 0x00]);
+    assert_eq!(m.transact(&[0x5F, 0x00, 0xFF, 0x04, 0x08, 0x00, 0xFD, 0xED]), [0xDF, 0x80, 0xB0, 0x00]);
+    assert_eq!(m.transact(&[0x5F, 0x00, 0xFF, 0x06, 0x08, 0x00, 0xFD, 0xE9, 1, 2]), [0xDF, 0x80, 0xB1, 0x00]);
+    assert_eq!(m.transact(&[0x5F, 0x00, 0xFF, 0x04, 0x09, 0x00, 0xFD, 0xE8]), [0xDF, 0x80, 0xB8, 0x00]);
+    assert_eq!(m.transact(&[0x5F, 0x01, 0xFF, 0x04, 0x08, 0x00, 0xFD, 0xE8]), [0xDF, 0x80, 0xB2, 0x00]);
+    assert_eq!(m.transact(&[0x5E, 0x00, 0xFF, 67]), [0xDE, 0x80, 0xB1, 0x00], "no room for 68 bytes");
+
+    // MSAC_C2: its own call; I&M1 as written over C1.
+    let sap = m.connect(10);
+    assert_eq!(m.c2_transact(10, sap, &[0x5E, 0x00, 0xFF, 0xF0]), [0xDE, 0x80, 0xB5, 0x00]);
+    assert_eq!(m.c2_transact(10, sap, &[0x5F, 0x00, 0xFF, 0x04, 0x08, 0x00, 0xFD, 0xE8]), [0x5F, 0x00, 0xFF, 0x04]);
+    assert_eq!(m.c2_transact(10, sap, &[0x5E, 0x00, 0xFF, 0xF0]), read_answer);
+    assert_eq!(m.c2_transact(10, sap, &[0x5F, 0x00, 0xFF, 0x04, 0x08, 0x00, 0xFD, 0xE9]), [0x5F, 0x00, 0xFF, 0x04]);
+    let r = m.c2_transact(10, sap, &[0x5E, 0x00, 0xFF, 0xF0]);
+    assert_eq!(&r[..8], &[0x5E, 0x00, 0xFF, 68, 0x08, 0x00, 0xFD, 0xE9]);
+    assert_eq!(&r[18..], &im1[10..]);
+    // Leaving data exchange ends the C1 relation: its call is forgotten.
+    let prm = SetPrm::CARD.watchdog(10, 10).user([0x80, 0, 0, 0, 0]).pdu();
+    assert_eq!(m.send(M1, Some(61), Some(62), &prm, true), Ans::Sc);
+    assert_eq!(m.send(M1, Some(62), Some(62), card::MODULES[0].cfg, true), Ans::Sc);
+    assert_eq!(m.transact(&[0x5E, 0x00, 0xFF, 0xF0]), [0xDE, 0x80, 0xB5, 0x00]);
+}
+
+/// Issue 12 items 2 and 3 on the bus: with DPV1_Enable and Enable_Diagnostic_Alarm a drive
+/// fault becomes a diagnostic alarm (announced by DH, carried in Slave_Diag as
+/// `06 01 00 <Seq_Nr|appears> <fault code>`), acknowledged by Alarm_Ack `5C 00 01 01` on
+/// SAP 51; a wrong acknowledgement gets `DC 80 B5 00`; the status block follows.
+#[test]
+fn diagnostic_alarm_and_alarm_ack_on_sap_51() {
+    let mut m = Master::new();
+    let prm = SetPrm::CARD.watchdog(10, 10).user([0x80, 0x20, 0x00, 0, 0]).pdu();
+    assert_eq!(m.send(M1, Some(61), Some(62), &prm, true), Ans::Sc);
+    assert_eq!(m.send(M1, Some(62), Some(62), card::MODULES[0].cfg, true), Ans::Sc);
+    assert_eq!(m.node.slave().state(), DpState::DataExch);
+    let diag = |m: &mut Master| match m.send(M1, Some(60), Some(62), &[], true) {
+        Ans::Pdu(p) => p,
+        other => panic!("diag {other:?}"),
+    };
+    assert_eq!(diag(&mut m)[6..], [] as [u8; 0]);
+    // The drive faults (what the DPM link hands the slave).
+    m.node.slave_mut().set_ext_diag(&[0x03, 0x01, 0x01], true).unwrap();
+    m.node.slave_mut().set_drive_fault(0x2310);
+    let f = m.master.request(M1, None, None, &[0x04, 0x7E, 0, 0], true);
+    m.now += 500;
+    let r = testkit::feed(&mut m.node, Instant::from_micros(m.now), &f).expect("Data_Exchange answered");
+    assert_eq!(r[6], 0x0A, "DH: new diagnosis");
+    let d = diag(&mut m);
+    assert_eq!(d[0] & 0x08, 0x08, "Ext_Diag");
+    assert_eq!(d[6..], [0x06, 0x01, 0x00, 0x01, 0x23, 0x10]);
+    assert_eq!(diag(&mut m)[6..], [0x06, 0x81, 0x00, 0x00, 0x01, 0x01], "then the Status_Message");
+    assert_eq!(m.transact(&[0x5C, 0x00, 0x01, 0x02]), [0xDC, 0x80, 0xB5, 0x00], "wrong specifier");
+    assert_eq!(m.transact(&[0x5C, 0x00, 0x01, 0x01]), [0x5C, 0x00, 0x01, 0x01]);
+    assert_eq!(m.transact(&[0x5C, 0x00, 0x01, 0x01]), [0xDC, 0x80, 0xB5, 0x00], "acknowledged once");
+}

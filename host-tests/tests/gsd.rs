@@ -141,6 +141,57 @@ fn services_match_card() {
     let scan = Scan::new(&gsd_text());
     assert_eq!(scan.number("DPV1_Slave"), Some(i64::from(card::DPV1_SLAVE)), "DPV1_Slave");
     assert_eq!(scan.number("WD_Base_1ms_supp"), Some(i64::from(card::WD_BASE_1MS_SUPP)), "WD_Base_1ms_supp");
+    assert_eq!(
+        scan.number("Ident_Maintenance_supp"),
+        Some(i64::from(card::IDENT_MAINTENANCE_SUPP)),
+        "Ident_Maintenance_supp (I&M0-4 at slot 0 index 255)"
+    );
+    // Alarms (src/dp/alarm.rs): the diagnostic alarm only, Alarm_Ack on SAP 51 only.
+    assert_eq!(
+        scan.number("Diagnostic_Alarm_supp"),
+        Some(i64::from(card::DIAGNOSTIC_ALARM_SUPP)),
+        "Diagnostic_Alarm_supp"
+    );
+    for key in [
+        "Process_Alarm_supp",
+        "Pull_Plug_Alarm_supp",
+        "Status_Alarm_supp",
+        "Update_Alarm_supp",
+        "Manufacturer_Specific_Alarm_supp",
+    ] {
+        assert_eq!(scan.number(key), Some(i64::from(card::OTHER_ALARMS_SUPP)), "{key}");
+    }
+    assert_eq!(
+        scan.number("Extra_Alarm_SAP_supp"),
+        Some(i64::from(card::EXTRA_ALARM_SAP_SUPP)),
+        "Extra_Alarm_SAP_supp"
+    );
+    assert_eq!(
+        scan.number("Alarm_Sequence_Mode_Count"),
+        Some(card::ALARM_SEQUENCE_MODE_COUNT as i64),
+        "Alarm_Sequence_Mode_Count"
+    );
+    assert_eq!(
+        scan.number("Alarm_Type_Mode_supp"),
+        Some(i64::from(card::ALARM_TYPE_MODE_SUPP)),
+        "Alarm_Type_Mode_supp"
+    );
+    // The Set_Prm the GSD describes with every alarm the GSD offers enabled is accepted;
+    // enabling one it does not offer is refused (Prm_Fault).
+    let ok = pbcard::testkit::SetPrm::CARD.user([0x80, 0x20, 0x03, 0, 0]).pdu();
+    assert!(pbcard::dp::prm::SetPrm::parse(&ok).is_ok(), "DPV1_Enable + Enable_Diagnostic_Alarm + Alarm_Mode 3");
+    for (bit, key) in
+        [(0x80u8, "Pull_Plug"), (0x40, "Process"), (0x10, "Manufacturer_Specific"), (0x08, "Status"), (0x04, "Update")]
+    {
+        let bad = pbcard::testkit::SetPrm::CARD.user([0x80, 0x20 | bit, 0, 0, 0]).pdu();
+        assert!(pbcard::dp::prm::SetPrm::parse(&bad).is_err(), "{key}_Alarm_supp = 0 but the card accepts it");
+    }
+    // I&M0 ORDER_ID is the GSD's OrderNumber.
+    assert_eq!(
+        scan.setting("OrderNumber").map(|s| s.trim_matches('"').to_string()).as_deref(),
+        Some(card::IM_ORDER_ID),
+        "OrderNumber = I&M0 ORDER_ID"
+    );
     assert_eq!(scan.number("C1_Read_Write_supp"), Some(i64::from(card::C1_READ_WRITE_SUPP)), "C1_Read_Write_supp");
     assert_eq!(scan.number("C1_Max_Data_Len"), Some(card::C1_MAX_DATA_LEN as i64), "C1_Max_Data_Len");
     assert_eq!(

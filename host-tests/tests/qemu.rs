@@ -418,6 +418,37 @@ fn dpv1_card_and_drive_parameters_through_msac_c1_and_c2() {
         if r != [0x5E, 0, 47, 8, 0x25, 0x82, 1, 1, 0x44, 1, 0, 0x02] {
             return Err(format!("P100 = 10000: response {}", host_tests::hex(&r)));
         }
+        // I&M0 (slot 0, index 255, call header 08 00 FD E8) over MSAC_C2 and MSAC_C1, with the
+        // simulated drive's serial number and hardware revision from the DPM DEVICE block;
+        // I&M1 written over MSAC_C1 is read back over MSAC_C2 (issue 12 item 1).
+        for (sa, dsap, ssap) in [(10, sap, 50), (qemu::MASTER, 51, 51)] {
+            let w = m.transact(sa, dsap, ssap, &[0x5F, 0, 0xFF, 4, 0x08, 0x00, 0xFD, 0xE8])?;
+            if w != [0x5F, 0, 0xFF, 4] {
+                return Err(format!("I&M0 call on SAP {dsap}: {}", host_tests::hex(&w)));
+            }
+            let r = m.transact(sa, dsap, ssap, &[0x5E, 0, 0xFF, 0xF0])?;
+            let ok = r.len() == 72
+                && r[..8] == [0x5E, 0, 0xFF, 68, 0x08, 0x00, 0xFD, 0xE8]
+                && &r[8 + 12..8 + 19] == b"ODC-PB1"
+                && &r[8 + 32..8 + 48] == pbcard::drive::SIM_DEVICE.serial_number.as_slice()
+                && r[8 + 48..8 + 50] == [0, 2]
+                && r[8 + 56..8 + 58] == [0x3A, 0x00];
+            if !ok {
+                return Err(format!("I&M0 on SAP {dsap}: {}", host_tests::hex(&r)));
+            }
+        }
+        let mut im1 = vec![0x5F, 0, 0xFF, 68, 0x08, 0x00, 0xFD, 0xE9];
+        im1.extend_from_slice(&[0; 10]);
+        im1.extend_from_slice(&[b'Q'; 54]);
+        let w = m.transact(qemu::MASTER, 51, 51, &im1)?;
+        if w != [0x5F, 0, 0xFF, 68] {
+            return Err(format!("I&M1 write: {}", host_tests::hex(&w)));
+        }
+        m.transact(10, sap, 50, &[0x5F, 0, 0xFF, 4, 0x08, 0x00, 0xFD, 0xE9])?;
+        let r = m.transact(10, sap, 50, &[0x5E, 0, 0xFF, 0xF0])?;
+        if r.len() != 72 || r[18..] != [b'Q'; 54] {
+            return Err(format!("I&M1 over MSAC_C2: {}", host_tests::hex(&r)));
+        }
         Ok(())
     };
     if let Err(e) = run(&mut m) {

@@ -32,6 +32,7 @@
 //! Chk_Cfg to the module of the telegram it selected ([`DpSlave::require_module`]).
 //! | any other SAP | — | RS |
 
+pub mod alarm;
 pub mod cfg;
 pub mod diag;
 pub mod global_control;
@@ -167,6 +168,10 @@ pub struct DpSlave {
     ext_diag: heapless::Vec<u8, { card::MAX_EXT_DIAG_LEN }>,
     /// New diagnosis for the locking master (→ DH in Data_Exchange).
     diag_new: bool,
+    /// Diagnostic alarms (DP-V1, [`alarm`]).
+    alarms: alarm::Alarms,
+    /// The staged diagnosis carries an alarm (delivered when the locking master reads it).
+    staged_alarm: bool,
     diag_dirty: bool,
     // Cyclic images.
     app_inputs: [u8; card::MAX_INPUT_LEN],
@@ -216,6 +221,8 @@ impl DpSlave {
             stat_diag: false,
             ext_diag: heapless::Vec::new(),
             diag_new: false,
+            alarms: alarm::Alarms::new(),
+            staged_alarm: false,
             diag_dirty: true,
             app_inputs: [0; card::MAX_INPUT_LEN],
             outputs: [0; card::MAX_OUTPUT_LEN],
@@ -396,6 +403,31 @@ impl DpSlave {
         }
     }
 
+    /// The drive's fault code (0 = none, DPM `DRIVE.FAULT_CODE`): a change in data exchange
+    /// makes a diagnostic alarm when the master enabled them ([`alarm`]).
+    pub fn set_drive_fault(&mut self, code: u16) {
+        if self.alarms.set_fault(code, self.state == DpState::DataExch) {
+            self.diag_changed();
+        }
+    }
+
+    /// The diagnostic alarms (outstanding, counters).
+    pub fn alarms(&self) -> &alarm::Alarms {
+        &self.alarms
+    }
+
+    /// Alarm_Ack from the locking master over MSAC_C1 (`5C slot type specifier`): the
+    /// outstanding alarm it names is gone; refused with the reason for the DP-V1 error PDU.
+    pub fn alarm_ack(&mut self, ack: &alarm::Ack) -> Result<(), alarm::AckError> {
+        if self.state != DpState::DataExch {
+            return Err(alarm::AckError::State);
+        }
+        if self.alarms.acknowledge(ack)? {
+            self.diag_changed();
+        }
+        Ok(())
+    }
+
     /// The standard diagnosis octets as they are now.
     pub fn standard_diag(&self) -> StandardDiag {
         let mut s1 = Status1::empty();
@@ -433,6 +465,11 @@ impl DpSlave {
         if self.state != s {
             if self.state == DpState::DataExch {
                 self.events |= Events::LEFT_DATA_EXCHANGE;
+                // Alarms end with data exchange (reference §4.4).
+                self.alarms.stop();
+            }
+            if s == DpState::DataExch {
+                self.alarms.start();
             }
             self.state = s;
             self.events |= Events::STATE_CHANGED;
@@ -514,8 +551,10 @@ impl DpSlave {
         let std = self.standard_diag().encode();
         let mut pdu = [0u8; card::MAX_DIAG_DATA_LEN];
         pdu[..6].copy_from_slice(&std);
-        let n = 6 + self.ext_diag.len();
-        pdu[6..n].copy_from_slice(&self.ext_diag);
+        let dpv1 = self.prm.is_some_and(|p| p.dpv1_status_1.contains(prm::Dpv1Status1::DPV1_ENABLE));
+        let alarm = if dpv1 { self.alarms.to_deliver().copied() } else { None };
+        self.staged_alarm = alarm.is_some();
+        let n = 6 + alarm::device_block(&self.ext_diag, dpv1, alarm.as_ref(), &mut pdu[6..]);
         let hdr = Header {
             da: 0,
             sa: self.address,
@@ -628,7 +667,17 @@ impl DpSlave {
             self.events |= Events::DIAG_READ;
         }
         let dsap = req.ssap.unwrap_or(62);
-        self.patch(self.diag_cur, req.sa, ResponseStatus::Dl as u8, Some(dsap))
+        let reply = self.patch(self.diag_cur, req.sa, ResponseStatus::Dl as u8, Some(dsap));
+        if self.master == Some(req.sa) && self.staged_alarm {
+            // The locking master has the alarm: it waits for its Alarm_Ack; the next waiting
+            // alarm (or the status block) goes into the next diagnosis.
+            let more = self.alarms.delivered();
+            self.diag_dirty = true;
+            if more {
+                self.diag_new = true;
+            }
+        }
+        reply
     }
 
     fn set_prm(&mut self, now: Instant, req: &DataTelegram<'_>) -> Reply {
@@ -667,6 +716,11 @@ impl DpSlave {
                     self.wd_time = p.watchdog();
                     self.wd_deadline = self.wd_time.map(|t| now + t);
                     self.prm = Some(p);
+                    self.alarms.configure(
+                        p.dpv1_status_1.contains(prm::Dpv1Status1::DPV1_ENABLE)
+                            && p.dpv1_status_2 & alarm::ENABLE_DIAGNOSTIC_ALARM != 0,
+                        p.dpv1_status_3 & 0x07,
+                    );
                     self.events |= Events::PRM_ACCEPTED;
                     if self.state == DpState::DataExch {
                         self.leave(DpState::WaitCfg);

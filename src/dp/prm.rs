@@ -137,12 +137,20 @@ impl SetPrm {
         if user[0] & !allowed1 != 0 {
             return Err(PrmError::Dpv1Status { byte: 1, value: user[0] });
         }
-        // DPV1_Status_2: alarm enables and Check_Cfg_Mode; the card offers no alarms yet.
-        if user[1] != 0 {
+        // DPV1_Status_2: the alarm enables and Check_Cfg_Mode. The card offers the diagnostic
+        // alarm only (card::DIAGNOSTIC_ALARM_SUPP, dp::alarm), and only with DPV1_Enable; a
+        // master asking for another alarm type (pull/plug, process, manufacturer, status,
+        // update) or for Check_Cfg_Mode gets Prm_Fault (reference §3.3, §4.4).
+        let mut allowed2 = 0u8;
+        if card::DIAGNOSTIC_ALARM_SUPP && user[0] & Dpv1Status1::DPV1_ENABLE.bits() != 0 {
+            allowed2 |= super::alarm::ENABLE_DIAGNOSTIC_ALARM;
+        }
+        if user[1] & !allowed2 != 0 {
             return Err(PrmError::Dpv1Status { byte: 2, value: user[1] });
         }
-        // DPV1_Status_3: Alarm_Mode, Prm_Structure, IsoM_Req, PrmCmd: none supported.
-        if user[2] != 0 {
+        // DPV1_Status_3: Alarm_Mode (b2..b0) is taken (the outstanding limit, capped at
+        // card::ALARM_SEQUENCE_MODE_COUNT); Prm_Structure, IsoM_Req, PrmCmd: not supported.
+        if user[2] & !0x07 != 0 {
             return Err(PrmError::Dpv1Status { byte: 3, value: user[2] });
         }
         for p in card::USER_PRMS {
@@ -220,6 +228,13 @@ mod tests {
         assert_eq!(SetPrm::parse(&wd0), Err(PrmError::WatchdogFactor));
         assert!(matches!(SetPrm::parse(&prm(0x88, &[0x20])), Err(PrmError::Dpv1Status { byte: 1, .. })));
         assert!(matches!(SetPrm::parse(&prm(0x88, &[0, 1])), Err(PrmError::Dpv1Status { byte: 2, .. })));
+        // Alarms: the diagnostic alarm with DPV1_Enable only; every other alarm type refused.
+        assert!(SetPrm::parse(&prm(0x88, &[0x80, 0x20, 0x03])).is_ok());
+        assert!(matches!(SetPrm::parse(&prm(0x88, &[0x00, 0x20])), Err(PrmError::Dpv1Status { byte: 2, .. })));
+        for other in [0x80, 0x40, 0x10, 0x08, 0x04] {
+            assert_eq!(SetPrm::parse(&prm(0x88, &[0x80, other])), Err(PrmError::Dpv1Status { byte: 2, value: other }));
+        }
+        assert!(matches!(SetPrm::parse(&prm(0x88, &[0x80, 0x20, 0x08])), Err(PrmError::Dpv1Status { byte: 3, .. })));
         assert_eq!(SetPrm::parse(&prm(0x88, &[0, 0, 0, 4])), Err(PrmError::UserPrm { offset: 3, value: 4 }));
         assert_eq!(SetPrm::parse(&prm(0x88, &[0, 0, 0, 0, 5])), Err(PrmError::UserPrm { offset: 4, value: 5 }));
     }

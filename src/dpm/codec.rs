@@ -18,6 +18,7 @@ use super::{
     get16, put16, CardReport, DriveCommandImage, DriveReport, DriveStateImage, HostConfig, Identity, MailboxRequest,
     MailboxResponse, ProcessData, Status, Torn,
 };
+use crate::dpv1::im::DeviceIdent;
 
 /// Why [`BlockCodec::decode`] / [`BlockCodec::encode`] gave nothing.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -205,6 +206,28 @@ pub const DRIVE_CMD: BlockCodec<DriveCommandImage> =
 pub const DRIVE_STATE: BlockCodec<DriveStateImage> =
     BlockCodec { block: block(11), decode: DriveStateImage::decode, encode: DriveStateImage::encode };
 
+/// DEVICE (layout version 4): the drive's serial number and hardware revision for I&M0.
+pub const DEVICE: BlockCodec<DeviceIdent> =
+    BlockCodec { block: block(12), decode: decode_device, encode: encode_device };
+
+/// The DEVICE block's decoder (for the card-side reader).
+pub(super) const DEVICE_DECODE: fn(&[u8]) -> DeviceIdent = decode_device;
+/// The DEVICE block's encoder (for the host-side writer).
+pub(super) const DEVICE_ENCODE: fn(&DeviceIdent, &mut [u8]) = encode_device;
+
+fn decode_device(b: &[u8]) -> DeviceIdent {
+    let mut serial_number = [0u8; 16];
+    let s = layout::device::SERIAL_NUMBER;
+    serial_number.copy_from_slice(&b[s..s + 16]);
+    DeviceIdent { serial_number, hardware_revision: get16(b, layout::device::HARDWARE_REVISION) }
+}
+
+fn encode_device(d: &DeviceIdent, b: &mut [u8]) {
+    let s = layout::device::SERIAL_NUMBER;
+    b[s..s + 16].copy_from_slice(&d.serial_number);
+    put16(b, layout::device::HARDWARE_REVISION, d.hardware_revision);
+}
+
 fn encode_request(r: &Option<MailboxRequest>, b: &mut [u8]) {
     if let Some(r) = r {
         r.encode(b);
@@ -212,7 +235,8 @@ fn encode_request(r: &Option<MailboxRequest>, b: &mut [u8]) {
 }
 
 const _: () = {
-    assert!(layout::BLOCKS.len() == 12);
+    assert!(layout::BLOCKS.len() == 13);
+    assert!(DEVICE.block.start == layout::device::START);
     assert!(HEADER.block.start == layout::header::START && STATUS.block.start == layout::status::START);
     assert!(OUTPUTS.block.start == layout::outputs::START && INPUTS.block.start == layout::inputs::START);
     assert!(IDENT.block.start == layout::ident::START && CARD.block.start == layout::card::START);
@@ -288,7 +312,8 @@ mod tests {
             8 => check(&MBX_REQ, bytes),
             9 => check(&MBX_RSP, bytes),
             10 => check(&DRIVE_CMD, bytes),
-            _ => check(&DRIVE_STATE, bytes),
+            11 => check(&DRIVE_STATE, bytes),
+            _ => check(&DEVICE, bytes),
         }
     }
 
@@ -304,7 +329,7 @@ mod tests {
         /// counters (so the content decoders are reached).
         #[test]
         fn decode_never_panics_and_round_trips(
-            i in 0usize..12,
+            i in 0usize..13,
             mut raw in proptest::collection::vec(any::<u8>(), 0..300),
             mode in 0u8..3,
             seq in any::<u16>(),

@@ -1,4 +1,4 @@
-//! The DPM memory map, layout version 3: every offset the card and the host use, in one place.
+//! The DPM memory map, layout version 4: every offset the card and the host use, in one place.
 //! [`FIELDS`] lists every byte of the image (reserved bytes included) and is what
 //! `docs/DPM.md` is generated from ([`write_markdown`]); a test fails when the two differ.
 //!
@@ -20,7 +20,10 @@
 //!                                   PZD mapping, communication-loss reaction and delay  (v2)
 //! 0x150 MBX_REQ 144 B  card → host  parameter mailbox request                           (v2)
 //! 0x1E0 MBX_RSP 144 B  host → card  parameter mailbox response                          (v2)
-//! 0x270 end (IMAGE_SIZE = 624)
+//! 0x270 DRIVE_CMD 48 B card → host  drive-neutral command                               (v3)
+//! 0x2A0 DRIVE_STATE 56 B host → card drive-neutral status                              (v3)
+//! 0x2D8 DEVICE   24 B  host → card  the drive's serial number and hardware revision (I&M0) (v4)
+//! 0x2F0 end (IMAGE_SIZE = 752)
 //! ```
 //!
 //! Version 1 ended at 0xC0; version 2 only appended blocks and the header's capability word
@@ -34,7 +37,7 @@
 /// `HEADER.MAGIC` value: ASCII "PBDM".
 pub const MAGIC: [u8; 4] = *b"PBDM";
 /// `HEADER.LAYOUT_VERSION` value of this map.
-pub const LAYOUT_VERSION: u16 = 3;
+pub const LAYOUT_VERSION: u16 = 4;
 
 /// Bits of `HEADER.CAPABILITIES`: which optional blocks this card serves. The host reads the
 /// header (magic, version, size, capabilities) before anything else.
@@ -53,8 +56,11 @@ pub mod cap {
     pub const DRIVE_CMD: u32 = 1 << 5;
     /// DRIVE_STATE: the card takes the drive-neutral status (layout version 3).
     pub const DRIVE_STATE: u32 = 1 << 6;
+    /// DEVICE: the card takes the drive's serial number and hardware revision for I&M0
+    /// (layout version 4).
+    pub const DEVICE: u32 = 1 << 7;
     /// Everything this card implements.
-    pub const ALL: u32 = IDENT | CARD_EVENTS | DRIVE_REPORTS | CONFIG | MAILBOX | DRIVE_CMD | DRIVE_STATE;
+    pub const ALL: u32 = IDENT | CARD_EVENTS | DRIVE_REPORTS | CONFIG | MAILBOX | DRIVE_CMD | DRIVE_STATE | DEVICE;
 }
 
 /// Header: written once by the card when the image is created.
@@ -413,18 +419,38 @@ pub mod drive_state {
     pub const SEQ_TAIL: usize = LEN - 2;
 }
 
+/// Device block (host → card), layout version 4: what the drive tells the card about the device
+/// it sits in, for I&M0 (`crate::dpv1::im`, reference §4.7). Written once by the drive after
+/// start (and again if it changes); the card reads it whenever the counter changes.
+pub mod device {
+    /// Block start.
+    pub const START: usize = super::drive_state::START + super::drive_state::LEN;
+    /// Block length.
+    pub const LEN: usize = 24;
+    /// u16 sequence counter: the head.
+    pub const SEQ_HEAD: usize = 0x00;
+    /// u8 × 16 I&M0 SERIAL_NUMBER of the drive, visible string (ASCII 0x20..0x7E), blank-padded.
+    pub const SERIAL_NUMBER: usize = 0x02;
+    /// u16 I&M0 HARDWARE_REVISION of the drive (0 = not known: the card's own).
+    pub const HARDWARE_REVISION: usize = 0x12;
+    /// u16 sequence counter: the tail.
+    pub const SEQ_TAIL: usize = LEN - 2;
+}
+
 /// Size of the whole image.
-pub const IMAGE_SIZE: usize = drive_state::START + drive_state::LEN;
+pub const IMAGE_SIZE: usize = device::START + device::LEN;
 
 /// The image size of each layout version (index = version; newer versions only append).
-pub const IMAGE_SIZE_OF_VERSION: [usize; 4] = [0, inputs::START + inputs::LEN, drive_cmd::START, IMAGE_SIZE];
+pub const IMAGE_SIZE_OF_VERSION: [usize; 5] =
+    [0, inputs::START + inputs::LEN, drive_cmd::START, drive_state::START + drive_state::LEN, IMAGE_SIZE];
 
 const _: () = {
     assert!(header::START + header::LEN == status::START);
     assert!(status::START + status::LEN == outputs::START);
     assert!(outputs::START == 0x30 && inputs::START == 0x78 && ident::START == 0xC0);
     assert!(drive_cmd::START == 0x270 && drive_state::START == 0x2A0);
-    assert!(IMAGE_SIZE == 0x2D8 && IMAGE_SIZE <= u16::MAX as usize);
+    assert!(device::START == 0x2D8 && IMAGE_SIZE == 0x2F0 && IMAGE_SIZE <= u16::MAX as usize);
+    assert!(device::HARDWARE_REVISION + 2 <= device::SEQ_TAIL);
     assert!(IMAGE_SIZE_OF_VERSION[LAYOUT_VERSION as usize] == IMAGE_SIZE);
     assert!(drive_cmd::EXTRA + 2 * EXTRA_WORDS == drive_cmd::SEQ_TAIL);
     assert!(drive_state::EXTRA + 2 * EXTRA_WORDS == drive_state::SEQ_TAIL);
@@ -590,6 +616,15 @@ pub const BLOCKS: &[Block] = &[
         since: 3,
         text: "Drive-neutral status (state bits, speed, current, torque, power, fault, warning, NAMUR), extra PZD input words. Written after INPUTS every drive cycle.",
     },
+    Block {
+        name: "DEVICE",
+        start: device::START,
+        len: device::LEN,
+        writer: Writer::Host,
+        sequenced: true,
+        since: 4,
+        text: "The drive's serial number and hardware revision, which the card reports in I&M0 (DP-V1 slot 0 index 255). Written once after the drive starts.",
+    },
 ];
 
 /// One field of the map.
@@ -639,9 +674,9 @@ const PD: usize = PD_CAPACITY;
 /// generated from this table and the tests check it covers the image exactly.
 pub const FIELDS: &[Field] = &[
     f!("HEADER.MAGIC", header::MAGIC, 4, "u8[4]", C, "always: ASCII \"PBDM\""),
-    f!("HEADER.LAYOUT_VERSION", header::LAYOUT_VERSION, 2, "u16", C, "always: 3 (read first, with the magic; 1 and 2 are prefixes of 3)"),
-    f!("HEADER.IMAGE_SIZE", header::IMAGE_SIZE, 2, "u16", C, "always: bytes in the image (728; version 1: 192, version 2: 624)"),
-    f!("HEADER.CAPABILITIES", header::CAPABILITIES, 4, "u32", C, "always (version >= 2): bit 0 IDENT, 1 CARD events, 2 DRIVE reports, 3 CONFIG, 4 MAILBOX, 5 DRIVE_CMD, 6 DRIVE_STATE"),
+    f!("HEADER.LAYOUT_VERSION", header::LAYOUT_VERSION, 2, "u16", C, "always: 4 (read first, with the magic; 1, 2 and 3 are prefixes of 4)"),
+    f!("HEADER.IMAGE_SIZE", header::IMAGE_SIZE, 2, "u16", C, "always: bytes in the image (752; version 1: 192, version 2: 624, version 3: 728)"),
+    f!("HEADER.CAPABILITIES", header::CAPABILITIES, 4, "u32", C, "always (version >= 2): bit 0 IDENT, 1 CARD events, 2 DRIVE reports, 3 CONFIG, 4 MAILBOX, 5 DRIVE_CMD, 6 DRIVE_STATE, 7 DEVICE"),
     f!("HEADER.reserved", @ header::START + 0x0C, 4, "reserved", C, "0"),
     f!("STATUS.SEQ_HEAD", status::SEQ_HEAD, 2, "u16", C, SEQ_VALID),
     f!("STATUS.COMM_STATE", status::COMM_STATE, 1, "u8", C, "consistent block: P0740 coding 0 inactive, 1 init error, 2 offline, 3 cfg error, 4 prm error, 5 clear, 6 online"),
@@ -762,6 +797,11 @@ pub const FIELDS: &[Field] = &[
     f!("DRIVE_STATE.reserved", @ drive_state::START + drive_state::EXTRA_COUNT + 1, 1, "reserved", H, "0"),
     f!("DRIVE_STATE.EXTRA", drive_state::EXTRA, 32, "u16[16]", H, "consistent block, first EXTRA_COUNT words: raw PZD input words (programmable words)"),
     f!("DRIVE_STATE.SEQ_TAIL", drive_state::SEQ_TAIL, 2, "u16", H, SEQ_VALID),
+    f!("DEVICE.SEQ_HEAD", device::SEQ_HEAD, 2, "u16", H, SEQ_VALID),
+    f!("DEVICE.SERIAL_NUMBER", device::SERIAL_NUMBER, 16, "u8[16]", H, "consistent block, SEQ != 0: I&M0 SERIAL_NUMBER of the drive, visible string blank-padded (other bytes read as blanks); SEQ = 0: blanks"),
+    f!("DEVICE.HARDWARE_REVISION", device::HARDWARE_REVISION, 2, "u16", H, "consistent block, SEQ != 0: I&M0 HARDWARE_REVISION of the drive; 0 or SEQ = 0: the card's own (card::IM_HARDWARE_REVISION)"),
+    f!("DEVICE.reserved", @ device::START + device::HARDWARE_REVISION + 2, device::SEQ_TAIL - device::HARDWARE_REVISION - 2, "reserved", H, "0"),
+    f!("DEVICE.SEQ_TAIL", device::SEQ_TAIL, 2, "u16", H, SEQ_VALID),
 ];
 
 /// Write the map as Markdown (the content of `docs/DPM.md`).

@@ -83,6 +83,8 @@ pub struct Link {
     config_new: bool,
     mailbox: Mailbox,
     line_errors: u32,
+    /// DEVICE.SEQ last taken.
+    device_seq: u16,
 }
 
 impl Default for Link {
@@ -103,6 +105,7 @@ impl Link {
             outputs_seq: 0,
             last_command: None,
             drive_state: DriveStateImage::EMPTY,
+            device_seq: 0,
             inputs_seq: 0,
             stats: LinkStats {
                 torn_reads: 0,
@@ -362,6 +365,14 @@ impl Link {
         self.supervise(now, dpm, &mut update);
         self.take_over_config(dp_state, dpm, &mut update);
         self.mailbox.poll(now, dpm);
+        match dpm.device_ident() {
+            Ok((seq, d)) if seq != 0 && seq != self.device_seq => {
+                self.device_seq = seq;
+                update.device = Some(device_ident(d));
+            }
+            Ok(_) => {}
+            Err(_) => self.stats.torn_host_blocks = self.stats.torn_host_blocks.wrapping_add(1),
+        }
         if self.drive_lost || !raw_inputs {
             return update;
         }
@@ -390,13 +401,21 @@ impl Link {
             self.apply_config(node, t);
         }
         if update.ext_diag {
+            // Ext_Diag (Station_Status_1 b3) only for a fault: a PLC raises OB82 and shows the
+            // slave faulty on it; a warning is carried in the block without it (issue 12).
             let ext = self.drive.ext_diag();
-            if node.slave_mut().set_ext_diag(ext, !ext.is_empty()).is_err() {
+            let fault = self.drive.fault_code;
+            if node.slave_mut().set_ext_diag(ext, fault != 0).is_err() {
                 self.stats.bad_ext_diag = self.stats.bad_ext_diag.wrapping_add(1);
             }
+            // A fault appearing or clearing: a diagnostic alarm when the master enabled them.
+            node.slave_mut().set_drive_fault(fault);
         }
         if let Some(on) = update.stat_diag {
             node.slave_mut().set_stat_diag(on);
+        }
+        if let Some(d) = update.device {
+            node.im_mut().set_ident(d);
         }
         if active_telegram(node) != update.telegram {
             return;
@@ -457,7 +476,7 @@ impl Link {
         match dpm.drive_report() {
             Ok(r) => {
                 if r != self.drive {
-                    if r.ext_diag() != self.drive.ext_diag() {
+                    if r.ext_diag() != self.drive.ext_diag() || r.fault_code != self.drive.fault_code {
                         update.ext_diag = true;
                     }
                     self.drive = r;
@@ -628,6 +647,8 @@ pub struct NodeUpdate {
     inputs: [u8; MAX_INPUT_LEN],
     inputs_len: Option<u8>,
     config: Option<ConfigTakeover>,
+    /// The drive's DEVICE block (serial number, hardware revision for I&M0), when it changed.
+    device: Option<crate::dpv1::im::DeviceIdent>,
 }
 
 impl NodeUpdate {
@@ -641,6 +662,7 @@ impl NodeUpdate {
             inputs: [0; MAX_INPUT_LEN],
             inputs_len: None,
             config: None,
+            device: None,
         }
     }
 
@@ -661,4 +683,19 @@ impl NodeUpdate {
     pub fn inputs(&self) -> Option<&[u8]> {
         self.inputs_len.map(|n| &self.inputs[..usize::from(n)])
     }
+}
+
+/// The drive's DEVICE block as I&M0 reports it: a serial number byte outside the visible
+/// string range reads as a blank, a hardware revision 0 as the card's own.
+fn device_ident(d: crate::dpv1::im::DeviceIdent) -> crate::dpv1::im::DeviceIdent {
+    let mut out = d;
+    for b in out.serial_number.iter_mut() {
+        if !(0x20..=0x7E).contains(b) {
+            *b = b' ';
+        }
+    }
+    if out.hardware_revision == 0 {
+        out.hardware_revision = crate::card::IM_HARDWARE_REVISION;
+    }
+    out
 }

@@ -634,6 +634,13 @@ impl Dpm {
         read_drive_state(&self.image)
     }
 
+    /// DEVICE (layout 4): the drive's serial number and hardware revision for I&M0, with the
+    /// block's counter (0 = never written), as the card reads it.
+    pub fn device_ident(&self) -> Result<(u16, crate::dpv1::im::DeviceIdent), Torn> {
+        let (s, n) = (layout::device::START, layout::device::LEN);
+        card_read(&self.image, s, n).map(|b| (get16(&b, 0), codec::DEVICE_DECODE(&b[..n])))
+    }
+
     /// The raw image (for a transport, a dump, a test).
     pub fn as_bytes(&self) -> &[u8; IMAGE_SIZE] {
         &self.image
@@ -787,6 +794,11 @@ impl HostSide<'_> {
     /// Read DRIVE_CMD with its sequence counter (0 = never written).
     pub fn read_drive_command(&self) -> Result<(u16, DriveCommandImage), Torn> {
         read_drive_command(self.image)
+    }
+
+    /// Write DEVICE (layout 4): the drive's serial number and hardware revision for I&M0.
+    pub fn write_device_ident(&mut self, d: &crate::dpv1::im::DeviceIdent) -> u16 {
+        host_write(self.image, layout::device::START, layout::device::LEN, |b| codec::DEVICE_ENCODE(d, b))
     }
 
     /// Write DRIVE_STATE (after INPUTS, `inputs_seq` = the INPUTS counter just written);

@@ -7,9 +7,13 @@ fn fresh_image_has_header_and_inactive_status() {
     let dpm = Dpm::new();
     let b = dpm.as_bytes();
     assert_eq!(&b[0..4], b"PBDM");
-    assert_eq!(&b[4..8], &[0x00, 0x03, 0x02, 0xD8], "version 3, 728 bytes, big-endian");
-    assert_eq!(&b[8..12], &[0, 0, 0, 0x7F], "capabilities: ident, card, drive, config, mailbox, drive cmd / state");
-    assert_eq!((dpm.layout_version(), dpm.capabilities()), (3, layout::cap::ALL));
+    assert_eq!(&b[4..8], &[0x00, 0x04, 0x02, 0xF0], "version 4, 752 bytes, big-endian");
+    assert_eq!(
+        &b[8..12],
+        &[0, 0, 0, 0xFF],
+        "capabilities: ident, card, drive, config, mailbox, drive cmd / state, device"
+    );
+    assert_eq!((dpm.layout_version(), dpm.capabilities()), (4, layout::cap::ALL));
     let id = dpm.identity();
     assert_eq!((id.card_type, id.ident_number, id.serial), (CARD_TYPE, card::IDENT_NUMBER, 0));
     assert_eq!(id.firmware, [0, 1, 0], "Cargo.toml version 0.1.0");

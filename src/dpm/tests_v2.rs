@@ -99,6 +99,7 @@ fn roundtrip(name: &str, image: &[u8; IMAGE_SIZE]) -> [u8; IMAGE_SIZE] {
         "STATUS" => Status::decode(src).encode(dst),
         "DRIVE_CMD" => DriveCommandImage::decode(src).encode(dst),
         "DRIVE_STATE" => DriveStateImage::decode(src).encode(dst),
+        "DEVICE" => (super::codec::DEVICE_ENCODE)(&(super::codec::DEVICE_DECODE)(src), dst),
         _ => unreachable!(),
     }
     out
@@ -711,7 +712,7 @@ fn header_texts_name_this_version_and_size() {
     assert!(v.starts_with(&format!("always: {} ", layout::LAYOUT_VERSION)), "{v}");
     let n = field("HEADER.IMAGE_SIZE").valid;
     assert!(n.contains(&format!("({}; ", IMAGE_SIZE)), "{n}");
-    for (ver, size) in layout::IMAGE_SIZE_OF_VERSION.iter().enumerate().skip(1).take(2) {
+    for (ver, size) in layout::IMAGE_SIZE_OF_VERSION.iter().enumerate().skip(1).take(3) {
         assert!(n.contains(&format!("version {ver}: {size}")), "{n}");
         // Every block of that version ends within its size, every later one after it.
         for b in BLOCKS {
@@ -719,8 +720,8 @@ fn header_texts_name_this_version_and_size() {
         }
     }
     let caps = field("HEADER.CAPABILITIES").valid;
-    assert!(caps.contains("5 DRIVE_CMD, 6 DRIVE_STATE"));
-    assert_eq!(layout::cap::ALL, 0x7F);
+    assert!(caps.contains("5 DRIVE_CMD, 6 DRIVE_STATE, 7 DEVICE"));
+    assert_eq!(layout::cap::ALL, 0xFF);
 }
 
 fn sample_command() -> DriveCommandImage {
@@ -792,6 +793,7 @@ fn codec_handles_match_the_map_and_the_sides() {
         codec::MBX_RSP.block().name,
         codec::DRIVE_CMD.block().name,
         codec::DRIVE_STATE.block().name,
+        codec::DEVICE.block().name,
     ];
     assert_eq!(names.to_vec(), BLOCKS.iter().map(|b| b.name).collect::<Vec<_>>());
 

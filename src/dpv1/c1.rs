@@ -55,12 +55,17 @@ impl C1 {
         Some(self.channel.on_request(req.sa, SAP, dp.address(), SAP, req.pdu))
     }
 
-    /// Work on a pending request (the middle-priority task; host: every poll).
-    pub fn process(&mut self, now: Instant, dp: &DpSlave, records: &mut impl RecordHandler) {
+    /// Work on a pending request (the middle-priority task; host: every poll). An Alarm_Ack
+    /// goes to the DP slave's alarm state machine ([`crate::dp::alarm`]): the same four bytes
+    /// back, or `DC 80 B2|B5 00` for an ack that names no outstanding alarm.
+    pub fn process(&mut self, now: Instant, dp: &mut DpSlave, records: &mut impl RecordHandler) {
         self.track(dp);
         if self.channel.pending().is_some() {
             records.set_relation(super::records::RELATION_C1);
-            self.channel.respond(|req, out| serve_records(now, req, out, records, false));
+            self.channel.respond(|req, out| match super::pdu::parse(req) {
+                Ok(super::pdu::Request::AlarmAck(a)) => alarm_ack(dp, &a, out),
+                _ => serve_records(now, req, out, records, false),
+            });
         }
     }
 
@@ -91,4 +96,23 @@ impl C1 {
         }
         self.open = open;
     }
+}
+
+/// Alarm_Ack `5C slot type specifier` → the DP slave; the response PDU into `out`.
+fn alarm_ack(dp: &mut DpSlave, a: &super::pdu::AlarmAck, out: &mut [u8]) -> usize {
+    use super::pdu::{ErrorCode1, Function, ERROR_BIT, ERROR_DECODE_DPV1};
+    use crate::dp::alarm::{Ack, AckError};
+    let ack = Ack { slot: a.slot, alarm_type: a.alarm_type, specifier: a.specifier };
+    let pdu = match dp.alarm_ack(&ack) {
+        Ok(()) => [Function::AlarmAck as u8, a.slot, a.alarm_type, a.specifier],
+        Err(e) => {
+            let ec = match e {
+                AckError::Slot(_) => ErrorCode1::INVALID_SLOT,
+                _ => ErrorCode1::STATE_CONFLICT,
+            };
+            [Function::AlarmAck as u8 | ERROR_BIT, ERROR_DECODE_DPV1, ec.0, 0]
+        }
+    };
+    out[..4].copy_from_slice(&pdu);
+    4
 }

@@ -159,7 +159,13 @@ pub struct SimDrive {
     diag: [u8; 3],
     alarms: CommAlarms,
     stats: SimStats,
+    /// DPM DEVICE written (once after start).
+    device_written: bool,
 }
+
+/// What the simulated drive reports in DPM DEVICE (I&M0 SERIAL_NUMBER, HARDWARE_REVISION).
+pub const SIM_DEVICE: crate::dpv1::im::DeviceIdent =
+    crate::dpv1::im::DeviceIdent { serial_number: *b"SIM-DRIVE-000001", hardware_revision: 2 };
 
 impl SimDrive {
     /// A drive at standstill, ready, with its factory parameter table.
@@ -178,6 +184,7 @@ impl SimDrive {
             diag: [0; 3],
             alarms: CommAlarms::empty(),
             stats: SimStats::default(),
+            device_written: false,
         }
     }
 
@@ -240,6 +247,9 @@ impl SimDrive {
     pub fn step<T: Transport>(&mut self, now: Instant, host: &mut Host<T>) {
         self.stats.steps = self.stats.steps.wrapping_add(1);
         let poll = host.poll(now);
+        if !self.device_written {
+            self.device_written = host.write_device_ident(&SIM_DEVICE).is_ok();
+        }
         let comm = host.status().ok().map(|s| s.comm);
         self.track_alarms(&poll, comm);
         match host.read_command() {

@@ -267,8 +267,12 @@ impl<F: Flash> AddressStore for JournalStore<F> {
     }
 }
 
+pub mod im;
+
+pub use im::ImJournal;
+
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use std::vec::Vec;
 
@@ -278,19 +282,19 @@ mod tests {
     /// partially: a program clears only some of the bits it should, an erase leaves every
     /// byte not yet erased with some bits set. After the cut every operation fails.
     #[derive(Clone)]
-    struct SimFlash<const N: usize> {
-        mem: [[u8; N]; 2],
+    pub(crate) struct SimFlash<const N: usize> {
+        pub(crate) mem: [[u8; N]; 2],
         budget: Option<u64>,
-        steps: u64,
+        pub(crate) steps: u64,
         seed: u64,
-        erases: u32,
+        pub(crate) erases: u32,
     }
 
     #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-    struct PowerCut;
+    pub(crate) struct PowerCut;
 
     impl<const N: usize> SimFlash<N> {
-        fn new() -> Self {
+        pub(crate) fn new() -> Self {
             SimFlash { mem: [[0xFF; N]; 2], budget: None, steps: 0, seed: 1, erases: 0 }
         }
         fn rand(&mut self) -> u8 {
@@ -314,11 +318,11 @@ mod tests {
                 }
             }
         }
-        fn cut_after(&mut self, steps: u64, seed: u64) {
+        pub(crate) fn cut_after(&mut self, steps: u64, seed: u64) {
             self.budget = Some(steps + 1);
             self.seed = seed | 1;
         }
-        fn power_on(&mut self) {
+        pub(crate) fn power_on(&mut self) {
             self.budget = None;
         }
     }

@@ -323,6 +323,7 @@ pub struct Host<T> {
     seq_config: u16,
     seq_rsp: u16,
     seq_state: u16,
+    seq_device: u16,
     heartbeat: u16,
     report: DriveReport,
     card_monitor: HeartbeatMonitor,
@@ -372,6 +373,7 @@ impl<T: Transport> Host<T> {
             seq_config: 0,
             seq_rsp: 0,
             seq_state: 0,
+            seq_device: 0,
             heartbeat: 0,
             report: DriveReport::EMPTY,
             card_monitor: HeartbeatMonitor::new(opts.card_timeout),
@@ -398,6 +400,9 @@ impl<T: Transport> Host<T> {
         }
         if host.has(cap::DRIVE_STATE) {
             host.seq_state = host.read_u16(codec::DRIVE_STATE.start())?;
+        }
+        if host.has(cap::DEVICE) {
+            host.seq_device = host.read_u16(codec::DEVICE.start())?;
         }
         Ok(host)
     }
@@ -537,6 +542,16 @@ impl<T: Transport> Host<T> {
         let mut seq = self.seq_state;
         let r = self.write(&codec::DRIVE_STATE, state, &mut seq);
         self.seq_state = seq;
+        r
+    }
+
+    /// Write DEVICE (layout 4): the drive's serial number and hardware revision, which the
+    /// card reports in I&M0 (DP-V1 slot 0 / index 255). Once after start is enough.
+    pub fn write_device_ident(&mut self, ident: &crate::dpv1::im::DeviceIdent) -> Result<u16, Error> {
+        self.require(cap::DEVICE)?;
+        let mut seq = self.seq_device;
+        let r = self.write(&codec::DEVICE, ident, &mut seq);
+        self.seq_device = seq;
         r
     }
 

@@ -1,0 +1,36 @@
+//! I&M (slot 0 / index 255, `pbcard::dpv1::im`) and its flash journal record
+//! (`pbcard::store::im`) on untrusted bytes: the call parser, a write then a read through the
+//! I&M function, and the journal's slot decoder. No panic, and what they accept is consistent.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use pbcard::dpv1::im::{Call, Im, CALL_HEADER_LEN, RECORD_LEN};
+use pbcard::store::im::{ImRecord, ImSlot, IM_RECORD_SIZE};
+
+fuzz_target!(|data: &[u8]| {
+    if let Ok(c) = Call::parse(data) {
+        assert!(data.len() == CALL_HEADER_LEN || data.len() == CALL_HEADER_LEN + RECORD_LEN);
+        assert!((65000..=65004).contains(&c.fi_index));
+    }
+    let mut im = Im::new();
+    let slot = data.first().map_or(0, |b| b & 1);
+    let mut out = [0u8; 240];
+    match im.write(slot, data) {
+        Ok(()) => {
+            assert_eq!(im.read(0, &mut out), Ok(CALL_HEADER_LEN + RECORD_LEN));
+            assert_eq!(&out[..CALL_HEADER_LEN], &data[..CALL_HEADER_LEN]);
+        }
+        Err(e) => {
+            let _ = e.error_code1();
+            assert!(im.read(0, &mut out).is_err());
+            assert_eq!(im.take_changed(), None);
+        }
+    }
+    if data.len() >= IM_RECORD_SIZE {
+        let mut b = [0u8; IM_RECORD_SIZE];
+        b.copy_from_slice(&data[..IM_RECORD_SIZE]);
+        if let ImSlot::Valid(r) = ImRecord::decode(&b) {
+            assert_eq!(r.encode(), b);
+        }
+    }
+});
