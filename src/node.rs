@@ -34,6 +34,10 @@ pub struct Node {
     c2: C2<{ card::C2_MAX_COUNT_CHANNELS }>,
     records: DriveRecords,
     baudrate: Option<Baudrate>,
+    /// The profile layer's fault buffer as the DP-V1 task reports it (PNU 944 / 947),
+    /// handed in by [`Node::set_fault_buffer`].
+    fault_counter: u16,
+    faults: [u16; FAULT_BUFFER_LEN],
 }
 
 /// Frame id of the MSAC_C1 response (the DP slave uses ids below it).
@@ -117,6 +121,8 @@ impl Node {
             c2: C2::new(),
             records: DriveRecords::new(),
             baudrate: None,
+            fault_counter: 0,
+            faults: [0; FAULT_BUFFER_LEN],
         }
     }
 
@@ -150,6 +156,16 @@ impl Node {
         self.baudrate = rate;
     }
 
+    /// The profile layer's PROFIdrive fault buffer (OPTE3/E5 §6.4.6 Table 112; reference
+    /// §5.2): PNU 944 `counter` (fault message counter) and PNU 947 `numbers` (fault
+    /// numbers), as [`process_acyclic`](Self::process_acyclic) answers them over DP-V1. The
+    /// application hands it in with every step ([`crate::app::Application::apply`]); a copy of
+    /// 66 bytes.
+    pub fn set_fault_buffer(&mut self, counter: u16, numbers: &[u16; FAULT_BUFFER_LEN]) {
+        self.fault_counter = counter;
+        self.faults = *numbers;
+    }
+
     /// Whether a DP-V1 request waits for [`process_acyclic`](Self::process_acyclic), or a
     /// record-47 job for the drive's values (call it again then).
     pub fn has_acyclic_work(&self) -> bool {
@@ -176,8 +192,8 @@ impl Node {
                 .and_then(crate::dpm::Telegram::of_module)
                 .unwrap_or(crate::dpm::Telegram::None),
             baud_p963: self.baudrate.map_or(5, |b| u16::from(b.p0963_code())),
-            fault_counter: 0,
-            faults: [0; FAULT_BUFFER_LEN],
+            fault_counter: self.fault_counter,
+            faults: self.faults,
         };
         let mut table = CardTable { info, drive: parameters };
         self.records.retry(&mut table);

@@ -1,0 +1,39 @@
+//! Issue 12 item 4: conformance defects found when the card was tested as a PLC test lab
+//! would, each fed as request bytes through the shipped card (`Node` + `Application`) and
+//! judged by the answer bytes.
+
+use super::*;
+
+/// A PROFIdrive parameter request (record 47) for one value: reference §5.1.
+fn read_request(reference: u8, pnu: u16, subindex: u16, elements: u8) -> Vec<u8> {
+    let p = pnu.to_be_bytes();
+    let s = subindex.to_be_bytes();
+    vec![reference, 0x01, 0x01, 0x01, 0x10, elements, p[0], p[1], s[0], s[1]]
+}
+
+/// Item b: PNU 944 (fault message counter) and PNU 947 (fault numbers) read over DP-V1 show
+/// the profile layer's fault buffer while the drive is in fault (OPTE3/E5 §6.4.6).
+#[test]
+fn b_pnu_944_947_show_the_fault_buffer() {
+    let mut b = Bench::new();
+    b.bring_up_with(&card::MODULES[0], 0x80);
+    for cw in [0x047E, 0x047F] {
+        b.cycle(&[(cw >> 8) as u8, cw as u8, 0x20, 0x00], 5);
+    }
+    // No fault yet: counter 0, active situation empty.
+    b.write47(&read_request(1, 944, 0, 1));
+    assert_eq!(b.read47(), [1, 1, 1, 1, 0x42, 1, 0, 0]);
+    b.app.drive_mut().inject_fault(0x2310, 0);
+    for _ in 0..5 {
+        b.cycle(&[0x04, 0x7F, 0x20, 0x00], 5);
+    }
+    assert_eq!(b.app.runtime().faults().numbers()[0], 0x2310, "the profile layer saw the fault");
+    let counter = b.app.runtime().faults().counter();
+    assert!(counter > 0);
+    b.write47(&read_request(2, 944, 0, 1));
+    let c = counter.to_be_bytes();
+    assert_eq!(b.read47(), [2, 1, 1, 1, 0x42, 1, c[0], c[1]]);
+    // PNU 947 elements 0..2: the active fault, then nothing.
+    b.write47(&read_request(3, 947, 0, 2));
+    assert_eq!(b.read47(), [3, 1, 1, 1, 0x42, 2, 0x23, 0x10, 0, 0]);
+}
