@@ -23,7 +23,7 @@
 //! | Set_Slave_Add (55) | Wait_Prm, address not frozen, right ident | RS |
 //! | Rd_Inp (56) / Rd_Outp (57) | Data_Exch, any master | RS |
 //! | Global_Control (58, SDN) | Data_Exch, locking master, group selected | ignored, counted |
-//! | Get_Cfg (59) / Slave_Diag (60) | always, any master | — |
+//! | Get_Cfg (59) / Slave_Diag (60) | always, any master; Get_Cfg answers [`DpSlave::real_cfg`] | — |
 //! | Set_Prm (61) | unlocked slave or locking master | SC, content ignored, counted |
 //! | Chk_Cfg (62) | Wait_Cfg / Data_Exch, locking master | SC, content ignored, counted |
 //!
@@ -308,6 +308,21 @@ impl DpSlave {
     pub fn require_module(&mut self, module: Option<&'static Module>) {
         self.required_module = module;
     }
+    /// Real_Cfg_Data, what Get_Cfg answers: the configuration in force (reference §3.4,
+    /// "Get_Cfg returns Real_Cfg_Data — the active configuration"). In data exchange the
+    /// module of the accepted Chk_Cfg; outside it the drive's selected telegram
+    /// ([`Self::require_module`]) when there is one — the only module the next Chk_Cfg may
+    /// select —, else the module of the last accepted Chk_Cfg, else the GSD's first module
+    /// (Standard telegram 1).
+    pub fn real_cfg(&self) -> &'static Module {
+        match (self.state, self.module, self.required_module) {
+            (DpState::DataExch, Some(m), _) => m,
+            (_, _, Some(r)) => r,
+            (_, Some(m), None) => m,
+            (_, None, None) => &card::MODULES[0],
+        }
+    }
+
     /// The accepted Set_Prm (user parameters, DPV1 status bytes, watchdog).
     pub fn parameters(&self) -> Option<&SetPrm> {
         self.prm.as_ref()
@@ -840,7 +855,7 @@ impl FdlApplication for DpSlave {
                 sap::SET_PRM => self.set_prm(now, req),
                 sap::CHK_CFG => self.chk_cfg(req),
                 sap::GET_CFG => {
-                    let cfg = self.module.unwrap_or(&card::MODULES[0]).cfg;
+                    let cfg = self.real_cfg().cfg;
                     self.misc_frame(req, cfg)
                 }
                 sap::RD_INP | sap::RD_OUTP if self.state == DpState::DataExch => {

@@ -37,3 +37,34 @@ fn b_pnu_944_947_show_the_fault_buffer() {
     b.write47(&read_request(3, 947, 0, 2));
     assert_eq!(b.read47(), [3, 1, 1, 1, 0x42, 2, 0x23, 0x10, 0, 0]);
 }
+
+/// The PDU of a data answer (SD2 or SD3, after the SAP bytes).
+fn sd2_pdu(r: &[u8]) -> Vec<u8> {
+    match telegram::decode(r) {
+        telegram::Decoded::Frame(telegram::Telegram::Data(t), n) if n == r.len() => t.pdu.to_vec(),
+        other => panic!("no data answer: {r:02X?} ({other:?})"),
+    }
+}
+
+/// Item i: Get_Cfg answers Real_Cfg_Data, the configuration in force — the drive's selected
+/// telegram before Chk_Cfg, the accepted module in data exchange (reference §3.4).
+#[test]
+fn i_get_cfg_answers_the_drives_selected_telegram() {
+    use crate::dpm::HostConfig;
+    let st1 = &card::MODULES[0];
+    let st20 = card::MODULES.iter().find(|m| Telegram::of_module(m) == Some(Telegram::Standard(20))).unwrap();
+    let mut b = Bench::new();
+    assert_eq!(sd2_pdu(&b.srd(Some(59), &[])), st1.cfg, "no selection, no Chk_Cfg: the first GSD module");
+    b.app.host_mut().write_config(&HostConfig { telegram: Telegram::Standard(20), ..HostConfig::DEFAULT }).unwrap();
+    b.step(1);
+    b.step(1);
+    assert_eq!(b.node.slave().required_module().map(|m| m.reference), Some(st20.reference));
+    assert_eq!(sd2_pdu(&b.srd(Some(59), &[])), st20.cfg, "the drive's telegram 20");
+    b.bring_up(st20);
+    assert_eq!(sd2_pdu(&b.srd(Some(59), &[])), st20.cfg);
+    // In data exchange a new selection waits (pending) and Get_Cfg keeps the module in force.
+    b.app.host_mut().write_config(&HostConfig { telegram: Telegram::Standard(1), ..HostConfig::DEFAULT }).unwrap();
+    b.step(1);
+    b.step(1);
+    assert_eq!(sd2_pdu(&b.srd(Some(59), &[])), st20.cfg, "in data exchange: the accepted module");
+}
