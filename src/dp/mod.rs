@@ -24,7 +24,7 @@
 //! | Rd_Inp (56) / Rd_Outp (57) | Data_Exch, any master | RS |
 //! | Global_Control (58, SDN) | Data_Exch, locking master, group selected | ignored, counted |
 //! | Get_Cfg (59) / Slave_Diag (60) | always, any master; Get_Cfg answers [`DpSlave::real_cfg`] | — |
-//! | Set_Prm (61) | unlocked slave or locking master | SC, content ignored, counted |
+//! | Set_Prm (61) | unlocked slave or locking master; checked only with Lock_Req = 1, Unlock_Req = 0 ([`prm::LockRequest`]) | SC, content ignored, counted |
 //! | Chk_Cfg (62) | Wait_Cfg / Data_Exch, locking master | SC, content ignored, counted |
 //!
 //! The drive side (DPM `CONFIG`, outside data exchange) can change the station address
@@ -136,6 +136,10 @@ pub struct SlaveStats {
     pub gc_ignored: u32,
     /// Chk_Cfg received in Wait_Prm (acknowledged, not evaluated).
     pub cfg_ignored: u32,
+    /// Set_Prm with Lock_Req = 0, Unlock_Req = 0: only min_TSDR taken over.
+    pub prm_min_tsdr_only: u32,
+    /// Set_Prm with Unlock_Req: the slave released.
+    pub prm_unlocks: u32,
 }
 
 /// Frame buffer ids (see [`FdlApplication::frame`]).
@@ -653,6 +657,27 @@ impl DpSlave {
                 return Reply::ShortAck;
             }
         }
+        match prm::LockRequest::of(req.pdu) {
+            Some(prm::LockRequest::MinTsdrOnly(t)) => {
+                // Lock 0 / Unlock 0: only min_TSDR is taken over; no validation, every other
+                // parameter, the state and the outputs unchanged (EN 50170 lock table,
+                // reference §3.3).
+                if let Some(t) = t {
+                    self.min_tsdr = t;
+                }
+                self.stats.prm_min_tsdr_only = self.stats.prm_min_tsdr_only.wrapping_add(1);
+                return Reply::ShortAck;
+            }
+            Some(prm::LockRequest::Unlock) => {
+                // Unlock_Req (Lock 0/1, Unlock 1): released for other masters, whatever the
+                // rest of the telegram says (reference §3.3).
+                self.stats.prm_unlocks = self.stats.prm_unlocks.wrapping_add(1);
+                self.leave(DpState::WaitPrm);
+                self.diag_dirty = true;
+                return Reply::ShortAck;
+            }
+            Some(prm::LockRequest::Lock) | None => {}
+        }
         match SetPrm::parse(req.pdu) {
             Err(e) => {
                 self.stats.prm_faults = self.stats.prm_faults.wrapping_add(1);
@@ -667,12 +692,8 @@ impl DpSlave {
                 if let Some(t) = p.min_tsdr {
                     self.min_tsdr = t;
                 }
-                let lock = p.status.contains(StationStatus::LOCK_REQ);
-                let unlock = p.status.contains(StationStatus::UNLOCK_REQ);
-                if unlock {
-                    // Released for other masters (Lock 0/1 Unlock 1, reference §3.3).
-                    self.leave(DpState::WaitPrm);
-                } else if lock {
+                // Lock 1 / Unlock 0 (the other rows of the lock table are handled above).
+                {
                     self.prm_fault = false;
                     self.cfg_fault = false;
                     self.not_supported = false;
@@ -688,7 +709,6 @@ impl DpSlave {
                     }
                     self.restage_dx();
                 }
-                // Lock 0 / Unlock 0: only min_TSDR is taken over.
             }
         }
         self.diag_dirty = true;

@@ -100,6 +100,57 @@ pub struct SetPrm {
     pub user: [u8; card::USER_PRM_LEN],
 }
 
+/// Set_Prm byte 3, min_TSDR in bit times: `None` for 0 ("keep"); values below the FDL floor
+/// of 11 bit times (reference §1.3) cannot be honoured and count as 11.
+pub fn min_tsdr_of(byte: u8) -> Option<BitTimes> {
+    match byte {
+        0 => None,
+        t => Some(BitTimes(u32::from(t.max(11)))),
+    }
+}
+
+/// What a Set_Prm asks for by its Lock_Req / Unlock_Req bits (EN 50170 lock table, reference
+/// §3.3 after the CP 5613 station_status table):
+///
+/// | Lock_Req | Unlock_Req | meaning | what the card checks |
+/// |---|---|---|---|
+/// | 0 | 0 | only min_TSDR is taken over, every other parameter unchanged | nothing but the length (≥ 7) |
+/// | 0 | 1 | the slave is released for other masters (→ Wait_Prm) | nothing but the length |
+/// | 1 | 0 | the slave is locked to this master, all parameters adopted | everything ([`SetPrm::parse`]) |
+/// | 1 | 1 | the slave is released for other masters | nothing but the length |
+///
+/// Only Lock_Req = 1, Unlock_Req = 0 is a parameterization; the other rows are lock
+/// management and are never answered with Prm_Fault (issue 12 item 4c: a locking master's
+/// "min_TSDR only" telegram with another ident must not trip the drive).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum LockRequest {
+    /// Lock 0 / Unlock 0: take over min_TSDR (byte 3, `None` = keep), nothing else.
+    MinTsdrOnly(Option<BitTimes>),
+    /// Unlock_Req set (with or without Lock_Req): release the slave.
+    Unlock,
+    /// Lock 1 / Unlock 0: a full parameterization, to be checked by [`SetPrm::parse`].
+    Lock,
+}
+
+impl LockRequest {
+    /// The request of a Set_Prm PDU; `None` when it is shorter than the 7 standard octets
+    /// (a Prm_Fault, [`PrmError::Length`]).
+    pub fn of(pdu: &[u8]) -> Option<LockRequest> {
+        if pdu.len() < 7 {
+            return None;
+        }
+        let status = StationStatus::from_bits_truncate(pdu[0]);
+        Some(if status.contains(StationStatus::UNLOCK_REQ) {
+            LockRequest::Unlock
+        } else if status.contains(StationStatus::LOCK_REQ) {
+            LockRequest::Lock
+        } else {
+            LockRequest::MinTsdrOnly(min_tsdr_of(pdu[3]))
+        })
+    }
+}
+
 impl SetPrm {
     /// Parse and check a Set_Prm PDU (the DU after the SAP bytes).
     pub fn parse(pdu: &[u8]) -> Result<SetPrm, PrmError> {
@@ -155,11 +206,7 @@ impl SetPrm {
             status,
             wd_fact_1,
             wd_fact_2,
-            min_tsdr: match pdu[3] {
-                0 => None,
-                // The FDL floor is 11 bit times (reference §1.3); smaller values cannot be honoured.
-                t => Some(BitTimes(u32::from(t.max(11)))),
-            },
+            min_tsdr: min_tsdr_of(pdu[3]),
             group_ident: pdu[6],
             dpv1_status_1: Dpv1Status1::from_bits_retain(user[0]),
             dpv1_status_2: user[1],
@@ -224,10 +271,29 @@ mod tests {
         assert_eq!(SetPrm::parse(&prm(0x88, &[0, 0, 0, 0, 5])), Err(PrmError::UserPrm { offset: 4, value: 5 }));
     }
 
+    #[test]
+    fn lock_table() {
+        let mut foreign = prm(0x00, &[0xFF, 0xFF]);
+        foreign[4] ^= 0x55;
+        foreign[3] = 40;
+        assert_eq!(LockRequest::of(&foreign), Some(LockRequest::MinTsdrOnly(Some(BitTimes(40)))));
+        foreign[3] = 0;
+        assert_eq!(LockRequest::of(&foreign), Some(LockRequest::MinTsdrOnly(None)));
+        foreign[0] = 0x40;
+        assert_eq!(LockRequest::of(&foreign), Some(LockRequest::Unlock));
+        foreign[0] = 0xC0;
+        assert_eq!(LockRequest::of(&foreign), Some(LockRequest::Unlock));
+        foreign[0] = 0x88;
+        assert_eq!(LockRequest::of(&foreign), Some(LockRequest::Lock));
+        assert_eq!(LockRequest::of(&foreign[..6]), None);
+        assert_eq!(min_tsdr_of(3), Some(BitTimes(11)));
+    }
+
     proptest::proptest! {
         #[test]
         fn never_panics(bytes in proptest::collection::vec(proptest::num::u8::ANY, 0..260)) {
             let _ = SetPrm::parse(&bytes);
+            let _ = LockRequest::of(&bytes);
         }
     }
 }

@@ -68,3 +68,54 @@ fn i_get_cfg_answers_the_drives_selected_telegram() {
     b.step(1);
     assert_eq!(sd2_pdu(&b.srd(Some(59), &[])), st20.cfg, "in data exchange: the accepted module");
 }
+
+/// Runs the ST1 drive at 50 % (047E, then 047F) for a few cycles.
+fn run_st1(b: &mut Bench) {
+    for cw in [0x047E_u16, 0x047F, 0x047F, 0x047F] {
+        b.cycle(&[(cw >> 8) as u8, cw as u8, 0x20, 0x00], 5);
+    }
+    assert_eq!(b.app.profidrive_state(), Some(DriveState::Operation));
+}
+
+/// A Set_Prm PDU with Station_Status `status`, min_TSDR `min_tsdr`, ident `ident` and the
+/// default User_Prm_Data.
+fn set_prm_pdu(status: u8, min_tsdr: u8, ident: u16) -> Vec<u8> {
+    let id = ident.to_be_bytes();
+    let mut p = vec![status, 1, 100, min_tsdr, id[0], id[1], 0];
+    p.extend_from_slice(&card::USER_PRM_DEFAULTS);
+    p
+}
+
+/// Item c: a Set_Prm from the locking master with Lock_Req = 0, Unlock_Req = 0 takes over
+/// min_TSDR only — not validated, no Prm_Fault even with a foreign ident, the outputs and the
+/// running drive untouched (EN 50170 lock table, reference §3.3). Unlock_Req with a foreign
+/// ident releases the slave without Prm_Fault.
+#[test]
+fn c_lock0_unlock0_takes_min_tsdr_only_and_unlock_is_not_validated() {
+    let mut b = Bench::new();
+    b.bring_up(&card::MODULES[0]);
+    run_st1(&mut b);
+    assert_eq!(b.srd(Some(61), &set_prm_pdu(0x00, 37, 0x1234)), [telegram::SC]);
+    b.step(1);
+    assert_eq!(b.node.slave().state(), DpState::DataExch);
+    assert_eq!(b.node.min_tsdr(), crate::time::BitTimes(37), "min_TSDR taken over");
+    let diag = sd2_pdu(&b.srd(Some(60), &[]));
+    assert_eq!(diag[0] & 0x40, 0, "no Prm_Fault: {diag:02X?}");
+    assert_eq!(diag[3], MASTER, "still locked");
+    assert_eq!(b.node.slave().outputs(), &[0x04, 0x7F, 0x20, 0x00], "outputs kept");
+    b.cycle(&[0x04, 0x7F, 0x20, 0x00], 5);
+    assert_eq!(b.app.profidrive_state(), Some(DriveState::Operation), "the drive keeps running");
+    assert_eq!(b.node.slave().stats().prm_min_tsdr_only, 1);
+    assert_eq!(b.node.slave().stats().prm_faults, 0);
+    // min_TSDR 0 = keep.
+    assert_eq!(b.srd(Some(61), &set_prm_pdu(0x00, 0, 0x1234)), [telegram::SC]);
+    assert_eq!(b.node.min_tsdr(), crate::time::BitTimes(37));
+    // Unlock with a foreign ident: released, no Prm_Fault, Master_Add 0xFF.
+    assert_eq!(b.srd(Some(61), &set_prm_pdu(0x40, 11, 0x1234)), [telegram::SC]);
+    b.step(1);
+    assert_eq!(b.node.slave().state(), DpState::WaitPrm);
+    let diag = sd2_pdu(&b.srd(Some(60), &[]));
+    assert_eq!((diag[0] & 0x40, diag[1] & 0x01, diag[3]), (0, 0x01, 0xFF), "released: {diag:02X?}");
+    assert_eq!(b.node.slave().stats().prm_unlocks, 1);
+    assert!(b.node.slave().outputs().iter().all(|&x| x == 0), "outputs cleared");
+}
