@@ -12,10 +12,10 @@ use pbcard::dp::slave_add::SetSlaveAdd;
 
 fuzz_target!(|data: &[u8]| {
     if let Ok(p) = SetPrm::parse(data) {
-        assert!(data.len() >= 7 && data.len() <= 7 + card::USER_PRM_LEN);
+        assert_eq!(data.len(), 7 + card::USER_PRM_LEN);
         assert_eq!(u16::from_be_bytes([data[4], data[5]]), card::IDENT_NUMBER);
         assert_eq!(p.watchdog().is_some(), p.status.contains(StationStatus::WD_ON));
-        assert_eq!(&p.user[..data.len() - 7], &data[7..]);
+        assert_eq!(&p.user[..], &data[7..]);
     }
     // The lock table (reference §3.3): only Lock 1 / Unlock 0 is a parameterization.
     match LockRequest::of(data) {

@@ -119,3 +119,27 @@ fn c_lock0_unlock0_takes_min_tsdr_only_and_unlock_is_not_validated() {
     assert_eq!(b.node.slave().stats().prm_unlocks, 1);
     assert!(b.node.slave().outputs().iter().all(|&x| x == 0), "outputs cleared");
 }
+
+/// Item g: a Set_Prm with fewer User_Prm_Data octets than the GSD's `Max_User_Prm_Data_Len`
+/// (here: only the three DPV1_Status bytes, as a DP-V0 tool without the GSD's
+/// ExtUserPrmData would send) is a Prm_Fault, not padded with defaults.
+#[test]
+fn g_short_set_prm_is_a_prm_fault() {
+    let mut b = Bench::new();
+    let short = &set_prm_pdu(0x88, 11, card::IDENT_NUMBER)[..10];
+    assert_eq!(b.srd(Some(61), short), [telegram::SC]);
+    b.step(1);
+    assert_eq!(b.node.slave().state(), DpState::WaitPrm);
+    let diag = sd2_pdu(&b.srd(Some(60), &[]));
+    assert_eq!(diag[..4], [0x42, 0x05, 0x00, 0xFF], "Station_Not_Ready + Prm_Fault, Prm_Req: {diag:02X?}");
+    assert_eq!(b.srd(Some(62), card::MODULES[0].cfg), [telegram::SC]);
+    assert_eq!(b.node.slave().state(), DpState::WaitPrm, "Chk_Cfg not evaluated");
+    // The full length is accepted; a short one in data exchange ends it (outputs zero).
+    b.bring_up(&card::MODULES[0]);
+    run_st1(&mut b);
+    assert_eq!(b.srd(Some(61), &set_prm_pdu(0x88, 11, card::IDENT_NUMBER)[..11]), [telegram::SC]);
+    b.step(1);
+    assert_eq!(b.node.slave().state(), DpState::WaitPrm);
+    assert!(b.node.slave().outputs().iter().all(|&x| x == 0));
+    assert_eq!(b.node.slave().stats().prm_faults, 2);
+}
