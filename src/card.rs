@@ -57,6 +57,12 @@ pub const C1_MAX_DATA_LEN: usize = 240;
 /// The card answers record requests at its next processing turn (≤ a few ms); 1 s leaves room
 /// for drive parameters fetched through the DPM mailbox.
 pub const C1_RESPONSE_TIMEOUT_10MS: u16 = 100;
+/// The application profile the card implements, as the GSD states it (comment line
+/// `Profile: PROFIdrive …, Profile_Ident_Number 0x3A00`, next to `Slave_Family = 1@Drives`):
+/// PROFIdrive, profile ident number 0x3A00 (reference §4.7: I&M0 PROFILE_ID 0x3A00 =
+/// PROFIdrive; PNU 965 carries its version, 4.1). Sent as Profile_Ident_Number in the
+/// MSAC_C2 Initiate.res (reference §4.5).
+pub const PROFILE_IDENT_NUMBER: u16 = 0x3A00;
 /// GSD `C2_Read_Write_supp`: MSAC_C2 connections (commissioning tools).
 pub const C2_READ_WRITE_SUPP: bool = true;
 /// GSD `C2_Max_Data_Len`.

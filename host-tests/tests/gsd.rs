@@ -936,3 +936,23 @@ fn text_is_pyprofibus_friendly() {
         }
     }
 }
+
+/// No GSD keyword names the application profile, so the GSD states it in a comment next to
+/// `Slave_Family = 1@Drives`; the MSAC_C2 Initiate.res answers that Profile_Ident_Number
+/// (`card::PROFILE_IDENT_NUMBER`, issue 12 item 4k).
+#[test]
+fn profile_ident_is_the_gsds_profidrive() {
+    let text = gsd_text();
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("; Profile: PROFIdrive"))
+        .expect("a comment line \"; Profile: PROFIdrive ..., Profile_Ident_Number 0x....\"");
+    let ident = line
+        .split("Profile_Ident_Number")
+        .nth(1)
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(parse_int)
+        .unwrap_or_else(|| panic!("no Profile_Ident_Number in {line:?}"));
+    assert_eq!(ident, i64::from(card::PROFILE_IDENT_NUMBER));
+    assert_eq!(Scan::new(&text).setting("Slave_Family"), Some("1@Drives"));
+}

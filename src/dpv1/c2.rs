@@ -96,8 +96,10 @@ pub const MAX_LEN_DATA_UNIT: u8 = pdu::MAX_DATA_LEN as u8;
 pub const FEATURES_SUPPORTED: [u8; 2] = [0x01, 0x00];
 /// Profile_Features_Supported_1/2 of the Initiate.res: none.
 pub const PROFILE_FEATURES_SUPPORTED: [u8; 2] = [0x00, 0x00];
-/// Profile_Ident_Number of the Initiate.res: none.
-pub const PROFILE_IDENT_NUMBER: u16 = 0;
+/// Profile_Ident_Number of the Initiate.res: the PROFIdrive profile the GSD states
+/// ([`crate::card::PROFILE_IDENT_NUMBER`], 0x3A00), whatever the master asked for (a master
+/// that sends 0 learns the slave's profile from the answer).
+pub const PROFILE_IDENT_NUMBER: u16 = crate::card::PROFILE_IDENT_NUMBER;
 
 /// The RM and Abort frames: SD2 with DSAP, SSAP and a 4-byte PDU.
 const SCRATCH_LEN: usize = telegram::encoded_len(2, 4);

@@ -143,3 +143,41 @@ fn g_short_set_prm_is_a_prm_fault() {
     assert!(b.node.slave().outputs().iter().all(|&x| x == 0));
     assert_eq!(b.node.slave().stats().prm_faults, 2);
 }
+
+/// MSAC_C2 Initiate.req (reference §4.5): Send_Timeout `send_timeout` × 10 ms, Read/Write,
+/// Profile_Ident 0, S and D type 0 with 2-byte blocks.
+fn initiate_req(send_timeout: u16) -> Vec<u8> {
+    let t = send_timeout.to_be_bytes();
+    vec![0x57, 0, 0, 0, t[0], t[1], 0x01, 0x00, 0, 0, 0, 0, 0, 2, 0, 2, 0, 0, 0, 0]
+}
+
+impl Bench {
+    /// Open an MSAC_C2 connection from this master's SAP 50: Initiate.req on the resource
+    /// manager (SAP 49), then on the server SAP, then a poll; returns the server SAP and the
+    /// Initiate.res PDU.
+    fn c2_connect(&mut self, send_timeout: u16) -> (u8, Vec<u8>) {
+        let rm = sd2_pdu(&self.send(Some(49), Some(50), &initiate_req(send_timeout)));
+        assert_eq!(rm[0], 0x56, "RM PDU {rm:02X?}");
+        let sap = rm[1];
+        assert_eq!(self.send(Some(sap), Some(50), &initiate_req(send_timeout)), [telegram::SC]);
+        (sap, sd2_pdu(&self.send(Some(sap), Some(50), &[])))
+    }
+
+    /// One MSAC_C2 request on `sap`, the DP-V1 task, one poll: the response PDU.
+    fn c2(&mut self, sap: u8, pdu: &[u8]) -> Vec<u8> {
+        assert_eq!(self.send(Some(sap), Some(50), pdu), [telegram::SC], "request acknowledged");
+        self.acyclic();
+        sd2_pdu(&self.send(Some(sap), Some(50), &[]))
+    }
+}
+
+/// Item k: the MSAC_C2 Initiate.res carries Profile_Ident_Number 0x3A00, the PROFIdrive
+/// profile the GSD states (`card::PROFILE_IDENT_NUMBER`), although the master sent 0.
+#[test]
+fn k_initiate_res_carries_the_profidrive_profile_ident() {
+    let mut b = Bench::new();
+    let (_, res) = b.c2_connect(300);
+    // 57 | Max_Len_Data_Unit 240 | Features 01 00 | Profile_Features 00 00 | Profile_Ident 3A 00 |
+    // S_Type 0 S_Len 2 D_Type 0 D_Len 2 | the request's D block, then its S block.
+    assert_eq!(res, [0x57, 0xF0, 0x01, 0x00, 0x00, 0x00, 0x3A, 0x00, 0, 2, 0, 2, 0, 0, 0, 0]);
+}
