@@ -260,7 +260,9 @@ impl SimDrive {
             }
         }
         if self.serve_parameters {
-            let _ = host.serve_parameters(&mut crate::dpm::host::Table(&mut self.table));
+            // With its own number list (PNU 980, read by the card for its PNUs 980 … 989).
+            let mut table = crate::profile::pnu::NumberList(&mut self.table);
+            let _ = host.serve_parameters(&mut crate::dpm::host::Table(&mut table));
         }
     }
 

@@ -181,3 +181,44 @@ fn k_initiate_res_carries_the_profidrive_profile_ident() {
     // S_Type 0 S_Len 2 D_Type 0 D_Len 2 | the request's D block, then its S block.
     assert_eq!(res, [0x57, 0xF0, 0x01, 0x00, 0x00, 0x00, 0x3A, 0x00, 0, 2, 0, 2, 0, 0, 0, 0]);
 }
+
+/// Item f: PNU 965 is one OctetString2 value `03 29` (PROFIdrive 4.1); PNU 975 has the eight
+/// elements PROFIdrive defines; the number list 980 … lists the card's PNUs and then the
+/// drive's parameters (P100, P101, …, read from the drive through the mailbox), zero-terminated,
+/// and continues in 981.
+#[test]
+fn f_pnu_965_975_980_as_profidrive_defines_them() {
+    use crate::profile::pnu::{CARD_PNUS, LIST_LEN};
+    let mut b = Bench::new();
+    b.bring_up_with(&card::MODULES[0], 0x80);
+    b.write47(&read_request(1, 965, 0, 1));
+    assert_eq!(b.read47(), [1, 1, 1, 1, 0x42, 1, 0x03, 0x29], "one OctetString2 value");
+    b.write47(&read_request(2, 975, 0, 8));
+    let r = b.read47();
+    assert_eq!(r[..6], [2, 1, 1, 1, 0x42, 8], "{r:02X?}");
+    assert_eq!(words(&r[6..]), [0, 1, 1, 2026, 2211, 1, 1, 1]);
+    // PNU 980: the card's 22 PNUs, the drive's 12, the end mark, zeros.
+    b.write47(&read_request(3, 980, 0, 40));
+    assert_eq!(b.read47(), [0xDE, 0x80, 0xB5, 0x00], "the drive's part comes through the mailbox");
+    b.step(1);
+    let r = b.read47();
+    assert_eq!(r[..6], [3, 1, 1, 1, 0x42, 40], "{r:02X?}");
+    let list = words(&r[6..]);
+    assert_eq!(list[..CARD_PNUS.len()], CARD_PNUS);
+    let drive = [100, 101, 133, 134, 680, 681, 684, 685, 9900, 9901, 10109, 10111];
+    assert_eq!(list[CARD_PNUS.len()..CARD_PNUS.len() + drive.len()], drive);
+    assert!(list[CARD_PNUS.len() + drive.len()..].iter().all(|&p| p == 0), "end of list: {list:?}");
+    // Subindex access and the continuation: 980 has 64 elements, 981 the next 64 (all zero:
+    // the list ended in 980); element 64 does not exist.
+    b.write47(&read_request(4, 980, 20, 4));
+    b.step(1);
+    assert_eq!(words(&b.read47()[6..]), [988, 989, 100, 101]);
+    b.write47(&read_request(5, 981, 0, LIST_LEN as u8));
+    b.step(1);
+    let r = b.read47();
+    assert_eq!(r[..6], [5, 1, 1, 1, 0x42, 64]);
+    assert!(words(&r[6..]).iter().all(|&p| p == 0));
+    b.write47(&read_request(6, 980, LIST_LEN as u16, 1));
+    b.step(1);
+    assert_eq!(b.read47(), [6, 0x81, 1, 1, 0x44, 1, 0, 0x03], "invalid subindex");
+}
