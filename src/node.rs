@@ -178,6 +178,7 @@ impl Node {
     /// asynchronous `parameters` table has not delivered yet
     /// ([`ParameterAccess::pending`]) is built again on every call until it is complete.
     pub fn process_acyclic(&mut self, now: Instant, parameters: &mut impl ParameterAccess) {
+        self.end_relations();
         if !self.has_acyclic_work() {
             return;
         }
@@ -200,6 +201,20 @@ impl Node {
         let mut records = self.records.with(&mut table);
         self.c1.process(now, &self.slave, &mut records);
         self.c2.process(now, &mut records);
+    }
+
+    /// Forget the record state of every relation that ended since the last call (before any
+    /// request of a new relation is served).
+    fn end_relations(&mut self) {
+        if self.c1.take_ended() {
+            self.records.end_relation(crate::dpv1::records::RELATION_C1);
+        }
+        let mut ended = self.c2.take_ended();
+        while ended != 0 {
+            let i = ended.trailing_zeros() as usize;
+            ended &= ended - 1;
+            self.records.end_relation(crate::dpv1::records::relation_c2(i));
+        }
     }
 
     /// A character arrived with a parity, framing, noise or overrun error.

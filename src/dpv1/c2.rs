@@ -206,6 +206,8 @@ struct Conn {
     send_timeout: u16,
     deadline: Instant,
     channel: Channel,
+    /// The relation ended (abort, timeout, replaced) since [`C2::take_ended`].
+    ended: bool,
 }
 
 impl Conn {
@@ -216,9 +218,13 @@ impl Conn {
         send_timeout: 0,
         deadline: Instant::from_micros(0),
         channel: Channel::new(),
+        ended: false,
     };
 
     fn close(&mut self) {
+        if matches!(self.state, ConnectionState::Open | ConnectionState::Aborting(_)) {
+            self.ended = true;
+        }
         self.state = ConnectionState::Closed;
         self.channel.reset();
     }
@@ -337,6 +343,20 @@ impl<const N: usize> C2<N> {
         self.conns.iter_mut().for_each(Conn::close);
     }
 
+    /// The connections whose application relation ended since the last call (bit `i` =
+    /// connection `i`: aborted by either side, Send_Timeout expired, replaced, reset): the
+    /// record handler forgets their per-relation state (a record-47 response or job), so a
+    /// new connection on the same SAP never reads a stale answer.
+    pub fn take_ended(&mut self) -> u64 {
+        let mut mask = 0;
+        for (i, c) in self.conns.iter_mut().enumerate() {
+            if core::mem::take(&mut c.ended) {
+                mask |= 1 << i;
+            }
+        }
+        mask
+    }
+
     /// Whether a Read / Write / Data_Transport waits for [`process`](Self::process).
     pub fn has_pending(&self) -> bool {
         self.conns.iter().any(|c| c.state == ConnectionState::Open && c.channel.pending().is_some())
@@ -415,6 +435,7 @@ impl<const N: usize> C2<N> {
                     let r = AbortReason::Timeout.bits() as usize;
                     self.stats.aborts[r] = self.stats.aborts[r].wrapping_add(1);
                     c.channel.reset();
+                    c.ended = true;
                     c.state = ConnectionState::Aborting(AbortReason::Timeout);
                     c.deadline = c.deadline + units(c.send_timeout);
                 }

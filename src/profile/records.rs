@@ -18,7 +18,9 @@
 //!
 //! Relations (MSAC_C1 and each MSAC_C2 connection) are kept apart: each fetches only its own
 //! response, and one job runs at a time — a DS_Write(47) of another relation while a job is
-//! busy is answered 0xC2 "resource busy" (the master repeats it). Record 48 answers 0xC2 "resource busy" while a value is pending
+//! busy is answered 0xC2 "resource busy" (the master repeats it). When a relation ends (MSAC_C1
+//! leaves data exchange, an MSAC_C2 connection is aborted or times out) its response and its
+//! job are dropped ([`DriveRecords::end_relation`]). Record 48 answers 0xC2 "resource busy" while a value is pending
 //! (the master repeats the access).
 
 use super::param::{respond, ParamRequest, ParameterAccess, MAX_LEN};
@@ -81,6 +83,19 @@ impl DriveRecords {
     pub fn reset(&mut self) {
         self.response_lens = [0; RELATIONS];
         self.busy = false;
+    }
+
+    /// The application relation `relation` ended (MSAC_C1 left data exchange, an MSAC_C2
+    /// connection was aborted or timed out): its waiting response is dropped and, if the busy
+    /// job is its own, the job too — an orphaned job would block the other relations with
+    /// 0xC2 and a new relation must never read the old one's answer.
+    pub fn end_relation(&mut self, relation: u8) {
+        if let Some(len) = self.response_lens.get_mut(relation as usize) {
+            *len = 0;
+        }
+        if self.busy && self.owner == relation {
+            self.busy = false;
+        }
     }
 
     /// Whether a record-47 job waits for values of an asynchronous table.

@@ -222,3 +222,50 @@ fn f_pnu_965_975_980_as_profidrive_defines_them() {
     b.step(1);
     assert_eq!(b.read47(), [6, 0x81, 1, 1, 0x44, 1, 0, 0x03], "invalid subindex");
 }
+
+/// Item h: record-47 state does not survive the end of its relation. MSAC_C1: a response
+/// waiting when data exchange is left is not handed to the next relation; an orphaned job
+/// (the drive never answered) does not block MSAC_C2 with 0xC2. MSAC_C2: a response waiting
+/// when the connection is aborted (by the master or by Send_Timeout) is gone for the next
+/// connection on the same SAP.
+#[test]
+fn h_record_47_state_ends_with_its_relation() {
+    const STATE_CONFLICT: [u8; 4] = [0xDE, 0x80, 0xB5, 0x00];
+    let p100 = read_request(1, 100, 0, 1);
+    let write = |req: &[u8]| [&[0x5F, 0, 47, req.len() as u8][..], req].concat();
+    let mut b = Bench::new();
+    // C1: a response is ready, then data exchange is left and entered again.
+    b.bring_up_with(&card::MODULES[0], 0x80);
+    b.write47(&p100);
+    b.step(1);
+    b.acyclic();
+    b.bring_up_with(&card::MODULES[0], 0x80);
+    assert_eq!(b.read47(), STATE_CONFLICT, "no stale response for the new MSAC_C1 relation");
+    // C1: an orphaned job (the drive does not answer), then data exchange ends.
+    b.app.set_serve_parameters(false);
+    b.write47(&p100);
+    assert!(b.node.has_acyclic_work());
+    assert_eq!(b.srd(Some(61), &set_prm_pdu(0x40, 11, card::IDENT_NUMBER)), [telegram::SC], "Unlock");
+    b.step(1);
+    b.app.set_serve_parameters(true);
+    let (sap, _) = b.c2_connect(300);
+    let mut req = read_request(2, 101, 0, 1);
+    assert_eq!(b.c2(sap, &write(&req)), [0x5F, 0, 47, 10], "not blocked by the dead relation's job (0xC2)");
+    b.step(1);
+    b.acyclic();
+    // C2: the response is waiting; the master aborts; a new connection gets none of it.
+    assert_eq!(b.send(Some(sap), Some(50), &[0x58, 0x00, 0x20, 0x00]), [telegram::SC], "master Abort");
+    let (sap2, _) = b.c2_connect(300);
+    assert_eq!(sap2, sap, "the same SAP again");
+    assert_eq!(b.c2(sap, &[0x5E, 0, 47, 240]), STATE_CONFLICT, "no stale response after an abort");
+    // C2: a response is waiting; the connection times out (3 s); the next one reads nothing.
+    req[0] = 3;
+    assert_eq!(b.c2(sap, &write(&req)), [0x5F, 0, 47, 10]);
+    b.step(1);
+    b.acyclic();
+    b.step(3100);
+    assert_eq!(sd2_pdu(&b.send(Some(sap), Some(50), &[])), [0x58, 0x00, 0x13, 0x00], "timeout Abort");
+    let (sap3, _) = b.c2_connect(300);
+    assert_eq!(sap3, sap);
+    assert_eq!(b.c2(sap, &[0x5E, 0, 47, 240]), STATE_CONFLICT, "no stale response after a timeout");
+}
