@@ -956,3 +956,17 @@ fn profile_ident_is_the_gsds_profidrive() {
     assert_eq!(ident, i64::from(card::PROFILE_IDENT_NUMBER));
     assert_eq!(Scan::new(&text).setting("Slave_Family"), Some("1@Drives"));
 }
+
+/// The GSD's `SlotDefinition` puts the drive module in slot `card::DRIVE_MODULE_SLOT`, every
+/// module allowed there and Standard telegram 1 the default; records 47 / 48 answer at the
+/// device's slot 0 and there (`card::RECORD_SLOTS`, issue 12 item 4j).
+#[test]
+fn slot_definition_is_the_drive_module_slot() {
+    let gsd = parse();
+    assert_eq!(gsd.slots.len(), 1, "one slot: {:?}", gsd.slots);
+    let slot = &gsd.slots[0];
+    assert_eq!(slot.number, card::DRIVE_MODULE_SLOT);
+    assert_eq!(slot.default.reference, Some(u32::from(card::MODULES[0].reference)));
+    assert_eq!(slot.allowed_modules.len(), gsd.available_modules.len(), "every module allowed in the slot");
+    assert_eq!(card::RECORD_SLOTS, [0, card::DRIVE_MODULE_SLOT]);
+}

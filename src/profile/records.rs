@@ -1,11 +1,13 @@
-//! The drive's data records at slot 0, reached by DS_Read / DS_Write over MSAC_C1 or MSAC_C2:
+//! The drive's data records at slot 0 (the device) and at the drive module's slot 1
+//! ([`card::RECORD_SLOTS`], GSD `SlotDefinition`), reached by DS_Read / DS_Write over
+//! MSAC_C1 or MSAC_C2 — the same records at both slots:
 //!
 //! | index | record | manual |
 //! |---|---|---|
 //! | 47 | PROFIdrive base-mode parameter access: DS_Write carries the request, DS_Read fetches the response once | OPTE3/E5 §6.4, CFW500 §5.2.2, CFW-11 §4.2 |
 //! | 48 | WEG simple access: 4 bytes = write, 2 bytes = select for the next read | CFW500 §5.2.3 |
 //!
-//! Errors (DP-V1 Error_Code_1): slot ≠ 0 → 0xB2 invalid slot; another index → 0xB0 invalid
+//! Errors (DP-V1 Error_Code_1): another slot → 0xB2 invalid slot; another index → 0xB0 invalid
 //! index; a structurally wrong parameter request → 0xB7 at the DS_Write (VACON Table 46,
 //! CFW500 §5.2.4); DS_Read of record 47 without a response waiting → 0xB5 state conflict
 //! (reference §5.1: "not ready"; also after the response was fetched — it is readable once);
@@ -158,7 +160,7 @@ impl<T: ParameterAccess> RecordHandler for Bound<'_, T> {
     }
 
     fn read(&mut self, _now: Instant, slot: u8, index: u8, out: &mut [u8]) -> Result<usize, ErrorCode1> {
-        if slot != 0 {
+        if !card::RECORD_SLOTS.contains(&slot) {
             return Err(ErrorCode1::INVALID_SLOT);
         }
         let r = &mut *self.records;
@@ -185,7 +187,7 @@ impl<T: ParameterAccess> RecordHandler for Bound<'_, T> {
     }
 
     fn write(&mut self, _now: Instant, slot: u8, index: u8, data: &[u8]) -> Result<(), ErrorCode1> {
-        if slot != 0 {
+        if !card::RECORD_SLOTS.contains(&slot) {
             return Err(ErrorCode1::INVALID_SLOT);
         }
         let r = &mut *self.records;

@@ -163,6 +163,13 @@ impl Bench {
         (sap, sd2_pdu(&self.send(Some(sap), Some(50), &[])))
     }
 
+    /// [`Bench::c1`] for any answer frame (SD3 for a PDU of six octets).
+    fn c1_pdu(&mut self, pdu: &[u8]) -> Vec<u8> {
+        assert_eq!(self.send(Some(51), Some(51), pdu), [telegram::SC], "request acknowledged");
+        self.acyclic();
+        sd2_pdu(&self.send(Some(51), Some(51), &[]))
+    }
+
     /// One MSAC_C2 request on `sap`, the DP-V1 task, one poll: the response PDU.
     fn c2(&mut self, sap: u8, pdu: &[u8]) -> Vec<u8> {
         assert_eq!(self.send(Some(sap), Some(50), pdu), [telegram::SC], "request acknowledged");
@@ -268,4 +275,35 @@ fn h_record_47_state_ends_with_its_relation() {
     let (sap3, _) = b.c2_connect(300);
     assert_eq!(sap3, sap);
     assert_eq!(b.c2(sap, &[0x5E, 0, 47, 240]), STATE_CONFLICT, "no stale response after a timeout");
+}
+
+/// Item j: records 47 and 48 also answer at slot 1, the drive module's slot the GSD declares
+/// (`SlotDefinition`, `card::RECORD_SLOTS`), as SINAMICS / ABB-style masters address them;
+/// other slots stay 0xB2. Over MSAC_C1 and MSAC_C2.
+#[test]
+fn j_records_answer_at_the_drive_modules_slot() {
+    let mut b = Bench::new();
+    b.bring_up_with(&card::MODULES[0], 0x80);
+    let req = read_request(9, 918, 0, 1);
+    let mut write = vec![0x5F, card::DRIVE_MODULE_SLOT, 47, req.len() as u8];
+    write.extend_from_slice(&req);
+    assert_eq!(b.c1(&write), [0x5F, 1, 47, 10]);
+    assert_eq!(b.c1(&[0x5E, 1, 47, 240]), [0x5E, 1, 47, 8, 9, 1, 1, 1, 0x42, 1, 0, SLAVE]);
+    // WEG simple access (record 48) at slot 1: select P100, read it.
+    assert_eq!(b.c1(&[0x5F, 1, 48, 2, 0, 100]), [0xDF, 0x80, 0xC2, 0x00], "the value comes from the drive");
+    b.step(1);
+    assert_eq!(b.c1(&[0x5F, 1, 48, 2, 0, 100]), [0x5F, 1, 48, 2], "repeated");
+    if b.c1_pdu(&[0x5E, 1, 48, 2]) == [0xDE, 0x80, 0xC2, 0x00] {
+        b.step(1);
+    }
+    assert_eq!(b.c1_pdu(&[0x5E, 1, 48, 2]), [0x5E, 1, 48, 2, 0, 50]);
+    // Slot 2 is no slot of this device.
+    write[1] = 2;
+    assert_eq!(b.c1(&write), [0xDF, 0x80, 0xB2, 0x00]);
+    assert_eq!(b.c1(&[0x5E, 2, 47, 240]), [0xDE, 0x80, 0xB2, 0x00]);
+    // MSAC_C2 at slot 1.
+    let (sap, _) = b.c2_connect(300);
+    write[1] = 1;
+    assert_eq!(b.c2(sap, &write), [0x5F, 1, 47, 10]);
+    assert_eq!(b.c2(sap, &[0x5E, 1, 47, 240]), [0x5E, 1, 47, 8, 9, 1, 1, 1, 0x42, 1, 0, SLAVE]);
 }
