@@ -367,7 +367,7 @@ mod bench_tests {
             app.step(now, &mut node);
             srd(&mut node, now, None, &[1; 13]);
             assert!(node.slave().stats().wrong_output_len > 0);
-            assert_eq!(node.slave().state(), DpState::DataExch, "{}", m.name);
+            assert_eq!(node.slave().state(), DpState::WaitPrm, "{}: a wrong length ends data exchange", m.name);
         }
     }
 }

@@ -19,7 +19,7 @@
 //!
 //! | service (DSAP) | allowed | otherwise |
 //! |---|---|---|
-//! | Data_Exchange (none) | Data_Exch, locking master, output length = configured or 0 | RS (wrong length: RS, outputs kept, counted) |
+//! | Data_Exchange (none) | Data_Exch, locking master, output length = configured or 0 | RS (wrong length: RS, outputs zero, → Wait_Prm with Cfg_Fault, counted) |
 //! | Set_Slave_Add (55) | Wait_Prm, address not frozen, right ident | RS |
 //! | Rd_Inp (56) / Rd_Outp (57) | Data_Exch, any master | RS |
 //! | Global_Control (58, SDN) | Data_Exch, locking master, group selected | ignored, counted |
@@ -608,7 +608,19 @@ impl DpSlave {
                 self.events |= Events::OUTPUTS_UPDATED;
             }
         } else if req.pdu.len() != n_out {
+            // Wrong non-zero output length (issue 12 item 4l). Neither the SPC3 nor the VPC3+
+            // manual found here states the ASIC's reaction: the VPC3+S user manual §6.2.5
+            // "Write_Read_Data / Data_Exchange" only says the received outputs are passed on
+            // "after an error-free receipt", and the reference (§3.11, [U]) says "reject (ignore
+            // outputs)". Followed here, and made safe for a drive: the outputs are not taken,
+            // the request is answered RS (masters react to RS in data exchange by checking the
+            // slave again, reference §2.5), and since a master that sends another length than
+            // it configured would retrigger the watchdog with stale outputs forever, the slave
+            // leaves data exchange: outputs zero, Wait_Prm (Prm_Req), Cfg_Fault in the
+            // diagnosis ("configuration does not match") until the next parameterization.
             self.stats.wrong_output_len = self.stats.wrong_output_len.wrapping_add(1);
+            self.cfg_fault = true;
+            self.leave(DpState::WaitPrm);
             return self.rs();
         } else {
             if self.fs_clear {

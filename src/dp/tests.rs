@@ -179,11 +179,17 @@ fn get_cfg_rd_inp_rd_outp() {
 fn data_exchange_lengths_and_clear() {
     let mut b = Bus::new();
     b.bring_up(0xC8 & 0x88);
-    // Wrong length → RS, outputs unchanged.
+    // Wrong length → RS, outputs not taken but zero: the slave leaves data exchange with
+    // Cfg_Fault (issue 12 item 4l).
     assert_eq!(b.req(M1, None, &[1, 2, 3, 4]), Ans::Data { fc: 0x08, dsap: None, ssap: None, pdu: vec![0; 4] });
     assert_eq!(b.req(M1, None, &[5, 6]), Ans::Sd1(0x03));
-    assert_eq!(b.slave.outputs(), &[1, 2, 3, 4]);
+    assert_eq!(b.slave.outputs(), &[0; 4]);
     assert_eq!(b.slave.stats().wrong_output_len, 1);
+    assert_eq!(b.slave.state(), DpState::WaitPrm);
+    assert_eq!(b.diag(M1)[..4], [0x06, 0x05, 0x00, 0xFF], "Not_Ready + Cfg_Fault, Prm_Req");
+    b.bring_up(0x88);
+    assert_eq!(b.diag(M1)[0], 0x00, "a new parameterization clears Cfg_Fault");
+    assert!(matches!(b.req(M1, None, &[1, 2, 3, 4]), Ans::Data { .. }));
     // Zero-length outputs = fail-safe clear.
     b.slave.take_events();
     assert!(matches!(b.req(M1, None, &[]), Ans::Data { .. }));

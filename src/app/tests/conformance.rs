@@ -307,3 +307,27 @@ fn j_records_answer_at_the_drive_modules_slot() {
     assert_eq!(b.c2(sap, &write), [0x5F, 1, 47, 10]);
     assert_eq!(b.c2(sap, &[0x5E, 1, 47, 240]), [0x5E, 1, 47, 8, 9, 1, 1, 1, 0x42, 1, 0, SLAVE]);
 }
+
+/// Item l: a Data_Exchange with a wrong non-zero output length is answered RS, its outputs
+/// are not taken, and the slave leaves data exchange (outputs zero, the drive sees the master
+/// gone; Wait_Prm with Cfg_Fault) instead of running on stale outputs that every such request
+/// would keep alive by retriggering the watchdog.
+#[test]
+fn l_wrong_output_length_ends_data_exchange() {
+    let mut b = Bench::new();
+    b.bring_up(&card::MODULES[0]);
+    run_st1(&mut b);
+    let r = b.srd(None, &[0x04, 0x7F, 0x20, 0x00, 0x99, 0x99]);
+    assert_eq!(r, [0x10, MASTER, SLAVE, 0x03, MASTER + SLAVE + 0x03, 0x16], "SD1 RS");
+    b.step(1);
+    assert_eq!(b.node.slave().state(), DpState::WaitPrm);
+    assert!(b.node.slave().outputs().iter().all(|&x| x == 0), "outputs zero, not 99 99");
+    let diag = sd2_pdu(&b.srd(Some(60), &[]));
+    assert_eq!(diag[..4], [0x06, 0x05, 0x00, 0xFF], "Station_Not_Ready + Cfg_Fault, Prm_Req: {diag:02X?}");
+    b.step(5);
+    assert_ne!(b.app.profidrive_state(), Some(DriveState::Operation), "the drive does not run on stale outputs");
+    assert_eq!(b.node.slave().stats().wrong_output_len, 1);
+    // The master parameterizes again and the drive can be switched on.
+    b.bring_up(&card::MODULES[0]);
+    assert_eq!(sd2_pdu(&b.srd(Some(60), &[]))[0] & 0x46, 0x00, "no Cfg_Fault / Prm_Fault / Not_Ready");
+}
