@@ -331,3 +331,55 @@ fn l_wrong_output_length_ends_data_exchange() {
     b.bring_up(&card::MODULES[0]);
     assert_eq!(sd2_pdu(&b.srd(Some(60), &[]))[0] & 0x46, 0x00, "no Cfg_Fault / Prm_Fault / Not_Ready");
 }
+
+/// Item e (station part): requests from SA 127, from the card's own address, or with FC
+/// bit 7 set are never answered and never reach the DP slave (counted), whatever the service;
+/// the same requests from the master are answered.
+#[test]
+fn e_impossible_sources_and_reserved_fc_are_never_answered() {
+    let mut b = Bench::new();
+    b.bring_up(&card::MODULES[0]);
+    let sd1 = |sa: u8, fc: u8| vec![0x10, SLAVE, sa, fc, SLAVE.wrapping_add(sa).wrapping_add(fc), 0x16];
+    let sd2 = |sa: u8, fc: u8, dsap: Option<u8>, pdu: &[u8]| {
+        let hdr = Header { da: SLAVE, sa, fc: FunctionCode(fc), dsap, ssap: dsap.map(|_| 62) };
+        let mut out = [0u8; telegram::MAX_FRAME_LEN];
+        let n = telegram::emit(&mut out, &hdr, pdu).unwrap();
+        out[..n].to_vec()
+    };
+    let outputs = [0x04, 0x7E, 0x11, 0x11];
+    let frames = [
+        sd1(127, 0x49),
+        sd1(SLAVE, 0x49),
+        sd1(MASTER, 0xC9),
+        sd2(127, 0x6D, Some(60), &[]),
+        sd2(SLAVE, 0x6D, Some(60), &[]),
+        sd2(MASTER, 0xED, Some(60), &[]),
+        sd2(127, 0x7D, None, &outputs),
+        sd2(SLAVE, 0x7D, None, &outputs),
+        sd2(MASTER, 0xFD, None, &outputs),
+        // Set_Prm with a foreign ident from SA 127 / own address / FC b7: never evaluated.
+        sd2(127, 0x6D, Some(61), &set_prm_pdu(0x88, 11, 0x1234)),
+        sd2(SLAVE, 0x6D, Some(61), &set_prm_pdu(0x88, 11, 0x1234)),
+        sd2(MASTER, 0xED, Some(61), &set_prm_pdu(0x88, 11, 0x1234)),
+    ];
+    let before = b.node.station().stats();
+    for f in &frames {
+        for &x in f {
+            assert!(b.node.on_byte(b.now, x).is_none(), "answered: {f:02X?}");
+        }
+    }
+    let after = b.node.station().stats();
+    assert_eq!(after.bad_source - before.bad_source, 8);
+    assert_eq!(after.reserved_fc - before.reserved_fc, 4);
+    assert_eq!(after.requests, before.requests, "nothing reached the DP slave");
+    assert_eq!(b.node.slave().state(), DpState::DataExch);
+    assert_eq!(b.node.slave().stats().prm_faults, 0);
+    assert!(b.node.slave().outputs().iter().all(|&x| x == 0), "no outputs taken");
+    // From the master: answered.
+    let mut r = None;
+    for &x in &sd1(MASTER, 0x49) {
+        r = b.node.on_byte(b.now, x).map(|r| r.to_vec());
+    }
+    assert_eq!(r.unwrap(), [0x10, MASTER, SLAVE, 0x00, MASTER + SLAVE, 0x16], "FDL_Status from the master");
+    assert!(sd2_pdu(&b.srd(Some(60), &[])).len() >= 6, "Slave_Diag from the master");
+}
