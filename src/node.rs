@@ -172,7 +172,7 @@ impl Node {
         self.c1.has_pending() || self.c2.has_pending() || self.records.is_busy()
     }
 
-    /// Work on waiting DP-V1 requests: data records at slot 0 (PROFIdrive record 47, WEG
+    /// Work on waiting DP-V1 requests: data records at slots 0 and 1 (PROFIdrive record 47, WEG
     /// record 48) over the card's own PNUs in front of the drive's `parameters`. The
     /// response is handed out at the master's next poll. A record-47 job whose values an
     /// asynchronous `parameters` table has not delivered yet
