@@ -230,9 +230,12 @@ impl Application {
     }
 
     /// The node's last part (call it with the lock held; it only copies): the drive's
-    /// diagnosis and the new input image ([`Link::apply`]).
+    /// diagnosis and the new input image ([`Link::apply`]), and the profile layer's fault
+    /// buffer for PNU 944 / 947 ([`Node::set_fault_buffer`]).
     pub fn apply(&mut self, node: &mut Node, update: &NodeUpdate) {
         self.link.apply(node, update);
+        let faults = self.runtime.faults();
+        node.set_fault_buffer(faults.counter(), faults.numbers());
     }
 
     /// The panic / hard-fault path (ARCHITECTURE §2 "supervision"): the DPM OUTPUTS block to
@@ -1451,4 +1454,7 @@ pub(crate) mod tests {
             }
         }
     }
+
+    /// Issue 12 item 4: the conformance defects, bytes in → bytes out through the card.
+    mod conformance;
 }

@@ -57,6 +57,19 @@ pub const C1_MAX_DATA_LEN: usize = 240;
 /// The card answers record requests at its next processing turn (≤ a few ms); 1 s leaves room
 /// for drive parameters fetched through the DPM mailbox.
 pub const C1_RESPONSE_TIMEOUT_10MS: u16 = 100;
+/// The application profile the card implements, as the GSD states it (comment line
+/// `Profile: PROFIdrive …, Profile_Ident_Number 0x3A00`, next to `Slave_Family = 1@Drives`):
+/// PROFIdrive, profile ident number 0x3A00 (reference §4.7: I&M0 PROFILE_ID 0x3A00 =
+/// PROFIdrive; PNU 965 carries its version, 4.1). Sent as Profile_Ident_Number in the
+/// MSAC_C2 Initiate.res (reference §4.5).
+pub const PROFILE_IDENT_NUMBER: u16 = 0x3A00;
+/// The slot of the drive module (GSD `SlotDefinition`: `Slot(1) = "Drive telegram" 1 1-4001`,
+/// every module allowed): the configuration's one module is slot 1, the device itself slot 0.
+pub const DRIVE_MODULE_SLOT: u8 = 1;
+/// The DP-V1 slots at which the drive's data records (PROFIdrive record 47, WEG record 48)
+/// answer: the device (slot 0, as Balluff, VACON and WEG address it) and the drive module's
+/// slot (as ABB adapters and SINAMICS address the drive object; reference §5.1).
+pub const RECORD_SLOTS: [u8; 2] = [0, DRIVE_MODULE_SLOT];
 /// GSD `C2_Read_Write_supp`: MSAC_C2 connections (commissioning tools).
 pub const C2_READ_WRITE_SUPP: bool = true;
 /// GSD `C2_Max_Data_Len`.
@@ -354,7 +367,7 @@ mod bench_tests {
             app.step(now, &mut node);
             srd(&mut node, now, None, &[1; 13]);
             assert!(node.slave().stats().wrong_output_len > 0);
-            assert_eq!(node.slave().state(), DpState::DataExch, "{}", m.name);
+            assert_eq!(node.slave().state(), DpState::WaitPrm, "{}: a wrong length ends data exchange", m.name);
         }
     }
 }

@@ -38,6 +38,10 @@ pub struct Node {
     /// I&M0–I&M4 at slot 0 / index 255, in front of `records`.
     im: Im,
     baudrate: Option<Baudrate>,
+    /// The profile layer's fault buffer as the DP-V1 task reports it (PNU 944 / 947),
+    /// handed in by [`Node::set_fault_buffer`].
+    fault_counter: u16,
+    faults: [u16; FAULT_BUFFER_LEN],
 }
 
 /// Frame id of the MSAC_C1 response (the DP slave uses ids below it).
@@ -122,6 +126,8 @@ impl Node {
             records: DriveRecords::new(),
             im: Im::new(),
             baudrate: None,
+            fault_counter: 0,
+            faults: [0; FAULT_BUFFER_LEN],
         }
     }
 
@@ -181,18 +187,29 @@ impl Node {
         self.baudrate = rate;
     }
 
+    /// The profile layer's PROFIdrive fault buffer (OPTE3/E5 §6.4.6 Table 112; reference
+    /// §5.2): PNU 944 `counter` (fault message counter) and PNU 947 `numbers` (fault
+    /// numbers), as [`process_acyclic`](Self::process_acyclic) answers them over DP-V1. The
+    /// application hands it in with every step ([`crate::app::Application::apply`]); a copy of
+    /// 66 bytes.
+    pub fn set_fault_buffer(&mut self, counter: u16, numbers: &[u16; FAULT_BUFFER_LEN]) {
+        self.fault_counter = counter;
+        self.faults = *numbers;
+    }
+
     /// Whether a DP-V1 request waits for [`process_acyclic`](Self::process_acyclic), or a
     /// record-47 job for the drive's values (call it again then).
     pub fn has_acyclic_work(&self) -> bool {
         self.c1.has_pending() || self.c2.has_pending() || self.records.is_busy()
     }
 
-    /// Work on waiting DP-V1 requests: data records at slot 0 (PROFIdrive record 47, WEG
+    /// Work on waiting DP-V1 requests: data records at slots 0 and 1 (PROFIdrive record 47, WEG
     /// record 48) over the card's own PNUs in front of the drive's `parameters`. The
     /// response is handed out at the master's next poll. A record-47 job whose values an
     /// asynchronous `parameters` table has not delivered yet
     /// ([`ParameterAccess::pending`]) is built again on every call until it is complete.
     pub fn process_acyclic(&mut self, now: Instant, parameters: &mut impl ParameterAccess) {
+        self.end_relations();
         if !self.has_acyclic_work() {
             return;
         }
@@ -207,8 +224,8 @@ impl Node {
                 .and_then(crate::dpm::Telegram::of_module)
                 .unwrap_or(crate::dpm::Telegram::None),
             baud_p963: self.baudrate.map_or(5, |b| u16::from(b.p0963_code())),
-            fault_counter: 0,
-            faults: [0; FAULT_BUFFER_LEN],
+            fault_counter: self.fault_counter,
+            faults: self.faults,
         };
         self.records.set_errors(crate::profile::records::RecordErrors::for_telegram(info.telegram));
         let mut table = CardTable { info, drive: parameters };
@@ -218,6 +235,20 @@ impl Node {
         let mut records = self.im.with(&mut drive_records);
         self.c1.process(now, &mut self.slave, &mut records);
         self.c2.process(now, &mut records);
+    }
+
+    /// Forget the record state of every relation that ended since the last call (before any
+    /// request of a new relation is served).
+    fn end_relations(&mut self) {
+        if self.c1.take_ended() {
+            self.records.end_relation(crate::dpv1::records::RELATION_C1);
+        }
+        let mut ended = self.c2.take_ended();
+        while ended != 0 {
+            let i = ended.trailing_zeros() as usize;
+            ended &= ended - 1;
+            self.records.end_relation(crate::dpv1::records::relation_c2(i));
+        }
     }
 
     /// A character arrived with a parity, framing, noise or overrun error.

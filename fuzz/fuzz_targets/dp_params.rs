@@ -8,15 +8,25 @@ use pbcard::card;
 use pbcard::dp::cfg;
 use pbcard::dp::diag::validate_ext_diag;
 use pbcard::dp::global_control::GlobalControl;
-use pbcard::dp::prm::{SetPrm, StationStatus};
+use pbcard::dp::prm::{LockRequest, SetPrm, StationStatus};
 use pbcard::dp::slave_add::SetSlaveAdd;
 
 fuzz_target!(|data: &[u8]| {
     if let Ok(p) = SetPrm::parse(data) {
-        assert!(data.len() >= 7 && data.len() <= 7 + card::USER_PRM_LEN);
+        assert_eq!(data.len(), 7 + card::USER_PRM_LEN);
         assert_eq!(u16::from_be_bytes([data[4], data[5]]), card::IDENT_NUMBER);
         assert_eq!(p.watchdog().is_some(), p.status.contains(StationStatus::WD_ON));
-        assert_eq!(&p.user[..data.len() - 7], &data[7..]);
+        assert_eq!(&p.user[..], &data[7..]);
+    }
+    // The lock table (reference §3.3): only Lock 1 / Unlock 0 is a parameterization.
+    match LockRequest::of(data) {
+        None => assert!(data.len() < 7),
+        Some(LockRequest::Lock) => assert_eq!(data[0] & 0xC0, 0x80),
+        Some(LockRequest::Unlock) => assert_eq!(data[0] & 0x40, 0x40),
+        Some(LockRequest::MinTsdrOnly(t)) => {
+            assert_eq!(data[0] & 0xC0, 0);
+            assert_eq!(t.is_none(), data[3] == 0);
+        }
     }
     let io = cfg::io_lengths(data);
     if let Ok(io) = io {

@@ -154,7 +154,9 @@ fn weg_simple_access_record_48() {
 fn record_routing_errors() {
     let mut m = Master::new();
     m.bring_up(0x80);
-    assert_eq!(m.transact(&[0x5E, 1, 47, 240]), [0xDE, 0x80, 0xB2, 0x00], "slot 1: invalid slot");
+    // Slot 1 is the drive module's (GSD SlotDefinition): record 47 there, nothing to read yet.
+    assert_eq!(m.transact(&[0x5E, 1, 47, 240]), [0xDE, 0x80, 0xB5, 0x00], "slot 1: no response waiting");
+    assert_eq!(m.transact(&[0x5E, 2, 47, 240]), [0xDE, 0x80, 0xB2, 0x00], "slot 2: invalid slot");
     assert_eq!(m.transact(&[0x5E, 0, 99, 240]), [0xDE, 0x80, 0xB0, 0x00], "index 99: invalid index");
     // A parameter request with reference 0 is refused at the DS_Write (0xB7).
     assert_eq!(m.transact(&[0x5F, 0, 47, 6, 0, 1, 1, 1, 0x10, 1]), [0xDF, 0x80, 0xB7, 0x00]);

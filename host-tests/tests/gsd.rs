@@ -987,3 +987,37 @@ fn text_is_pyprofibus_friendly() {
         }
     }
 }
+
+/// No GSD keyword names the application profile, so the GSD states it in a comment next to
+/// `Slave_Family = 1@Drives`; the MSAC_C2 Initiate.res answers that Profile_Ident_Number
+/// (`card::PROFILE_IDENT_NUMBER`, issue 12 item 4k).
+#[test]
+fn profile_ident_is_the_gsds_profidrive() {
+    let text = gsd_text();
+    let line = text
+        .lines()
+        .find(|l| l.starts_with("; Profile: PROFIdrive"))
+        .expect("a comment line \"; Profile: PROFIdrive ..., Profile_Ident_Number 0x....\"");
+    let ident = line
+        .split("Profile_Ident_Number")
+        .nth(1)
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(parse_int)
+        .unwrap_or_else(|| panic!("no Profile_Ident_Number in {line:?}"));
+    assert_eq!(ident, i64::from(card::PROFILE_IDENT_NUMBER));
+    assert_eq!(Scan::new(&text).setting("Slave_Family"), Some("1@Drives"));
+}
+
+/// The GSD's `SlotDefinition` puts the drive module in slot `card::DRIVE_MODULE_SLOT`, every
+/// module allowed there and Standard telegram 1 the default; records 47 / 48 answer at the
+/// device's slot 0 and there (`card::RECORD_SLOTS`, issue 12 item 4j).
+#[test]
+fn slot_definition_is_the_drive_module_slot() {
+    let gsd = parse();
+    assert_eq!(gsd.slots.len(), 1, "one slot: {:?}", gsd.slots);
+    let slot = &gsd.slots[0];
+    assert_eq!(slot.number, card::DRIVE_MODULE_SLOT);
+    assert_eq!(slot.default.reference, Some(u32::from(card::MODULES[0].reference)));
+    assert_eq!(slot.allowed_modules.len(), gsd.available_modules.len(), "every module allowed in the slot");
+    assert_eq!(card::RECORD_SLOTS, [0, card::DRIVE_MODULE_SLOT]);
+}

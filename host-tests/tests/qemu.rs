@@ -457,3 +457,28 @@ fn dpv1_card_and_drive_parameters_through_msac_c1_and_c2() {
     let fw = q.stop();
     assert!(!fw.iter().any(|l| l.contains("panic") || l.contains("HardFault")), "firmware log: {fw:#?}");
 }
+
+/// Issue 12 item 4e (station part) on the firmware: requests from SA 127, from the card's own
+/// address, or with FC bit 7 set are never answered; the same requests from a master are.
+#[test]
+fn impossible_sources_and_reserved_fc_are_never_answered() {
+    let Some((q, mut phy, _)) = boot_and_connect() else { return };
+    let sd1 =
+        |sa: u8, fc: u8| qemu::frame(&Header { da: SLAVE, sa, fc: FunctionCode(fc), dsap: None, ssap: None }, &[]);
+    let diag = |sa: u8, fc: u8| {
+        qemu::frame(&Header { da: SLAVE, sa, fc: FunctionCode(fc), dsap: Some(60), ssap: Some(62) }, &[])
+    };
+    let never = [sd1(127, 0x49), sd1(SLAVE, 0x49), sd1(2, 0xC9), diag(127, 0x6D), diag(SLAVE, 0x6D), diag(2, 0xED)];
+    for f in &never {
+        match phy.request(f, Duration::from_millis(500)) {
+            Ok(None) => {}
+            Ok(Some(a)) => fail(q, &[], format!("{} answered with {}", host_tests::hex(f), host_tests::hex(&a))),
+            Err(e) => fail(q, &[], format!("USART1 socket: {e}")),
+        }
+    }
+    match phy.request(&diag(2, 0x6D), Duration::from_secs(5)) {
+        Ok(Some(a)) if matches!(telegram::decode(&a), Decoded::Frame(Telegram::Data(_), _)) => {}
+        other => fail(q, &[], format!("Slave_Diag from master 2: {other:?}")),
+    }
+    q.stop();
+}

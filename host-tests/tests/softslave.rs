@@ -463,3 +463,58 @@ fn every_family_runs_the_drive_on_one_soft_slave() {
     }
     slave.finish();
 }
+
+/// Issue 12 item 4e (station part): the soft slave never answers a request from SA 127 (the
+/// broadcast address), from its own address, or with FC bit 7 set; it answers the same
+/// requests from a master's address.
+#[test]
+fn impossible_sources_and_reserved_fc_are_never_answered() {
+    let pty = Pty::open().expect("create a pseudo-terminal pair");
+    let slave = SoftSlave::start(pty.path().to_str().expect("a UTF-8 pty path"), 2000);
+    let mut phy = pty.into_phy();
+    let sd1 = |sa: u8, fc: u8| {
+        let mut f = vec![0x10, SLAVE, sa, fc, 0, 0x16];
+        f[4] = SLAVE.wrapping_add(sa).wrapping_add(fc);
+        f
+    };
+    let diag = |sa: u8| {
+        let hdr = Header { da: SLAVE, sa, fc: FunctionCode(0x6C), dsap: Some(60), ssap: Some(62) };
+        let mut out = [0u8; telegram::MAX_FRAME_LEN];
+        let n = telegram::emit(&mut out, &hdr, &[]).expect("telegram fits");
+        out[..n].to_vec()
+    };
+    // The soft slave is up when it answers FDL_Status from the master.
+    let t0 = StdInstant::now();
+    let answer = loop {
+        if let Some(a) = phy.request(&sd1(MASTER, 0x49), Duration::from_millis(200)).unwrap() {
+            break a;
+        }
+        assert!(t0.elapsed() < DEADLINE, "no answer from the soft slave\n{}", slave.dump());
+    };
+    assert_eq!(answer, [0x10, MASTER, SLAVE, 0x00, MASTER + SLAVE, 0x16]);
+    std::thread::sleep(Duration::from_millis(50));
+    let _ = phy.take_received();
+    let never: [(&str, Vec<u8>); 6] = [
+        ("FDL_Status from SA 127", sd1(127, 0x49)),
+        ("FDL_Status from our own address", sd1(SLAVE, 0x49)),
+        ("FDL_Status with FC b7", sd1(MASTER, 0xC9)),
+        ("Slave_Diag from SA 127", diag(127)),
+        ("Slave_Diag from our own address", diag(SLAVE)),
+        ("Slave_Diag with FC b7", {
+            let mut f = diag(MASTER);
+            f[6] |= 0x80;
+            let n = f.len();
+            f[n - 2] = f[4..n - 2].iter().fold(0u8, |s, &b| s.wrapping_add(b));
+            f
+        }),
+    ];
+    for (what, frame) in &never {
+        let r = phy.request(frame, Duration::from_millis(300)).unwrap();
+        assert_eq!(r, None, "{what} ({}) was answered\n{}", hex(frame), slave.dump());
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    // The same requests from the master are answered.
+    assert!(phy.request(&diag(MASTER), Duration::from_secs(5)).unwrap().is_some(), "Slave_Diag from the master");
+    let summary = slave.finish();
+    assert_eq!(summary.responses, 2, "only the two requests from the master were answered");
+}

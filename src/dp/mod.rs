@@ -19,12 +19,12 @@
 //!
 //! | service (DSAP) | allowed | otherwise |
 //! |---|---|---|
-//! | Data_Exchange (none) | Data_Exch, locking master, output length = configured or 0 | RS (wrong length: RS, outputs kept, counted) |
+//! | Data_Exchange (none) | Data_Exch, locking master, output length = configured or 0 | RS (wrong length: RS, outputs zero, → Wait_Prm with Cfg_Fault, counted) |
 //! | Set_Slave_Add (55) | Wait_Prm, address not frozen, right ident | RS |
 //! | Rd_Inp (56) / Rd_Outp (57) | Data_Exch, any master | RS |
 //! | Global_Control (58, SDN) | Data_Exch, locking master, group selected | ignored, counted |
-//! | Get_Cfg (59) / Slave_Diag (60) | always, any master | — |
-//! | Set_Prm (61) | unlocked slave or locking master | SC, content ignored, counted |
+//! | Get_Cfg (59) / Slave_Diag (60) | always, any master; Get_Cfg answers [`DpSlave::real_cfg`] | — |
+//! | Set_Prm (61) | unlocked slave or locking master; checked only with Lock_Req = 1, Unlock_Req = 0 ([`prm::LockRequest`]) | SC, content ignored, counted |
 //! | Chk_Cfg (62) | Wait_Cfg / Data_Exch, locking master | SC, content ignored, counted |
 //!
 //! The drive side (DPM `CONFIG`, outside data exchange) can change the station address
@@ -137,6 +137,10 @@ pub struct SlaveStats {
     pub gc_ignored: u32,
     /// Chk_Cfg received in Wait_Prm (acknowledged, not evaluated).
     pub cfg_ignored: u32,
+    /// Set_Prm with Lock_Req = 0, Unlock_Req = 0: only min_TSDR taken over.
+    pub prm_min_tsdr_only: u32,
+    /// Set_Prm with Unlock_Req: the slave released.
+    pub prm_unlocks: u32,
 }
 
 /// Frame buffer ids (see [`FdlApplication::frame`]).
@@ -315,6 +319,21 @@ impl DpSlave {
     pub fn require_module(&mut self, module: Option<&'static Module>) {
         self.required_module = module;
     }
+    /// Real_Cfg_Data, what Get_Cfg answers: the configuration in force (reference §3.4,
+    /// "Get_Cfg returns Real_Cfg_Data — the active configuration"). In data exchange the
+    /// module of the accepted Chk_Cfg; outside it the drive's selected telegram
+    /// ([`Self::require_module`]) when there is one — the only module the next Chk_Cfg may
+    /// select —, else the module of the last accepted Chk_Cfg, else the GSD's first module
+    /// (Standard telegram 1).
+    pub fn real_cfg(&self) -> &'static Module {
+        match (self.state, self.module, self.required_module) {
+            (DpState::DataExch, Some(m), _) => m,
+            (_, _, Some(r)) => r,
+            (_, Some(m), None) => m,
+            (_, None, None) => &card::MODULES[0],
+        }
+    }
+
     /// The accepted Set_Prm (user parameters, DPV1 status bytes, watchdog).
     pub fn parameters(&self) -> Option<&SetPrm> {
         self.prm.as_ref()
@@ -630,7 +649,19 @@ impl DpSlave {
                 self.events |= Events::OUTPUTS_UPDATED;
             }
         } else if req.pdu.len() != n_out {
+            // Wrong non-zero output length (issue 12 item 4l). Neither the SPC3 nor the VPC3+
+            // manual found here states the ASIC's reaction: the VPC3+S user manual §6.2.5
+            // "Write_Read_Data / Data_Exchange" only says the received outputs are passed on
+            // "after an error-free receipt", and the reference (§3.11, [U]) says "reject (ignore
+            // outputs)". Followed here, and made safe for a drive: the outputs are not taken,
+            // the request is answered RS (masters react to RS in data exchange by checking the
+            // slave again, reference §2.5), and since a master that sends another length than
+            // it configured would retrigger the watchdog with stale outputs forever, the slave
+            // leaves data exchange: outputs zero, Wait_Prm (Prm_Req), Cfg_Fault in the
+            // diagnosis ("configuration does not match") until the next parameterization.
             self.stats.wrong_output_len = self.stats.wrong_output_len.wrapping_add(1);
+            self.cfg_fault = true;
+            self.leave(DpState::WaitPrm);
             return self.rs();
         } else {
             if self.fs_clear {
@@ -689,6 +720,27 @@ impl DpSlave {
                 return Reply::ShortAck;
             }
         }
+        match prm::LockRequest::of(req.pdu) {
+            Some(prm::LockRequest::MinTsdrOnly(t)) => {
+                // Lock 0 / Unlock 0: only min_TSDR is taken over; no validation, every other
+                // parameter, the state and the outputs unchanged (EN 50170 lock table,
+                // reference §3.3).
+                if let Some(t) = t {
+                    self.min_tsdr = t;
+                }
+                self.stats.prm_min_tsdr_only = self.stats.prm_min_tsdr_only.wrapping_add(1);
+                return Reply::ShortAck;
+            }
+            Some(prm::LockRequest::Unlock) => {
+                // Unlock_Req (Lock 0/1, Unlock 1): released for other masters, whatever the
+                // rest of the telegram says (reference §3.3).
+                self.stats.prm_unlocks = self.stats.prm_unlocks.wrapping_add(1);
+                self.leave(DpState::WaitPrm);
+                self.diag_dirty = true;
+                return Reply::ShortAck;
+            }
+            Some(prm::LockRequest::Lock) | None => {}
+        }
         match SetPrm::parse(req.pdu) {
             Err(e) => {
                 self.stats.prm_faults = self.stats.prm_faults.wrapping_add(1);
@@ -703,12 +755,8 @@ impl DpSlave {
                 if let Some(t) = p.min_tsdr {
                     self.min_tsdr = t;
                 }
-                let lock = p.status.contains(StationStatus::LOCK_REQ);
-                let unlock = p.status.contains(StationStatus::UNLOCK_REQ);
-                if unlock {
-                    // Released for other masters (Lock 0/1 Unlock 1, reference §3.3).
-                    self.leave(DpState::WaitPrm);
-                } else if lock {
+                // Lock 1 / Unlock 0 (the other rows of the lock table are handled above).
+                {
                     self.prm_fault = false;
                     self.cfg_fault = false;
                     self.not_supported = false;
@@ -729,7 +777,6 @@ impl DpSlave {
                     }
                     self.restage_dx();
                 }
-                // Lock 0 / Unlock 0: only min_TSDR is taken over.
             }
         }
         self.diag_dirty = true;
@@ -903,7 +950,7 @@ impl FdlApplication for DpSlave {
                 sap::SET_PRM => self.set_prm(now, req),
                 sap::CHK_CFG => self.chk_cfg(req),
                 sap::GET_CFG => {
-                    let cfg = self.module.unwrap_or(&card::MODULES[0]).cfg;
+                    let cfg = self.real_cfg().cfg;
                     self.misc_frame(req, cfg)
                 }
                 sap::RD_INP | sap::RD_OUTP if self.state == DpState::DataExch => {

@@ -50,7 +50,8 @@ bitflags::bitflags! {
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum PrmError {
-    /// Fewer than 7 bytes, or more user parameter bytes than the GSD declares.
+    /// Not 7 octets + the GSD's `Max_User_Prm_Data_Len` user parameter octets (fewer or
+    /// more).
     Length(usize),
     /// Reserved bits b2..b0 of Station_Status set.
     ReservedStationStatus(u8),
@@ -95,15 +96,78 @@ pub struct SetPrm {
     pub dpv1_status_2: u8,
     /// DPV1_Status_3 (kept for DP-V1).
     pub dpv1_status_3: u8,
-    /// User_Prm_Data counted from DPV1_Status_1, missing trailing bytes filled with the GSD
-    /// defaults (a DP-V0 master may send fewer bytes than `Max_User_Prm_Data_Len`).
+    /// User_Prm_Data counted from DPV1_Status_1: exactly the GSD's `Max_User_Prm_Data_Len`
+    /// octets.
     pub user: [u8; card::USER_PRM_LEN],
+}
+
+/// Set_Prm byte 3, min_TSDR in bit times: `None` for 0 ("keep"); values below the FDL floor
+/// of 11 bit times (reference §1.3) cannot be honoured and count as 11.
+pub fn min_tsdr_of(byte: u8) -> Option<BitTimes> {
+    match byte {
+        0 => None,
+        t => Some(BitTimes(u32::from(t.max(11)))),
+    }
+}
+
+/// What a Set_Prm asks for by its Lock_Req / Unlock_Req bits (EN 50170 lock table, reference
+/// §3.3 after the CP 5613 station_status table):
+///
+/// | Lock_Req | Unlock_Req | meaning | what the card checks |
+/// |---|---|---|---|
+/// | 0 | 0 | only min_TSDR is taken over, every other parameter unchanged | nothing but the length (≥ 7) |
+/// | 0 | 1 | the slave is released for other masters (→ Wait_Prm) | nothing but the length |
+/// | 1 | 0 | the slave is locked to this master, all parameters adopted | everything ([`SetPrm::parse`]) |
+/// | 1 | 1 | the slave is released for other masters | nothing but the length |
+///
+/// Only Lock_Req = 1, Unlock_Req = 0 is a parameterization; the other rows are lock
+/// management and are never answered with Prm_Fault (issue 12 item 4c: a locking master's
+/// "min_TSDR only" telegram with another ident must not trip the drive).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum LockRequest {
+    /// Lock 0 / Unlock 0: take over min_TSDR (byte 3, `None` = keep), nothing else.
+    MinTsdrOnly(Option<BitTimes>),
+    /// Unlock_Req set (with or without Lock_Req): release the slave.
+    Unlock,
+    /// Lock 1 / Unlock 0: a full parameterization, to be checked by [`SetPrm::parse`].
+    Lock,
+}
+
+impl LockRequest {
+    /// The request of a Set_Prm PDU; `None` when it is shorter than the 7 standard octets
+    /// (a Prm_Fault, [`PrmError::Length`]).
+    pub fn of(pdu: &[u8]) -> Option<LockRequest> {
+        if pdu.len() < 7 {
+            return None;
+        }
+        let status = StationStatus::from_bits_truncate(pdu[0]);
+        Some(if status.contains(StationStatus::UNLOCK_REQ) {
+            LockRequest::Unlock
+        } else if status.contains(StationStatus::LOCK_REQ) {
+            LockRequest::Lock
+        } else {
+            LockRequest::MinTsdrOnly(min_tsdr_of(pdu[3]))
+        })
+    }
 }
 
 impl SetPrm {
     /// Parse and check a Set_Prm PDU (the DU after the SAP bytes).
+    ///
+    /// **Length.** User_Prm_Data must have exactly the length the GSD declares
+    /// (`Max_User_Prm_Data_Len` = `Ext_User_Prm_Data_Const(0)` = [`card::USER_PRM_LEN`]
+    /// octets; a configuration tool always sends all of them): shorter or longer is
+    /// [`PrmError::Length`] → Prm_Fault. This is what the ASIC slaves' firmware does: the
+    /// VPC3+ / SPC3 only bound the Set_Prm buffer (7..244 octets) and hand the telegram to the
+    /// firmware's check, and profichip's VPC3+ sample firmware (`DpPrm.c`,
+    /// `DpPrm_ChkNewPrmData`: `bPrmLength == PRM_LEN_DPV1`, else `DP_PRM_LEN_ERROR` →
+    /// "parameterization not OK"; public copy in github.com/tanyigergo/Profibus_DP_slave,
+    /// `EvalBoard/DpPrm.c`) accepts the one length its GSD declares and nothing else. Issue 12
+    /// item 4g: padding a short telegram with defaults would run the drive on parameters the
+    /// master never chose.
     pub fn parse(pdu: &[u8]) -> Result<SetPrm, PrmError> {
-        if pdu.len() < 7 || pdu.len() > 7 + card::USER_PRM_LEN {
+        if pdu.len() != 7 + card::USER_PRM_LEN {
             return Err(PrmError::Length(pdu.len()));
         }
         let status_raw = pdu[0];
@@ -124,8 +188,8 @@ impl SetPrm {
         {
             return Err(PrmError::NotSupported);
         }
-        let mut user = card::USER_PRM_DEFAULTS;
-        user[..pdu.len() - 7].copy_from_slice(&pdu[7..]);
+        let mut user = [0u8; card::USER_PRM_LEN];
+        user.copy_from_slice(&pdu[7..]);
         // DPV1_Status_1: what the card supports (reference §3.3).
         let mut allowed1 = Dpv1Status1::FAIL_SAFE.bits();
         if card::DPV1_SLAVE {
@@ -163,11 +227,7 @@ impl SetPrm {
             status,
             wd_fact_1,
             wd_fact_2,
-            min_tsdr: match pdu[3] {
-                0 => None,
-                // The FDL floor is 11 bit times (reference §1.3); smaller values cannot be honoured.
-                t => Some(BitTimes(u32::from(t.max(11)))),
-            },
+            min_tsdr: min_tsdr_of(pdu[3]),
             group_ident: pdu[6],
             dpv1_status_1: Dpv1Status1::from_bits_retain(user[0]),
             dpv1_status_2: user[1],
@@ -200,7 +260,7 @@ mod tests {
     #[test]
     fn felser_example_shape() {
         // B8 01 63 0B <ident> 22: Lock + Sync + Freeze + WD_On, WD 1 × 99 × 10 ms (reference §3.3).
-        let p = SetPrm::parse(&prm(0xB8, &[])).unwrap();
+        let p = SetPrm::parse(&prm(0xB8, &card::USER_PRM_DEFAULTS)).unwrap();
         assert!(p.status.contains(StationStatus::LOCK_REQ | StationStatus::SYNC_REQ | StationStatus::FREEZE_REQ));
         assert_eq!(p.watchdog(), Some(Duration::from_millis(990)));
         assert_eq!(p.min_tsdr, Some(BitTimes(11)));
@@ -217,32 +277,68 @@ mod tests {
 
     #[test]
     fn faults() {
+        let d = card::USER_PRM_DEFAULTS;
         assert_eq!(SetPrm::parse(&[0x88, 1, 1]), Err(PrmError::Length(3)));
         assert_eq!(SetPrm::parse(&prm(0x88, &[0, 0, 0, 0, 0, 0])), Err(PrmError::Length(13)));
-        assert_eq!(SetPrm::parse(&prm(0x89, &[])), Err(PrmError::ReservedStationStatus(0x89)));
-        let mut bad_ident = prm(0x88, &[]);
+        assert_eq!(SetPrm::parse(&prm(0x89, &d)), Err(PrmError::ReservedStationStatus(0x89)));
+        let mut bad_ident = prm(0x88, &d);
         bad_ident[5] ^= 1;
         assert!(matches!(SetPrm::parse(&bad_ident), Err(PrmError::Ident(_))));
-        let mut wd0 = prm(0x88, &[]);
+        let mut wd0 = prm(0x88, &d);
         wd0[1] = 0;
         assert_eq!(SetPrm::parse(&wd0), Err(PrmError::WatchdogFactor));
-        assert!(matches!(SetPrm::parse(&prm(0x88, &[0x20])), Err(PrmError::Dpv1Status { byte: 1, .. })));
-        assert!(matches!(SetPrm::parse(&prm(0x88, &[0, 1])), Err(PrmError::Dpv1Status { byte: 2, .. })));
+        assert!(matches!(SetPrm::parse(&prm(0x88, &[0x20, 0, 0, 0, 0])), Err(PrmError::Dpv1Status { byte: 1, .. })));
+        assert!(matches!(SetPrm::parse(&prm(0x88, &[0, 1, 0, 0, 0])), Err(PrmError::Dpv1Status { byte: 2, .. })));
         // Alarms: the diagnostic alarm with DPV1_Enable only; every other alarm type refused.
-        assert!(SetPrm::parse(&prm(0x88, &[0x80, 0x20, 0x03])).is_ok());
-        assert!(matches!(SetPrm::parse(&prm(0x88, &[0x00, 0x20])), Err(PrmError::Dpv1Status { byte: 2, .. })));
+        assert!(SetPrm::parse(&prm(0x88, &[0x80, 0x20, 0x03, 0, 0])).is_ok());
+        assert!(matches!(SetPrm::parse(&prm(0x88, &[0x00, 0x20, 0, 0, 0])), Err(PrmError::Dpv1Status { byte: 2, .. })));
         for other in [0x80, 0x40, 0x10, 0x08, 0x04] {
-            assert_eq!(SetPrm::parse(&prm(0x88, &[0x80, other])), Err(PrmError::Dpv1Status { byte: 2, value: other }));
+            assert_eq!(
+                SetPrm::parse(&prm(0x88, &[0x80, other, 0, 0, 0])),
+                Err(PrmError::Dpv1Status { byte: 2, value: other })
+            );
         }
-        assert!(matches!(SetPrm::parse(&prm(0x88, &[0x80, 0x20, 0x08])), Err(PrmError::Dpv1Status { byte: 3, .. })));
-        assert_eq!(SetPrm::parse(&prm(0x88, &[0, 0, 0, 4])), Err(PrmError::UserPrm { offset: 3, value: 4 }));
+        assert!(matches!(
+            SetPrm::parse(&prm(0x88, &[0x80, 0x20, 0x08, 0, 0])),
+            Err(PrmError::Dpv1Status { byte: 3, .. })
+        ));
+        assert_eq!(SetPrm::parse(&prm(0x88, &[0, 0, 0, 4, 0])), Err(PrmError::UserPrm { offset: 3, value: 4 }));
         assert_eq!(SetPrm::parse(&prm(0x88, &[0, 0, 0, 0, 5])), Err(PrmError::UserPrm { offset: 4, value: 5 }));
+    }
+
+    /// Issue 12 item 4g: every length but the GSD's is a Prm_Fault, none is padded.
+    #[test]
+    fn user_prm_data_must_have_the_gsd_length() {
+        for n in 0..card::USER_PRM_LEN {
+            let p = prm(0x88, &card::USER_PRM_DEFAULTS[..n]);
+            assert_eq!(SetPrm::parse(&p), Err(PrmError::Length(7 + n)), "{n} user octets");
+        }
+        assert!(SetPrm::parse(&prm(0x88, &card::USER_PRM_DEFAULTS)).is_ok());
+    }
+
+    #[test]
+    fn lock_table() {
+        let mut foreign = prm(0x00, &[0xFF, 0xFF]);
+        foreign[4] ^= 0x55;
+        foreign[3] = 40;
+        assert_eq!(LockRequest::of(&foreign), Some(LockRequest::MinTsdrOnly(Some(BitTimes(40)))));
+        foreign[3] = 0;
+        assert_eq!(LockRequest::of(&foreign), Some(LockRequest::MinTsdrOnly(None)));
+        foreign[0] = 0x40;
+        assert_eq!(LockRequest::of(&foreign), Some(LockRequest::Unlock));
+        foreign[0] = 0xC0;
+        assert_eq!(LockRequest::of(&foreign), Some(LockRequest::Unlock));
+        foreign[0] = 0x88;
+        assert_eq!(LockRequest::of(&foreign), Some(LockRequest::Lock));
+        assert_eq!(LockRequest::of(&foreign[..6]), None);
+        assert_eq!(min_tsdr_of(3), Some(BitTimes(11)));
     }
 
     proptest::proptest! {
         #[test]
         fn never_panics(bytes in proptest::collection::vec(proptest::num::u8::ANY, 0..260)) {
             let _ = SetPrm::parse(&bytes);
+            let _ = LockRequest::of(&bytes);
         }
     }
 }

@@ -115,7 +115,7 @@ fn diag_in_every_state() {
     // Power on / Wait_Prm: Station_Not_Ready, Prm_Req, Master_Add 0xFF.
     assert_eq!(b.diag(M1), vec![0x02, 0x05, 0x00, 0xFF, id()[0], id()[1]]);
     // Wait_Cfg after Set_Prm with Lock + WD_On: Not_Ready, WD_On, locked by M1.
-    assert_eq!(b.set_prm(M1, 0x88, &[]), Ans::Sc);
+    assert_eq!(b.set_prm(M1, 0x88, &card::USER_PRM_DEFAULTS), Ans::Sc);
     assert_eq!(b.slave.state(), DpState::WaitCfg);
     assert_eq!(b.diag(M1), vec![0x02, 0x0C, 0x00, M1, id()[0], id()[1]]);
     // Data_Exch: all clear.
@@ -140,7 +140,7 @@ fn prm_faults_and_recovery() {
     assert_eq!(b.set_prm(M1, 0x88, &[0, 0, 0, 9, 0]), Ans::Sc);
     assert_eq!(b.diag(M1)[0], 0x42);
     // Publisher_Enable (DXB), which the card does not offer.
-    assert_eq!(b.set_prm(M1, 0x88, &[0x20, 0, 0]), Ans::Sc);
+    assert_eq!(b.set_prm(M1, 0x88, &[0x20, 0, 0, 0, 0]), Ans::Sc);
     assert_eq!(b.diag(M1)[0], 0x42);
     // A good Set_Prm clears the fault.
     b.bring_up(0x88);
@@ -151,7 +151,7 @@ fn prm_faults_and_recovery() {
 #[test]
 fn cfg_fault_goes_back_to_wait_prm() {
     let mut b = Bus::new();
-    assert_eq!(b.set_prm(M1, 0x88, &[]), Ans::Sc);
+    assert_eq!(b.set_prm(M1, 0x88, &card::USER_PRM_DEFAULTS), Ans::Sc);
     assert_eq!(b.req(M1, Some(62), &[0xF2]), Ans::Sc);
     assert_eq!(b.slave.state(), DpState::WaitPrm);
     assert_eq!(b.diag(M1)[..4], [0x06, 0x05, 0x00, 0xFF]);
@@ -179,11 +179,17 @@ fn get_cfg_rd_inp_rd_outp() {
 fn data_exchange_lengths_and_clear() {
     let mut b = Bus::new();
     b.bring_up(0xC8 & 0x88);
-    // Wrong length → RS, outputs unchanged.
+    // Wrong length → RS, outputs not taken but zero: the slave leaves data exchange with
+    // Cfg_Fault (issue 12 item 4l).
     assert_eq!(b.req(M1, None, &[1, 2, 3, 4]), Ans::Data { fc: 0x08, dsap: None, ssap: None, pdu: vec![0; 4] });
     assert_eq!(b.req(M1, None, &[5, 6]), Ans::Sd1(0x03));
-    assert_eq!(b.slave.outputs(), &[1, 2, 3, 4]);
+    assert_eq!(b.slave.outputs(), &[0; 4]);
     assert_eq!(b.slave.stats().wrong_output_len, 1);
+    assert_eq!(b.slave.state(), DpState::WaitPrm);
+    assert_eq!(b.diag(M1)[..4], [0x06, 0x05, 0x00, 0xFF], "Not_Ready + Cfg_Fault, Prm_Req");
+    b.bring_up(0x88);
+    assert_eq!(b.diag(M1)[0], 0x00, "a new parameterization clears Cfg_Fault");
+    assert!(matches!(b.req(M1, None, &[1, 2, 3, 4]), Ans::Data { .. }));
     // Zero-length outputs = fail-safe clear.
     b.slave.take_events();
     assert!(matches!(b.req(M1, None, &[]), Ans::Data { .. }));
@@ -334,7 +340,7 @@ fn master_lock() {
     let mut b = Bus::new();
     b.bring_up(0x88);
     // A second master cannot parameterize, configure or write outputs; it reads diagnosis.
-    assert_eq!(b.set_prm(M2, 0x88, &[]), Ans::Sc);
+    assert_eq!(b.set_prm(M2, 0x88, &card::USER_PRM_DEFAULTS), Ans::Sc);
     assert_eq!(b.slave.master_address(), Some(M1));
     assert_eq!(b.req(M2, Some(62), &[0xF5]), Ans::Sc);
     assert_eq!(b.slave.module(), Some(&card::MODULES[0]));
@@ -345,7 +351,7 @@ fn master_lock() {
     // Unlock by the owner releases the slave; then M2 may take it.
     assert_eq!(b.set_prm(M1, 0x40, &[]), Ans::Sc);
     assert_eq!(b.slave.master_address(), None);
-    assert_eq!(b.set_prm(M2, 0x88, &[]), Ans::Sc);
+    assert_eq!(b.set_prm(M2, 0x88, &card::USER_PRM_DEFAULTS), Ans::Sc);
     assert_eq!(b.slave.master_address(), Some(M2));
 }
 

@@ -3,7 +3,7 @@
 //! Open while the DP slave is in Data_Exch after a Set_Prm with DPV1_Enable, and only for
 //! the locking master (request SSAP 51, the master's MS1 SAP). Anything else on SAP 51 gets
 //! RS (SAP not activated). Leaving data exchange closes the channel and drops a request or
-//! response in flight.
+//! response in flight; the relation's record state goes with it ([`C1::take_ended`]).
 
 use super::channel::{serve_records, Answer, Channel};
 use super::records::RecordHandler;
@@ -30,13 +30,15 @@ pub struct C1Stats {
 pub struct C1 {
     channel: Channel,
     open: bool,
+    /// The channel closed since [`C1::take_ended`].
+    ended: bool,
     stats: C1Stats,
 }
 
 impl C1 {
     /// A closed channel.
     pub const fn new() -> Self {
-        C1 { channel: Channel::new(), open: false, stats: C1Stats { refused: 0, dropped: 0 } }
+        C1 { channel: Channel::new(), open: false, ended: false, stats: C1Stats { refused: 0, dropped: 0 } }
     }
 
     /// Whether the channel is open for `dp`'s locking master.
@@ -93,8 +95,15 @@ impl C1 {
                 self.stats.dropped = self.stats.dropped.wrapping_add(1);
             }
             self.channel.reset();
+            self.ended = true;
         }
         self.open = open;
+    }
+
+    /// Whether the relation ended (data exchange left) since the last call: the record
+    /// handler then forgets the relation's state (a record-47 response or job).
+    pub fn take_ended(&mut self) -> bool {
+        core::mem::take(&mut self.ended)
     }
 }
 

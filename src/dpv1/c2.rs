@@ -96,8 +96,10 @@ pub const MAX_LEN_DATA_UNIT: u8 = pdu::MAX_DATA_LEN as u8;
 pub const FEATURES_SUPPORTED: [u8; 2] = [0x01, 0x00];
 /// Profile_Features_Supported_1/2 of the Initiate.res: none.
 pub const PROFILE_FEATURES_SUPPORTED: [u8; 2] = [0x00, 0x00];
-/// Profile_Ident_Number of the Initiate.res: none.
-pub const PROFILE_IDENT_NUMBER: u16 = 0;
+/// Profile_Ident_Number of the Initiate.res: the PROFIdrive profile the GSD states
+/// ([`crate::card::PROFILE_IDENT_NUMBER`], 0x3A00), whatever the master asked for (a master
+/// that sends 0 learns the slave's profile from the answer).
+pub const PROFILE_IDENT_NUMBER: u16 = crate::card::PROFILE_IDENT_NUMBER;
 
 /// The RM and Abort frames: SD2 with DSAP, SSAP and a 4-byte PDU.
 const SCRATCH_LEN: usize = telegram::encoded_len(2, 4);
@@ -204,6 +206,8 @@ struct Conn {
     send_timeout: u16,
     deadline: Instant,
     channel: Channel,
+    /// The relation ended (abort, timeout, replaced) since [`C2::take_ended`].
+    ended: bool,
 }
 
 impl Conn {
@@ -214,9 +218,13 @@ impl Conn {
         send_timeout: 0,
         deadline: Instant::from_micros(0),
         channel: Channel::new(),
+        ended: false,
     };
 
     fn close(&mut self) {
+        if matches!(self.state, ConnectionState::Open | ConnectionState::Aborting(_)) {
+            self.ended = true;
+        }
         self.state = ConnectionState::Closed;
         self.channel.reset();
     }
@@ -335,6 +343,20 @@ impl<const N: usize> C2<N> {
         self.conns.iter_mut().for_each(Conn::close);
     }
 
+    /// The connections whose application relation ended since the last call (bit `i` =
+    /// connection `i`: aborted by either side, Send_Timeout expired, replaced, reset): the
+    /// record handler forgets their per-relation state (a record-47 response or job), so a
+    /// new connection on the same SAP never reads a stale answer.
+    pub fn take_ended(&mut self) -> u64 {
+        let mut mask = 0;
+        for (i, c) in self.conns.iter_mut().enumerate() {
+            if core::mem::take(&mut c.ended) {
+                mask |= 1 << i;
+            }
+        }
+        mask
+    }
+
     /// Whether a Read / Write / Data_Transport waits for [`process`](Self::process).
     pub fn has_pending(&self) -> bool {
         self.conns.iter().any(|c| c.state == ConnectionState::Open && c.channel.pending().is_some())
@@ -413,6 +435,7 @@ impl<const N: usize> C2<N> {
                     let r = AbortReason::Timeout.bits() as usize;
                     self.stats.aborts[r] = self.stats.aborts[r].wrapping_add(1);
                     c.channel.reset();
+                    c.ended = true;
                     c.state = ConnectionState::Aborting(AbortReason::Timeout);
                     c.deadline = c.deadline + units(c.send_timeout);
                 }

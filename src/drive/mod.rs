@@ -303,7 +303,9 @@ impl SimDrive {
             }
         }
         if self.serve_parameters {
-            let (table, ids) = (&mut self.table, &mut self.vacon_ids);
+            // With its own number list (PNU 980, read by the card for its PNUs 980 … 989).
+            let mut table = crate::profile::pnu::NumberList(&mut self.table);
+            let ids = &mut self.vacon_ids;
             let _ = host.serve_parameters(&mut |req: &crate::dpm::MailboxRequest| {
                 crate::dpm::host::Answer::Now(if req.pnu == params::VACON_DRIVE_PARAMETER {
                     // OPTE3/E5 §6.4.4.7 / §6.6.1: PNU 10001, the application ID as subindex.
@@ -312,7 +314,7 @@ impl SimDrive {
                     r.subindex = 0;
                     crate::dpm::mailbox::execute(&r, ids)
                 } else {
-                    crate::dpm::mailbox::execute(req, table)
+                    crate::dpm::mailbox::execute(req, &mut table)
                 })
             });
         }

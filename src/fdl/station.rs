@@ -17,6 +17,8 @@
 //! | time event (0), reserved codes | no answer, counted |
 //! | any response frame (b6 = 0), token, SC | no answer (a slave never initiates) |
 //! | broadcast (DA 127) | SDN passed to the application, anything else ignored; never answered |
+//! | SA 127 (broadcast) or SA = own address | no answer, not passed on, counted ([`StationStats::bad_source`]) |
+//! | FC bit 7 set (reserved; DP-V2 time telegram) | no answer, not passed on, counted ([`StationStats::reserved_fc`]) |
 //!
 //! FCB/FCV (EN 50170, reference §2.4): only the last initiator (SA, FCB) is remembered. A
 //! request with FCV = 1 from that initiator whose FCB did not toggle is a **retry**: the
@@ -100,6 +102,12 @@ pub struct StationStats {
     pub ignored: u32,
     /// Frames that failed to decode (corrupt; normally already dropped by the framer).
     pub invalid: u32,
+    /// Requests to us with an impossible source (SA 127, the broadcast address, or SA = our
+    /// own address): never answered.
+    pub bad_source: u32,
+    /// Frames to us with FC bit 7 set (reserved in DP-V0/V1; profirust's DP-V2 time telegram):
+    /// no request of ours, never answered.
+    pub reserved_fc: u32,
 }
 
 /// The last answer, remembered for FCB retries.
@@ -153,6 +161,8 @@ impl Station {
                 others: 0,
                 ignored: 0,
                 invalid: 0,
+                bad_source: 0,
+                reserved_fc: 0,
             },
         }
     }
@@ -217,8 +227,21 @@ impl Station {
             self.stats.others = self.stats.others.wrapping_add(1);
             return None;
         }
+        if t.fc.0 & 0x80 != 0 {
+            // FC b7 is reserved (0) in every request and response a DP-V1 slave takes part
+            // in (reference §2.3): such a frame is not a request of ours.
+            self.stats.reserved_fc = self.stats.reserved_fc.wrapping_add(1);
+            return None;
+        }
         if !t.fc.is_request() {
             self.stats.ignored = self.stats.ignored.wrapping_add(1);
+            return None;
+        }
+        if t.sa == telegram::BROADCAST || t.sa == own {
+            // No station sends from the broadcast address, and a frame "from us" is our own
+            // echo or a duplicate address on the bus: answering either would put a frame to
+            // DA 127 / to ourselves on the line (reference §2.2).
+            self.stats.bad_source = self.stats.bad_source.wrapping_add(1);
             return None;
         }
         let function = t.fc.function();

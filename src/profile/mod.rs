@@ -20,7 +20,7 @@
 //!   WEG CFW500 §5.2.4, reference §5.1).
 //! * [`weg48`] — WEG's simple parameter access, data record 48 (CFW500 §5.2.5, CFW-11 §4.2.6).
 //!
-//! * [`records`] — slot 0 / records 47 and 48 as a [`crate::dpv1::records::RecordHandler`]:
+//! * [`records`] — slots 0 and 1 (`card::RECORD_SLOTS`) / records 47 and 48 as a [`crate::dpv1::records::RecordHandler`]:
 //!   the one-shot response of record 47, the error codes of the routing.
 //! * [`pkw`] — the PKW parameter channel of PPO 1/2/5 (four words in the cyclic data): request
 //!   held, executed once against a [`param::ParameterAccess`] table, response repeated; VACON

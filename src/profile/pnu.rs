@@ -37,13 +37,23 @@ pub const PNU_DEVICE_ID: u16 = 964;
 /// PNU 965: profile identification number, BYTE[2]: profile 3 (PROFIdrive), version 41 (4.1)
 /// (OPTE3/E5 §6.4.5; CFW-11 P0965).
 pub const PNU_PROFILE_ID: u16 = 965;
-/// PNU 975: drive object identification.
+/// PNU 975: drive object identification, eight elements (PROFIdrive; [`CardInfo::DO_ID`]).
 pub const PNU_DO_ID: u16 = 975;
-/// PNU 980: list of defined parameters (zero-terminated; continued in 981… when longer).
+/// PNU 980: number list of defined parameters, continued in 981 … 989
+/// ([`PNU_PARAMETER_LIST_LAST`]): see [`CardTable`] "Number list".
 pub const PNU_PARAMETER_LIST: u16 = 980;
+/// The last PNU of the number list (reference §5.2: 980–989).
+pub const PNU_PARAMETER_LIST_LAST: u16 = 989;
+/// Elements of each number-list PNU 980 … 989. 64 words are also what one DPM mailbox
+/// answer carries (`dpm::MBX_CAPACITY` = 128 bytes), so the drive's part of one list PNU is
+/// one mailbox request.
+pub const LIST_LEN: usize = 64;
+/// PNU 965's value: profile 3 (PROFIdrive), version 41 (4.1) — OPTE3/E5 Table 108 "BYTE[2]
+/// Byte 1 = 3 (PROFIdrive), Byte 2 = 41 (Version 4.1)", CFW-11 P0965 = (3, 41).
+pub const PROFILE_ID: [u8; 2] = [3, 41];
 
-/// Every PNU the card answers itself, ascending (the content of PNU 980).
-pub const CARD_PNUS: [u16; 13] = [
+/// Every PNU the card answers itself, ascending (the head of the number list 980 …).
+pub const CARD_PNUS: [u16; 22] = [
     PNU_PZD_SETPOINTS,
     PNU_PZD_ACTUALS,
     PNU_STATION_ADDRESS,
@@ -56,7 +66,16 @@ pub const CARD_PNUS: [u16; 13] = [
     PNU_DEVICE_ID,
     PNU_PROFILE_ID,
     PNU_DO_ID,
-    PNU_PARAMETER_LIST,
+    980,
+    981,
+    982,
+    983,
+    984,
+    985,
+    986,
+    987,
+    988,
+    989,
 ];
 
 /// The card's PNUs as description entries (attribute 0x20): names, types, array sizes,
@@ -72,8 +91,17 @@ const CARD_DEFS: &[ParamDef] = &[
     ParamDef::new(PNU_FAULT_SCALING, "Fault scaling", Type::U16).array(2).read_only(),
     ParamDef::new(PNU_BAUD_RATE, "Baud rate", Type::U16).limits(0, 11).read_only(),
     ParamDef::new(PNU_DEVICE_ID, "Drive unit ident", Type::U16).array(6).read_only(),
-    ParamDef::new(PNU_DO_ID, "DO ident", Type::U16).array(7).read_only(),
-    ParamDef::new(PNU_PARAMETER_LIST, "Parameter list", Type::U16).array(PARAMETER_LIST.len() as u16).read_only(),
+    ParamDef::new(PNU_DO_ID, "DO ident", Type::U16).array(CardInfo::DO_ID.len() as u16).read_only(),
+    ParamDef::new(980, "Parameter list", Type::U16).array(LIST_LEN as u16).read_only(),
+    ParamDef::new(981, "Parameter list 2", Type::U16).array(LIST_LEN as u16).read_only(),
+    ParamDef::new(982, "Parameter list 3", Type::U16).array(LIST_LEN as u16).read_only(),
+    ParamDef::new(983, "Parameter list 4", Type::U16).array(LIST_LEN as u16).read_only(),
+    ParamDef::new(984, "Parameter list 5", Type::U16).array(LIST_LEN as u16).read_only(),
+    ParamDef::new(985, "Parameter list 6", Type::U16).array(LIST_LEN as u16).read_only(),
+    ParamDef::new(986, "Parameter list 7", Type::U16).array(LIST_LEN as u16).read_only(),
+    ParamDef::new(987, "Parameter list 8", Type::U16).array(LIST_LEN as u16).read_only(),
+    ParamDef::new(988, "Parameter list 9", Type::U16).array(LIST_LEN as u16).read_only(),
+    ParamDef::new(989, "Param list 10", Type::U16).array(LIST_LEN as u16).read_only(),
 ];
 
 /// [`CARD_DEFS`] as a table, for its descriptions.
@@ -102,12 +130,24 @@ impl CardInfo {
     /// registered), drive unit type, software version (major × 100 + minor), firmware year,
     /// day/month as ddmm, number of drive objects.
     pub const DEVICE_ID: [u16; 6] = [0, card::IDENT_NUMBER, 1, 2026, 2211, 1];
-    /// PNU 975 (OPTE3/E5 Table 111): manufacturer, DO type, version, year, ddmm, PROFIdrive
-    /// DO type class (1 = axis), DO subclass 1.
-    pub const DO_ID: [u16; 7] = [0, 1, 1, 2026, 2211, 1, 1];
+    /// PNU 975, DO identification, the eight elements PROFIdrive defines: manufacturer, DO
+    /// type, version, firmware year, ddmm, PROFIdrive DO type class (1 = axis), DO subclass 1,
+    /// DO-ID (1, the drive's one axis). OPTE3/E5 Table 111 lists subindices 0–6 (UINT\[7\]);
+    /// subindex 7 is PROFIdrive's DO-ID (SINAMICS r0975\[7\] "drive object number").
+    pub const DO_ID: [u16; 8] = [0, 1, 1, 2026, 2211, 1, 1, 1];
 }
 
 /// The card's PNUs in front of the drive's parameter table.
+///
+/// **Number list (PNU 980 … 989, reference §5.2 "list of all PNUs, continued across
+/// 980..989").** One list of every defined parameter, split into ten arrays of [`LIST_LEN`]
+/// elements: element *k* of PNU 980 + *j* is list entry *j* × 64 + *k*. The list is the
+/// card's [`CARD_PNUS`] (ascending), then the drive's own parameters, then 0 (end of list)
+/// and zeros to the end of the array; a list PNU that the list does not reach reads all
+/// zeros. The drive's part comes from the drive's table as *its* PNU 980 read as one flat
+/// array (subindex = entry of the drive's list, past its end zeros — [`NumberList`] does that
+/// for a [`Table`]); through the DPM that is one parameter-mailbox read per list PNU. A drive
+/// that answers its PNU 980 with an error has no list: the card's PNUs end the list.
 pub struct CardTable<'a, D> {
     /// What the card reports.
     pub info: CardInfo,
@@ -119,10 +159,57 @@ enum Value<'v> {
     Signals([u16; PZD_SIGNALS]),
     Word(u16),
     Words(&'v [u16]),
+    /// One OctetString value (PNU 965: OctetString2).
     Octets(&'v [u8]),
+    /// The number list 980 … 989.
+    List,
 }
 
 impl<D: ParameterAccess> CardTable<'_, D> {
+    /// PNU 980 … 989 (see the type's "Number list"): elements `subindex ..` of list PNU
+    /// `addr.pnu`, the card's PNUs first, then the drive's list.
+    fn read_number_list(&mut self, axis: u8, addr: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        let first = addr.subindex as usize;
+        let n = addr.count() as usize;
+        if first >= LIST_LEN || first + n > LIST_LEN {
+            return Err(ErrorValue::INVALID_SUBINDEX.into());
+        }
+        let start = usize::from(addr.pnu - PNU_PARAMETER_LIST) * LIST_LEN + first;
+        let end = start + n;
+        let card_end = end.min(CARD_PNUS.len());
+        for &pnu in CARD_PNUS.get(start..card_end).unwrap_or(&[]) {
+            out.push_u16(pnu)?;
+        }
+        if end <= CARD_PNUS.len() {
+            return Ok(());
+        }
+        // The drive's part: elements of its own flat number list.
+        let from = start.max(CARD_PNUS.len()) - CARD_PNUS.len();
+        let count = end - CARD_PNUS.len() - from;
+        let drive_addr = ParamAddress {
+            attribute: Attribute::Value,
+            elements: count as u8,
+            pnu: PNU_PARAMETER_LIST,
+            subindex: from as u16,
+        };
+        let mut buf = [0u8; 2 * LIST_LEN];
+        let mut w = ValueWriter::new(&mut buf);
+        match self.drive.read_value(axis, &drive_addr, &mut w) {
+            Ok(()) => {
+                let got = w.bytes();
+                for k in 0..count {
+                    let v = got.get(2 * k..2 * k + 2).map_or(0, |b| u16::from_be_bytes([b[0], b[1]]));
+                    out.push_u16(v)?;
+                }
+                Ok(())
+            }
+            // The drive's values are on their way (the job is built again).
+            Err(e) if self.drive.pending() => Err(e),
+            // A drive without a number list: the card's PNUs end the list.
+            Err(_) => (0..count).try_for_each(|_| out.push_u16(0)),
+        }
+    }
+
     fn lookup(&self, pnu: u16) -> Option<Value<'static>> {
         let info = self.info;
         Some(match pnu {
@@ -135,9 +222,9 @@ impl<D: ParameterAccess> CardTable<'_, D> {
             PNU_FAULT_SCALING => Value::Words(&super::faults::SCALING),
             PNU_BAUD_RATE => Value::Word(info.baud_p963),
             PNU_DEVICE_ID => Value::Words(&CardInfo::DEVICE_ID),
-            PNU_PROFILE_ID => Value::Octets(&[3, 41]),
+            PNU_PROFILE_ID => Value::Octets(&PROFILE_ID),
             PNU_DO_ID => Value::Words(&CardInfo::DO_ID),
-            PNU_PARAMETER_LIST => Value::Words(&PARAMETER_LIST),
+            PNU_PARAMETER_LIST..=PNU_PARAMETER_LIST_LAST => Value::List,
             _ => return None,
         })
     }
@@ -152,9 +239,6 @@ fn pzd_signals(telegram: Telegram, setpoints: bool) -> [u16; PZD_SIGNALS] {
         None => [0; PZD_SIGNALS],
     }
 }
-
-/// PNU 980: the card's PNUs, zero-terminated.
-const PARAMETER_LIST: [u16; 14] = [915, 916, 918, 922, 930, 944, 947, 950, 963, 964, 965, 975, 980, 0];
 
 fn elements<'v, T: Copy>(all: &'v [T], addr: &ParamAddress) -> Result<&'v [T], ParamError> {
     let first = addr.subindex as usize;
@@ -190,10 +274,20 @@ impl<D: ParameterAccess> ParameterAccess for CardTable<'_, D> {
             }
             Some(Value::Words(all)) => elements(all, addr)?.iter().try_for_each(|&v| out.push_u16(v)),
             Some(Value::Signals(all)) => elements(&all, addr)?.iter().try_for_each(|&v| out.push_u16(v)),
-            Some(Value::Octets(all)) => {
-                out.set_format(super::param::Format::OCTET_STRING);
-                elements(all, addr)?.iter().try_for_each(|&v| out.push_u8(v))
-            }
+            Some(Value::Octets(v)) => match (v, addr.subindex, addr.count()) {
+                // One OctetString2 value (PROFIdrive PNU 965), the two octets together: format
+                // Word (0x42, the untyped 2-octet substitute the card answers every value in),
+                // one value, `42 01 03 29` — CFW-11 P0965 is likewise one 16-bit word, profile
+                // in the high byte.
+                (&[hi, lo], 0, 1) => out.push_u16(u16::from_be_bytes([hi, lo])),
+                // VACON's view of the same value, BYTE[2] (OPTE3/E5 Table 108): octets by
+                // element, `0A 02 03 29` for elements 0..2.
+                _ => {
+                    out.set_format(super::param::Format::OCTET_STRING);
+                    elements(v, addr)?.iter().try_for_each(|&b| out.push_u8(b))
+                }
+            },
+            Some(Value::List) => self.read_number_list(axis, addr, out),
         }
     }
 
@@ -232,6 +326,53 @@ impl<D: ParameterAccess> ParameterAccess for CardTable<'_, D> {
 
     fn start_job(&mut self) {
         self.drive.start_job();
+    }
+}
+
+/// A drive's parameter [`Table`] with its own number list, as [`CardTable`] reads it: PNU
+/// 980 as one flat array of the table's PNUs (ascending), zeros past the end (any subindex),
+/// read-only. Every other access goes to the table. The drive side of a card (the simulated
+/// drive behind the DPM mailbox) serves its table through this.
+pub struct NumberList<'a, const N: usize>(pub &'a mut Table<N>);
+
+impl<const N: usize> ParameterAccess for NumberList<'_, N> {
+    fn has_axis(&self, axis: u8) -> bool {
+        self.0.has_axis(axis)
+    }
+
+    fn read_value(&mut self, axis: u8, addr: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        if addr.pnu != PNU_PARAMETER_LIST || self.0.def(PNU_PARAMETER_LIST).is_some() {
+            return self.0.read_value(axis, addr, out);
+        }
+        if !self.0.has_axis(axis) {
+            return Err(ErrorValue::AXIS_NONEXISTENT.into());
+        }
+        let defs = self.0.defs();
+        let first = addr.subindex as usize;
+        (first..first + addr.count() as usize).try_for_each(|k| out.push_u16(defs.get(k).map_or(0, |d| d.pnu)))
+    }
+
+    fn write_value(&mut self, axis: u8, addr: &ParamAddress, values: &ValueBlock<'_>) -> Result<(), ParamError> {
+        if addr.pnu == PNU_PARAMETER_LIST && self.0.def(PNU_PARAMETER_LIST).is_none() {
+            return Err(ErrorValue::VALUE_CANNOT_BE_CHANGED.into());
+        }
+        self.0.write_value(axis, addr, values)
+    }
+
+    fn read_description(&mut self, axis: u8, addr: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        self.0.read_description(axis, addr, out)
+    }
+
+    fn read_text(&mut self, axis: u8, addr: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        self.0.read_text(axis, addr, out)
+    }
+
+    fn pending(&self) -> bool {
+        self.0.pending()
+    }
+
+    fn start_job(&mut self) {
+        self.0.start_job();
     }
 }
 
@@ -307,13 +448,17 @@ mod telegram_pnu_tests {
         let mut drive = NoDrive;
         let mut t = CardTable { info: info(Telegram::Standard(1)), drive: &mut drive };
         for pnu in [PNU_PZD_SETPOINTS, PNU_PZD_ACTUALS, PNU_TELEGRAM] {
-            assert!(CARD_PNUS.contains(&pnu) && PARAMETER_LIST.contains(&pnu));
+            assert!(CARD_PNUS.contains(&pnu));
             let addr = ParamAddress { attribute: Attribute::Description, elements: 1, pnu, subindex: 0 };
             let mut buf = [0u8; 240];
             let mut w = ValueWriter::new(&mut buf);
             assert_eq!(t.read_description(1, &addr, &mut w), Ok(()), "PNU {pnu} description");
         }
         assert!(CARD_PNUS.windows(2).all(|w| w[0] < w[1]));
-        assert_eq!(&PARAMETER_LIST[..CARD_PNUS.len()], &CARD_PNUS);
+        assert_eq!(read(Telegram::Standard(1), PNU_PARAMETER_LIST, 0, CARD_PNUS.len() as u8 + 1).unwrap(), {
+            let mut l = CARD_PNUS.to_vec();
+            l.push(0);
+            l
+        });
     }
 }

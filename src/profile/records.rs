@@ -1,11 +1,13 @@
-//! The drive's data records at slot 0, reached by DS_Read / DS_Write over MSAC_C1 or MSAC_C2:
+//! The drive's data records at slot 0 (the device) and at the drive module's slot 1
+//! ([`card::RECORD_SLOTS`], GSD `SlotDefinition`), reached by DS_Read / DS_Write over
+//! MSAC_C1 or MSAC_C2 — the same records at both slots:
 //!
 //! | index | record | manual |
 //! |---|---|---|
 //! | 47 | PROFIdrive base-mode parameter access: DS_Write carries the request, DS_Read fetches the response once | OPTE3/E5 §6.4, CFW500 §5.2.2, CFW-11 §4.2 |
 //! | 48 | WEG simple access: 4 bytes = write, 2 bytes = select for the next read | CFW500 §5.2.3 |
 //!
-//! Errors (DP-V1 Error_Code_1): slot ≠ 0 → 0xB2 invalid slot; another index → 0xB0 invalid
+//! Errors (DP-V1 Error_Code_1): another slot → 0xB2 invalid slot; another index → 0xB0 invalid
 //! index; a structurally wrong parameter request → 0xB7 at the DS_Write (VACON Table 46,
 //! CFW500 §5.2.4); DS_Read of record 47 without a response waiting → 0xB5 state conflict
 //! (reference §5.1: "not ready"; also after the response was fetched — it is readable once);
@@ -18,7 +20,9 @@
 //!
 //! Relations (MSAC_C1 and each MSAC_C2 connection) are kept apart: each fetches only its own
 //! response, and one job runs at a time — a DS_Write(47) of another relation while a job is
-//! busy is answered 0xC2 "resource busy" (the master repeats it). Record 48 answers 0xC2 "resource busy" while a value is pending
+//! busy is answered 0xC2 "resource busy" (the master repeats it). When a relation ends (MSAC_C1
+//! leaves data exchange, an MSAC_C2 connection is aborted or times out) its response and its
+//! job are dropped ([`DriveRecords::end_relation`]). Record 48 answers 0xC2 "resource busy" while a value is pending
 //! (the master repeats the access).
 
 use super::param::{respond, ParamRequest, ParameterAccess, MAX_LEN};
@@ -137,6 +141,19 @@ impl DriveRecords {
         self.busy = false;
     }
 
+    /// The application relation `relation` ended (MSAC_C1 left data exchange, an MSAC_C2
+    /// connection was aborted or timed out): its waiting response is dropped and, if the busy
+    /// job is its own, the job too — an orphaned job would block the other relations with
+    /// 0xC2 and a new relation must never read the old one's answer.
+    pub fn end_relation(&mut self, relation: u8) {
+        if let Some(len) = self.response_lens.get_mut(relation as usize) {
+            *len = 0;
+        }
+        if self.busy && self.owner == relation {
+            self.busy = false;
+        }
+    }
+
     /// Whether a record-47 job waits for values of an asynchronous table.
     pub fn is_busy(&self) -> bool {
         self.busy
@@ -197,7 +214,7 @@ impl<T: ParameterAccess> RecordHandler for Bound<'_, T> {
     }
 
     fn read(&mut self, _now: Instant, slot: u8, index: u8, out: &mut [u8]) -> Result<usize, ErrorCode1> {
-        if slot != 0 {
+        if !card::RECORD_SLOTS.contains(&slot) {
             return Err(ErrorCode1::INVALID_SLOT);
         }
         let r = &mut *self.records;
@@ -224,7 +241,7 @@ impl<T: ParameterAccess> RecordHandler for Bound<'_, T> {
     }
 
     fn write(&mut self, _now: Instant, slot: u8, index: u8, data: &[u8]) -> Result<(), ErrorCode1> {
-        if slot != 0 {
+        if !card::RECORD_SLOTS.contains(&slot) {
             return Err(ErrorCode1::INVALID_SLOT);
         }
         let r = &mut *self.records;
