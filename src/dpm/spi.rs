@@ -13,20 +13,23 @@
 //! any number of bytes (at most [`MAX_TRANSACTION`]), NSS rises. The card's IRQ output
 //! (active low) is described under "Events" below.
 //!
-//! **Pipelining.** SPI is full duplex, and a slave fed by DMA cannot compute an answer
-//! within a byte time. Therefore the reply to the request sent in transaction *k* is clocked
-//! out on MISO during transaction *k + 1*, while the master sends its next request on MOSI.
-//! The master must clock at least as many bytes as the longer of (its request frame, the
-//! reply it expects); the master pads its request with `0x00`, the card pads its reply with
-//! `0x00`. Between NSS rising and the next NSS falling the master leaves the card
+//! **Pipelining (depth 1).** SPI is full duplex, and a slave fed by DMA cannot compute an
+//! answer within a byte time. Therefore the reply to the request sent in transaction *k* is
+//! clocked out on MISO during transaction *k + 1* — in *k + 1* or never: the card arms it
+//! the moment it is built, if *k + 1* has not begun; a reply built later is discarded, and
+//! *k + 1* then carries `0x00` bytes only (first byte `0x00` = "no reply in this
+//! transaction"). The master clocks at least as many bytes as the longer of (its request
+//! frame, the reply it expects); the master pads its request with `0x00`, the card pads its
+//! reply with `0x00`. Between NSS rising and the next NSS falling the master leaves the card
 //! [`T_READY_US`] µs (a design target, not measured on hardware: the board's frame task
-//! runs at the lowest priority and can wait behind one application step). A card that is not ready sends `0x00` bytes only (first
-//! byte `0x00` = "no reply in this transaction"); the master then polls with a STATUS
-//! request. Each reply echoes the request's TAG, so a reply is never taken for another
-//! request. READ and WRITE are idempotent: a master that lost a reply repeats the request;
-//! it also repeats a request refused with CRC_ERROR, BAD_LENGTH or BAD_COMMAND (a flipped
-//! bit in CMD or LEN moves the CRC, so line errors show as these too), while BAD_ADDRESS and
-//! FORBIDDEN_WRITE are decided on CRC-checked content and are final.
+//! runs above the application step; see `src/bsp/spi.rs`). Each reply echoes the request's
+//! TAG, CMD and ADDR, and its DATA length is the one asked (a WRITE's reply carries the
+//! request's CRC), so a reply is never taken for another request, a stale one of a
+//! restarted host included. READ and WRITE are idempotent: a master that got no reply
+//! (`0x00`, a damaged or a foreign one) repeats the request; it also repeats a request
+//! refused with CRC_ERROR, BAD_LENGTH or BAD_COMMAND (a flipped bit in CMD or LEN moves the
+//! CRC, so line errors show as these too), while BAD_ADDRESS and FORBIDDEN_WRITE are decided
+//! on CRC-checked content and are final.
 //!
 //! **Request frame** (MOSI; big-endian):
 //!
@@ -49,8 +52,8 @@
 //! | 2 | CMD | the request's CMD (as received) |
 //! | 3 | FLAGS | bit 0: events pending (the IRQ line is asserted); other bits 0 |
 //! | 4..6 | ADDR | the request's ADDR (as received) |
-//! | 6..8 | LEN | u16 n = bytes of DATA that follow (READ OK: the LEN asked; STATUS OK: [`STATUS_LEN`]; else 0) |
-//! | 8..8+n | DATA | READ: image bytes ADDR..ADDR+n; STATUS: see below |
+//! | 6..8 | LEN | u16 n = bytes of DATA that follow (READ OK: the LEN asked; WRITE OK: 2; STATUS OK: [`STATUS_LEN`]; else 0) |
+//! | 8..8+n | DATA | READ: image bytes ADDR..ADDR+n; WRITE: the request's CRC (u16); STATUS: see below |
 //! | 8+n..10+n | CRC | u16 [`crc16`] of bytes 0..8+n |
 //! | 10+n.. | padding | `0x00` |
 //!
@@ -84,13 +87,14 @@
 //! after the host's read is never lost. The card drives IRQ low while the bitmap is not 0
 //! (level, not edge); reply FLAGS bit 0 mirrors it.
 //!
-//! **A host cycle** (what [`SpiHost`] does): READ STATUS/OUTPUTS/CARD when IRQ is low, WRITE
-//! INPUTS/DRIVE, and after each request one STATUS request to fetch its reply, matching the
-//! TAG; a STATUS reply with another TAG is older and skipped, `0x00` means "poll again".
+//! **A host access** (what [`SpiHost`] does): the request in one transaction, and in the
+//! next a STATUS request padded to the expected reply, whose MISO is the reply; anything
+//! but the echoing reply sends the request again (three retries).
 
 use super::host::{Transport, TransportError};
 use super::layout::{Writer, BLOCKS};
 use super::{Dpm, IMAGE_SIZE};
+pub use pipeline::{PipelineStats, ReplyPipeline};
 
 /// Protocol version, first byte of the STATUS data.
 pub const PROTOCOL_VERSION: u8 = 1;
@@ -116,6 +120,9 @@ pub const T_READY_US: u32 = 200;
 pub const NO_REPLY: u8 = 0x00;
 /// Reply FLAGS bit 0: events pending (IRQ asserted).
 pub const FLAG_EVENTS: u8 = 1 << 0;
+/// Bytes of DATA in the reply to an accepted WRITE: the request's CRC, so the host can tell
+/// the reply to its own WRITE from any other (a stale one after a restart).
+pub const WRITE_ECHO_LEN: usize = 2;
 
 const _: () = {
     assert!(BLOCKS.len() <= 16, "the events bitmap is a u16");
@@ -284,6 +291,8 @@ pub struct Request<'a> {
     pub len: u16,
     /// WRITE data (empty otherwise).
     pub data: &'a [u8],
+    /// The frame's CRC (a WRITE's reply echoes it).
+    pub crc: u16,
 }
 
 /// Why a transaction was refused, with what could be read of its header (for the reply's
@@ -343,7 +352,14 @@ pub fn parse_request(rx: &[u8]) -> Result<Request<'_>, Refusal> {
             }
         }
     }
-    Ok(Request { cmd, tag: rx[1], addr, len, data: &rx[REQUEST_HEADER..REQUEST_HEADER + data_len] })
+    Ok(Request {
+        cmd,
+        tag: rx[1],
+        addr,
+        len,
+        data: &rx[REQUEST_HEADER..REQUEST_HEADER + data_len],
+        crc: get16(rx, frame - CRC_LEN),
+    })
 }
 
 /// Whether `b` is all `0x00` (the padding check: four bytes per step).
@@ -451,7 +467,8 @@ impl SpiSlave {
                     Command::Write => {
                         let a = usize::from(req.addr);
                         dpm.as_bytes_mut()[a..a + req.data.len()].copy_from_slice(req.data);
-                        0
+                        put16(reply, REPLY_HEADER, req.crc);
+                        WRITE_ECHO_LEN
                     }
                     Command::Status => STATUS_LEN,
                 };
@@ -476,6 +493,13 @@ impl SpiSlave {
         let crc = crc16(&reply[..end]);
         put16(reply, end, crc);
         end + CRC_LEN
+    }
+
+    /// Rebuild an armed reply with the image as it is now, if it answers a request whose
+    /// reply carries live data (a CYCLIC exchange): returns its new length. `None`: the reply
+    /// stays as built (READ / WRITE / STATUS replies are the image at request time).
+    pub fn refresh(&mut self, _dpm: &Dpm, _reply: &mut [u8; MAX_REPLY]) -> Option<usize> {
+        None
     }
 
     /// An accepted READ of `a..a + n` clears the events of the blocks whose `SEQ_HEAD` it
@@ -665,7 +689,10 @@ pub enum HostError {
 
 /// The host side over any [`SpiBus`]: `read(offset, buf)` / `write(offset, data)` on the
 /// card's image, split into frames of at most [`MAX_DATA`] bytes, each confirmed by its
-/// reply (fetched with STATUS polls, TAG-matched; CRC errors either way are retried).
+/// reply, fetched in the next transaction (a STATUS request padded to the reply's length).
+/// A reply is taken only when it echoes the request: TAG, CMD, ADDR, and the data length
+/// asked (a WRITE: the request's CRC); anything else — `0x00` (the card was late), a stale
+/// reply, a damaged one, a line-error refusal — sends the request again, up to the retries.
 #[derive(Debug, Clone)]
 pub struct SpiHost<B: SpiBus> {
     bus: B,
@@ -674,14 +701,14 @@ pub struct SpiHost<B: SpiBus> {
     miso: [u8; MAX_TRANSACTION],
     /// Requests sent again after a lost or corrupted reply.
     retries: u8,
-    /// STATUS polls per request while the card answers "no reply".
-    polls: u8,
     last_flags: u8,
     retried: u32,
+    transactions: u32,
+    bytes: u32,
 }
 
 impl<B: SpiBus> SpiHost<B> {
-    /// Three retries, eight polls per try.
+    /// Three retries.
     pub fn new(bus: B) -> Self {
         SpiHost {
             bus,
@@ -689,9 +716,10 @@ impl<B: SpiBus> SpiHost<B> {
             mosi: [0; MAX_TRANSACTION],
             miso: [0; MAX_TRANSACTION],
             retries: 3,
-            polls: 8,
             last_flags: 0,
             retried: 0,
+            transactions: 0,
+            bytes: 0,
         }
     }
 
@@ -710,6 +738,12 @@ impl<B: SpiBus> SpiHost<B> {
         self.retried
     }
 
+    /// Transactions run so far, and the bytes clocked in them (each byte one SCK octet,
+    /// both directions at once).
+    pub fn traffic(&self) -> (u32, u32) {
+        (self.transactions, self.bytes)
+    }
+
     /// FLAGS of the last reply: [`FLAG_EVENTS`] = the card has pending events (IRQ).
     pub fn events_pending(&self) -> bool {
         self.last_flags & FLAG_EVENTS != 0
@@ -721,6 +755,7 @@ impl<B: SpiBus> SpiHost<B> {
         for (i, chunk) in buf.chunks_mut(MAX_DATA).enumerate() {
             let at = offset + (i * MAX_DATA) as u16;
             let data = self.exchange(Command::Read, at, chunk.len() as u16, &[])?;
+            // `exchange` checked the length against the one asked.
             chunk.copy_from_slice(data);
         }
         Ok(())
@@ -742,15 +777,21 @@ impl<B: SpiBus> SpiHost<B> {
         StatusData::decode(d).ok_or(HostError::NoReply)
     }
 
+    /// One full-duplex transaction of `n` bytes from `self.mosi` (counted).
+    pub(crate) fn transfer(&mut self, n: usize) -> Result<(), HostError> {
+        self.transactions = self.transactions.wrapping_add(1);
+        self.bytes = self.bytes.wrapping_add(n as u32);
+        self.bus.transfer(&self.mosi[..n], &mut self.miso[..n]).map_err(|_| HostError::Bus)
+    }
+
     /// One request and its reply's data (in `self.miso`).
     fn exchange(&mut self, cmd: Command, addr: u16, len: u16, data: &[u8]) -> Result<&[u8], HostError> {
-        let want = REPLY_HEADER
-            + match cmd {
-                Command::Read => usize::from(len),
-                Command::Status => STATUS_LEN,
-                Command::Write => 0,
-            }
-            + CRC_LEN;
+        let n_data = match cmd {
+            Command::Read => usize::from(len),
+            Command::Status => STATUS_LEN,
+            Command::Write => WRITE_ECHO_LEN,
+        };
+        let want = REPLY_HEADER + n_data + CRC_LEN;
         let mut last = HostError::NoReply;
         for attempt in 0..=self.retries {
             if attempt > 0 {
@@ -761,43 +802,36 @@ impl<B: SpiBus> SpiHost<B> {
             let frame = REQUEST_HEADER + if cmd == Command::Write { data.len() } else { 0 } + CRC_LEN;
             let out = self.mosi.get_mut(..frame).ok_or(HostError::BadRequest)?;
             let (tag, n) = self.codec.encode(cmd, addr, len, data, out).ok_or(HostError::BadRequest)?;
-            self.bus.transfer(&self.mosi[..n], &mut self.miso[..n]).map_err(|_| HostError::Bus)?;
-            match self.poll_reply(tag, want)? {
-                Some(ResultCode::Ok) => {
-                    let n = usize::from(get16(&self.miso, 6));
-                    return Ok(&self.miso[REPLY_HEADER..REPLY_HEADER + n]);
+            let request_crc = get16(&self.mosi, n - CRC_LEN);
+            self.transfer(n)?;
+            // The next transaction fetches the reply: a STATUS request padded to it.
+            let fetch = (REQUEST_HEADER + CRC_LEN).max(want).min(MAX_TRANSACTION);
+            let out = &mut self.mosi[..fetch];
+            self.codec.encode(Command::Status, 0, 0, &[], out).ok_or(HostError::BadRequest)?;
+            self.transfer(fetch)?;
+            let r = match SpiHostCodec::decode(&self.miso[..fetch]) {
+                Ok(r) => r,
+                // `0x00`: the card was late (or dropped the request); else a damaged reply.
+                Err(_) => continue,
+            };
+            self.last_flags = r.flags;
+            if r.tag != tag || r.cmd != cmd as u8 || r.addr != addr {
+                // Not the reply to this request (a stale one): ask again.
+                continue;
+            }
+            match r.result {
+                ResultCode::Ok => {
+                    let echo_ok = r.data.len() == n_data && (cmd != Command::Write || get16(r.data, 0) == request_crc);
+                    if echo_ok {
+                        return Ok(&self.miso[REPLY_HEADER..REPLY_HEADER + n_data]);
+                    }
                 }
                 // Our (well-formed) request was damaged on the way: send it again.
-                Some(r) if r.line_error() => last = HostError::Refused(r),
-                None => last = HostError::NoReply,
-                Some(r) => return Err(HostError::Refused(r)),
+                r if r.line_error() => last = HostError::Refused(r),
+                r => return Err(HostError::Refused(r)),
             }
         }
         Err(last)
-    }
-
-    /// Poll with STATUS until the reply tagged `tag` comes: its RESULT, or `None` when it
-    /// did not come (lost, corrupted).
-    fn poll_reply(&mut self, tag: u8, want: usize) -> Result<Option<ResultCode>, HostError> {
-        for _ in 0..self.polls {
-            // The poll is padded to the reply we expect (the card clocks it out meanwhile).
-            let len = (REQUEST_HEADER + CRC_LEN).max(want).min(MAX_TRANSACTION);
-            let out = &mut self.mosi[..len];
-            self.codec.encode(Command::Status, 0, 0, &[], out).ok_or(HostError::BadRequest)?;
-            self.bus.transfer(&self.mosi[..len], &mut self.miso[..len]).map_err(|_| HostError::Bus)?;
-            match SpiHostCodec::decode(&self.miso[..len]) {
-                Ok(r) if r.tag == tag => {
-                    self.last_flags = r.flags;
-                    return Ok(Some(r.result));
-                }
-                // An older reply (a poll's): ours comes later.
-                Ok(r) => self.last_flags = r.flags,
-                Err(ReplyError::NoReply) => {}
-                // The reply to our request was damaged: it cannot be fetched again.
-                Err(_) => return Ok(None),
-            }
-        }
-        Ok(None)
     }
 }
 
@@ -849,23 +883,37 @@ impl SpiHost<Loopback> {
     }
 }
 
-/// An in-process card behind an [`SpiBus`]: the image, an [`SpiSlave`], and the reply
-/// pipelined into the next transaction exactly as the board does it (`0x00` padding, "no
-/// reply" while busy). For the QEMU build, the soft slave and the tests.
+/// An in-process card behind an [`SpiBus`]: the image, an [`SpiSlave`], and the board's
+/// reply pipeline ([`ReplyPipeline`], the same state machine `src/bsp/spi.rs` runs): the reply
+/// to transaction *k* goes out in *k + 1* or never. Fault injection models the board's two
+/// ways of missing it: [`set_late`](Self::set_late) (the frame task finished after the next
+/// NSS fall) and [`set_busy`](Self::set_busy) (the frame task still held the receive buffer).
+/// For the QEMU build, the soft slave and the tests.
 #[derive(Debug, Clone)]
 pub struct Loopback {
     dpm: Dpm,
     slave: SpiSlave,
-    reply: [u8; MAX_REPLY],
-    reply_len: usize,
+    replies: [[u8; MAX_REPLY]; 2],
+    lens: [usize; 2],
+    pipeline: ReplyPipeline<usize>,
     busy: u32,
+    late: u32,
     dropped: u32,
 }
 
 impl Loopback {
     /// A card serving `dpm`, no reply pending.
     pub fn new(dpm: Dpm) -> Self {
-        Loopback { dpm, slave: SpiSlave::new(), reply: [0; MAX_REPLY], reply_len: 0, busy: 0, dropped: 0 }
+        Loopback {
+            dpm,
+            slave: SpiSlave::new(),
+            replies: [[0; MAX_REPLY]; 2],
+            lens: [0; 2],
+            pipeline: ReplyPipeline::new(0, 1),
+            busy: 0,
+            late: 0,
+            dropped: 0,
+        }
     }
 
     /// The image.
@@ -883,16 +931,32 @@ impl Loopback {
         &self.slave
     }
 
+    /// The card's protocol state, writable (a test restarts it).
+    pub fn slave_mut(&mut self) -> &mut SpiSlave {
+        &mut self.slave
+    }
+
+    /// The reply pipeline's counters.
+    pub fn pipeline(&self) -> PipelineStats {
+        self.pipeline.stats()
+    }
+
     /// The IRQ line (asserted = true).
     pub fn irq(&self) -> bool {
         self.slave.irq(&self.dpm)
     }
 
     /// Fault injection: the next `n` transactions find the card busy — MISO `0x00`, the
-    /// request dropped (what the board does when its frame task has not taken the previous
-    /// frame yet).
+    /// request dropped, the reply armed for it lost (what the board does when its frame task
+    /// has not returned the receive buffer yet).
     pub fn set_busy(&mut self, n: u32) {
         self.busy = n;
+    }
+
+    /// Fault injection: the replies to the next `n` transactions are late (built after the
+    /// following transaction began): each is discarded, that transaction's MISO is `0x00`.
+    pub fn set_late(&mut self, n: u32) {
+        self.late = n;
     }
 
     /// Transactions dropped while busy.
@@ -909,16 +973,41 @@ impl SpiBus for Loopback {
         if self.busy > 0 {
             self.busy -= 1;
             self.dropped = self.dropped.wrapping_add(1);
+            self.pipeline.discard();
             miso.fill(NO_REPLY);
+            self.pipeline.transaction_end();
             return Ok(());
         }
-        let k = self.reply_len.min(miso.len());
-        miso[..k].copy_from_slice(&self.reply[..k]);
-        miso[k..].fill(0);
-        self.reply_len = self.slave.handle(mosi, &mut self.dpm, &mut self.reply);
+        // The board rebuilds an armed CYCLIC reply after each card step (the image may have
+        // changed since the request): the loopback does it when the transaction begins.
+        if let Some(&i) = self.pipeline.armed() {
+            if let Some(n) = self.slave.refresh(&self.dpm, &mut self.replies[i]) {
+                self.lens[i] = n;
+            }
+        }
+        match self.pipeline.armed() {
+            Some(&i) => {
+                let k = self.lens[i].min(miso.len());
+                miso[..k].copy_from_slice(&self.replies[i][..k]);
+                miso[k..].fill(0);
+            }
+            None => miso.fill(NO_REPLY),
+        }
+        self.pipeline.transaction_end();
+        let Some(i) = self.pipeline.buffer() else { return Ok(()) };
+        self.lens[i] = self.slave.handle(mosi, &mut self.dpm, &mut self.replies[i]);
+        let idle = if self.late > 0 {
+            self.late -= 1;
+            false
+        } else {
+            true
+        };
+        self.pipeline.ready(i, idle);
         Ok(())
     }
 }
+
+pub mod pipeline;
 
 #[cfg(test)]
 mod tests;
