@@ -32,8 +32,7 @@ use crate::dpm::host::{Host, Options, Transport};
 use crate::dpm::layout::operate_mode;
 use crate::dpm::spi::{Loopback, SpiHost};
 use crate::dpm::{
-    Dpm, DriveCommandImage, Link, MailboxParams, NodeSnapshot, NodeUpdate, ParamCache, PdFlags, ProcessData, PzdWords,
-    Telegram,
+    Dpm, DriveCommandImage, Link, MailboxParams, NodeSnapshot, NodeUpdate, ParamCache, PzdWords, Telegram,
 };
 use crate::drive::params::DriveTable;
 use crate::drive::{DriveConfig, SimDrive};
@@ -103,7 +102,10 @@ impl Application {
     /// drive's control board, through the SPI transport the platform feeds into
     /// [`dpm_mut`](Self::dpm_mut) (`dpm::spi::SpiSlave`).
     pub fn card_only() -> Self {
-        Self::build(SimDrive::new(DriveConfig::DEFAULT), false)
+        let mut app = Self::build(SimDrive::new(DriveConfig::DEFAULT), false);
+        // Issue 16: no parameterisation before the drive has written a valid CONFIG.
+        app.link.set_startup_gate(true);
+        app
     }
 
     fn build(sim: SimDrive, runs: bool) -> Self {
@@ -239,11 +241,8 @@ impl Application {
         self.link.set_init_error(true);
         let mut safe = DriveCommandImage::EMPTY;
         safe.command.flags = CommandFlags::COAST | CommandFlags::COMM_LOSS;
-        let dpm = self.host.transport_mut().dpm_mut();
-        let mut card = dpm.card();
-        card.write_outputs(&ProcessData::new(Telegram::None, PdFlags::empty(), &[]));
-        card.write_card_report(self.link.card_report());
-        self.link.publish_command(&safe, dpm);
+        // OUTPUTS and DRIVE_CMD of one card cycle: the host's pairing check takes it.
+        self.link.publish_safe_state(&safe, self.host.transport_mut().dpm_mut());
     }
 
     /// After a reset that followed [`fail_safe`](Self::fail_safe) (the board keeps a flag in
@@ -364,7 +363,7 @@ mod tests {
     use super::*;
     use crate::card;
     use crate::dp::{DpSlave, DpState};
-    use crate::dpm::{CommState, Telegram};
+    use crate::dpm::{CommState, PdFlags, ProcessData, Telegram};
     use crate::fdl::telegram::{self, FunctionCode, Header};
     use crate::profile::drive_if::ControlProfile;
     use crate::profile::profidrive::{State as DriveState, StopKind};

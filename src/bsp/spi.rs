@@ -361,3 +361,25 @@ pub fn init(parts: SpiParts) -> SpiPort {
     );
     port
 }
+
+/// `.uninit` RAM that survives a system reset (panic, HardFault, IWDG): the boot counter
+/// behind `CARD.BOOT_ID` (issue 16), with a check word.
+#[link_section = ".uninit.pbcard_boot"]
+static mut BOOT_COUNTER: core::mem::MaybeUninit<[u32; 2]> = core::mem::MaybeUninit::uninit();
+
+const BOOT_CHECK: u32 = 0xB007_1D00;
+
+/// The boot identifier for `CARD.BOOT_ID`: a counter in RAM that survives resets, one more
+/// on every start (after a power-up the RAM holds noise, which is as good a start value);
+/// never 0. Call once from `init`, before interrupts are enabled.
+pub fn boot_id() -> u16 {
+    // SAFETY: called once from `init` with interrupts off; `[u32; 2]` has no invalid values.
+    let count = unsafe {
+        let p = core::ptr::addr_of_mut!(BOOT_COUNTER) as *mut [u32; 2];
+        let [c, k] = core::ptr::read_volatile(p);
+        let c = if k == BOOT_CHECK ^ c { c.wrapping_add(1) } else { c };
+        core::ptr::write_volatile(p, [c, BOOT_CHECK ^ c]);
+        c
+    };
+    (count as u16).max(1)
+}

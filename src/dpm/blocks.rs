@@ -178,6 +178,9 @@ pub struct CardReport {
     pub late_responses: u16,
     /// Mailbox requests timed out.
     pub mailbox_timeouts: u16,
+    /// The card's boot identifier (`CARD.BOOT_ID`: another value on every card start; 0 =
+    /// a card that does not show one).
+    pub boot_id: u16,
 }
 
 impl CardReport {
@@ -200,6 +203,7 @@ impl CardReport {
         put16(b, card::DRIVE_LOSSES, self.drive_losses);
         put16(b, card::LATE_RESPONSES, self.late_responses);
         put16(b, card::MAILBOX_TIMEOUTS, self.mailbox_timeouts);
+        put16(b, card::BOOT_ID, self.boot_id);
     }
 
     pub(super) fn decode(b: &[u8]) -> CardReport {
@@ -214,6 +218,7 @@ impl CardReport {
             drive_losses: get16(b, card::DRIVE_LOSSES),
             late_responses: get16(b, card::LATE_RESPONSES),
             mailbox_timeouts: get16(b, card::MAILBOX_TIMEOUTS),
+            boot_id: get16(b, card::BOOT_ID),
         }
     }
 }

@@ -196,6 +196,11 @@ pub mod card {
     pub const LATE_RESPONSES: usize = 0x12;
     /// u16 mailbox requests timed out (wraps).
     pub const MAILBOX_TIMEOUTS: usize = 0x14;
+    // --- issue 16 (restart rules) ---
+    /// u16 boot identifier: another value on every card start (panic and watchdog resets
+    /// included), never 0; a change tells the host to re-open and rewrite CONFIG.
+    pub const BOOT_ID: usize = 0x16;
+    // --- end issue 16 ---
     /// u16 sequence counter, written first by the card.
     pub const SEQ_TAIL: usize = LEN - 2;
 }
@@ -429,7 +434,7 @@ const _: () = {
     assert!(drive_cmd::EXTRA + 2 * EXTRA_WORDS == drive_cmd::SEQ_TAIL);
     assert!(drive_state::EXTRA + 2 * EXTRA_WORDS == drive_state::SEQ_TAIL);
     assert!(EXTRA_WORDS <= u8::MAX as usize);
-    assert!(card::MAILBOX_TIMEOUTS + 2 <= card::SEQ_TAIL);
+    assert!(card::BOOT_ID + 2 <= card::SEQ_TAIL);
     assert!(drive::EXT_DIAG + EXT_DIAG_CAPACITY <= drive::SEQ_TAIL);
     assert!(config::PZD_IN_MAP + 2 * PZD_MAP_WORDS <= config::IO_UPDATE_DELAY);
     assert!(config::IO_UPDATE_DELAY + 2 <= config::SEQ_TAIL);
@@ -688,7 +693,10 @@ pub const FIELDS: &[Field] = &[
     f!("CARD.DRIVE_LOSSES", card::DRIVE_LOSSES, 2, "u16", C, "consistent block: drive heartbeat losses (wraps)"),
     f!("CARD.LATE_RESPONSES", card::LATE_RESPONSES, 2, "u16", C, "consistent block: mailbox responses ignored, late or unknown REQ_ID (wraps)"),
     f!("CARD.MAILBOX_TIMEOUTS", card::MAILBOX_TIMEOUTS, 2, "u16", C, "consistent block: mailbox requests timed out (wraps)"),
-    f!("CARD.reserved", @ card::START + card::MAILBOX_TIMEOUTS + 2, card::SEQ_TAIL - card::MAILBOX_TIMEOUTS - 2, "reserved", C, "0"),
+    // --- issue 16 (restart rules) ---
+    f!("CARD.BOOT_ID", card::BOOT_ID, 2, "u16", C, "consistent block, layout 3 cards since issue 16 (0 = an older card): changes on every card start (panic / watchdog resets included), never 0; a new value = the card restarted: the host re-opens, rewrites CONFIG and resynchronises the event counters"),
+    f!("CARD.reserved", @ card::START + card::BOOT_ID + 2, card::SEQ_TAIL - card::BOOT_ID - 2, "reserved", C, "0"),
+    // --- end issue 16 ---
     f!("CARD.SEQ_TAIL", card::SEQ_TAIL, 2, "u16", C, SEQ_VALID),
     f!("DRIVE.SEQ_HEAD", drive::SEQ_HEAD, 2, "u16", H, SEQ_VALID),
     f!("DRIVE.HEARTBEAT", drive::HEARTBEAT, 2, "u16", H, "consistent block: changes every drive cycle; unchanged for the card's timeout = drive lost"),

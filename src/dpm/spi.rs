@@ -1011,3 +1011,5 @@ pub mod pipeline;
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_card;

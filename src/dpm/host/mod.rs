@@ -225,6 +225,11 @@ pub struct Poll {
     pub card_returned: bool,
     /// Card → drive events since the last poll (none on the first read after [`Host::open`]).
     pub events: CardEvents,
+    /// `CARD.BOOT_ID` changed: the card restarted. This poll has re-opened the interface
+    /// (header checked again), rewritten the last CONFIG, taken the event counters as they
+    /// are now (no events reported for the restart's counter reset) and forgotten the
+    /// mailbox state; the card's start-up gate opens once it takes the CONFIG over.
+    pub card_restarted: bool,
     /// The CARD block as read now (`None`: not served, torn on every attempt, or the transport
     /// failed — see `error`).
     pub report: Option<CardReport>,
@@ -297,6 +302,8 @@ pub struct HostStats {
     pub stale_responses: u32,
     /// Card heartbeat losses.
     pub card_losses: u32,
+    /// Card restarts seen (`CARD.BOOT_ID` changed).
+    pub card_restarts: u32,
 }
 
 /// The host side of the DPM interface over a [`Transport`]: open and check the image, read
@@ -330,6 +337,10 @@ pub struct Host<T> {
     card_lost: bool,
     events_seen: Option<[u8; CARD_EVENT_COUNT]>,
     config_written: Option<u16>,
+    /// The configuration written last (rewritten after a card restart).
+    last_config: Option<HostConfig>,
+    /// `CARD.BOOT_ID` as last read (0 = not known yet / a card without one).
+    boot_id: u16,
     request_seen: u16,
     /// `MBX_REQ.SEQ_HEAD` of the last consistent read of MBX_REQ (0 = none yet).
     request_block_seq: u16,
@@ -379,6 +390,8 @@ impl<T: Transport> Host<T> {
             card_lost: false,
             events_seen: None,
             config_written: None,
+            last_config: None,
+            boot_id: 0,
             request_seen: 0,
             request_block_seq: 0,
             request_open: None,
@@ -465,7 +478,35 @@ impl<T: Transport> Host<T> {
         let r = self.write(&codec::CONFIG, cfg, &mut seq);
         self.seq_config = seq;
         self.config_written = Some(seq);
+        self.last_config = Some(*cfg);
         r
+    }
+
+    /// `CARD.BOOT_ID` as last read by [`Self::poll`] (0: not known yet, or a card without one).
+    pub fn boot_id(&self) -> u16 {
+        self.boot_id
+    }
+
+    /// The card restarted (its BOOT_ID changed): check the header again, rewrite the last
+    /// CONFIG, forget the mailbox state (the card's request ids start again). The event
+    /// counters are taken by the caller.
+    fn card_restart(&mut self) -> Result<(), Error> {
+        self.stats.card_restarts = self.stats.card_restarts.wrapping_add(1);
+        let mut buf = [0u8; layout::header::LEN];
+        if let Err(e) = self.transport.read(codec::HEADER.start() as u16, &mut buf) {
+            return Err(self.transport_error(e));
+        }
+        match codec::HEADER.decode(&buf) {
+            Ok((_, h)) if h.magic == layout::MAGIC && h.layout_version != 0 => self.header = h,
+            _ => return Err(Error::Transport(TransportError::Corrupt)),
+        }
+        self.request_seen = 0;
+        self.request_block_seq = 0;
+        self.request_open = None;
+        if let Some(cfg) = self.last_config {
+            self.write_config(&cfg)?;
+        }
+        Ok(())
     }
 
     /// Where the configuration written last stands, from `CARD.CONFIG_ACK` / `CONFIG_RESULT`.
@@ -608,10 +649,20 @@ impl<T: Transport> Host<T> {
             self.seq_drive = seq;
         }
         let mut events = CardEvents::default();
+        let mut card_restarted = false;
         let report = if self.has(cap::CARD_EVENTS) {
             match self.read(&codec::CARD) {
                 Ok((_, r)) => {
                     self.card_heartbeat = r.heartbeat;
+                    if r.boot_id != 0 && self.boot_id != 0 && r.boot_id != self.boot_id {
+                        card_restarted = true;
+                        // The restarted card's counters start again: resynchronise.
+                        self.events_seen = None;
+                        if let Err(e) = self.card_restart() {
+                            error = error.or(Some(e));
+                        }
+                    }
+                    self.boot_id = r.boot_id;
                     if let Some(seen) = self.events_seen {
                         for (i, c) in events.counts.iter_mut().enumerate() {
                             *c = r.events[i].wrapping_sub(seen[i]);
@@ -641,7 +692,7 @@ impl<T: Transport> Host<T> {
         if card_returned {
             self.card_lost = false;
         }
-        Poll { card, card_lost, card_returned, events, report, error }
+        Poll { card, card_lost, card_returned, events, card_restarted, report, error }
     }
 
     // -----------------------------------------------------------------------------------
