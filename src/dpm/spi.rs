@@ -92,12 +92,12 @@
 //! but the echoing reply sends the request again (three retries).
 
 use super::host::{Transport, TransportError};
-use super::layout::{Writer, BLOCKS};
+use super::layout::{self, Writer, BLOCKS};
 use super::{Dpm, IMAGE_SIZE};
 pub use pipeline::{PipelineStats, ReplyPipeline};
 
 /// Protocol version, first byte of the STATUS data.
-pub const PROTOCOL_VERSION: u8 = 1;
+pub const PROTOCOL_VERSION: u8 = 2;
 /// Most data bytes one READ or WRITE moves.
 pub const MAX_DATA: usize = 1024;
 /// Request header: CMD, TAG, ADDR, LEN.
@@ -124,7 +124,15 @@ pub const FLAG_EVENTS: u8 = 1 << 0;
 /// the reply to its own WRITE from any other (a stale one after a restart).
 pub const WRITE_ECHO_LEN: usize = 2;
 
+/// Indices in `layout::BLOCKS` of the blocks a CYCLIC reply carries.
+const CARD_BLOCK: usize = 5;
+const OUTPUTS_BLOCK: usize = 2;
+const DRIVE_CMD_BLOCK: usize = 10;
+
 const _: () = {
+    assert!(BLOCKS[CARD_BLOCK].start == layout::card::START);
+    assert!(BLOCKS[OUTPUTS_BLOCK].start == layout::outputs::START);
+    assert!(BLOCKS[DRIVE_CMD_BLOCK].start == layout::drive_cmd::START);
     assert!(BLOCKS.len() <= 16, "the events bitmap is a u16");
     assert!(MAX_DATA <= u16::MAX as usize);
     assert!(IMAGE_SIZE <= u16::MAX as usize);
@@ -143,6 +151,8 @@ pub enum Command {
     Write = 0xB2,
     /// The card's protocol status and counters; also the "poll" that fetches a reply.
     Status = 0xC4,
+    /// One drive cycle's exchange (protocol version 2, [`cyclic`]).
+    Cyclic = 0xD8,
 }
 
 impl Command {
@@ -152,6 +162,7 @@ impl Command {
             0xA1 => Some(Command::Read),
             0xB2 => Some(Command::Write),
             0xC4 => Some(Command::Status),
+            0xD8 => Some(Command::Cyclic),
             _ => None,
         }
     }
@@ -159,7 +170,7 @@ impl Command {
     /// Bytes of DATA a request with `len` in its LEN field carries.
     pub const fn data_len(self, len: u16) -> usize {
         match self {
-            Command::Write => len as usize,
+            Command::Write | Command::Cyclic => len as usize,
             Command::Read | Command::Status => 0,
         }
     }
@@ -340,6 +351,12 @@ pub fn parse_request(rx: &[u8]) -> Result<Request<'_>, Refusal> {
     match cmd {
         Command::Status if addr != 0 || len != 0 => return Err(refuse(ResultCode::BadLength)),
         Command::Status => {}
+        Command::Cyclic => {
+            let data = &rx[REQUEST_HEADER..REQUEST_HEADER + data_len];
+            if addr != 0 || cyclic::CyclicRequest::parse(data).is_none() {
+                return Err(refuse(ResultCode::BadLength));
+            }
+        }
         Command::Read | Command::Write => {
             if n == 0 || n > MAX_DATA {
                 return Err(refuse(ResultCode::BadLength));
@@ -401,6 +418,9 @@ pub const EVENT_BLOCKS: u16 = {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct SpiSlave {
     stats: SpiStats,
+    /// The last accepted request was CYCLIC: its TAG and the MBX_REQ fragment it asked for
+    /// (the armed reply is refreshed from them).
+    cyclic: Option<(u8, (u8, u8))>,
     /// Per block: the `SEQ_HEAD` value the host last read (0 = never read).
     host_seen: [u16; BLOCKS.len()],
 }
@@ -423,6 +443,7 @@ impl SpiSlave {
                 bad_address: 0,
                 forbidden_writes: 0,
             },
+            cyclic: None,
             host_seen: [0; BLOCKS.len()],
         }
     }
@@ -455,6 +476,7 @@ impl SpiSlave {
     /// transaction, followed by `0x00` padding) is written to the start of `reply`. Returns
     /// the reply's length. Never panics, whatever `rx` holds.
     pub fn handle(&mut self, rx: &[u8], dpm: &mut Dpm, reply: &mut [u8; MAX_REPLY]) -> usize {
+        self.cyclic = None;
         let (result, cmd, tag, addr, n) = match parse_request(rx) {
             Ok(req) => {
                 let n = match req.cmd {
@@ -471,6 +493,15 @@ impl SpiSlave {
                         WRITE_ECHO_LEN
                     }
                     Command::Status => STATUS_LEN,
+                    Command::Cyclic => match cyclic::CyclicRequest::parse(req.data) {
+                        Some(c) => {
+                            c.apply(dpm);
+                            self.cyclic = Some((req.tag, c.req));
+                            self.cyclic_data(dpm, c.req, reply)
+                        }
+                        // `parse_request` checked it.
+                        None => 0,
+                    },
                 };
                 self.stats.count(ResultCode::Ok);
                 if req.cmd == Command::Status {
@@ -483,6 +514,12 @@ impl SpiSlave {
                 (r.result, r.cmd, r.tag, r.addr, 0)
             }
         };
+        self.finish(dpm, reply, (result, cmd, tag, addr), n)
+    }
+
+    /// The reply header and CRC around `n` bytes of DATA already in place.
+    fn finish(&self, dpm: &Dpm, reply: &mut [u8; MAX_REPLY], head: (ResultCode, u8, u8, u16), n: usize) -> usize {
+        let (result, cmd, tag, addr) = head;
         reply[0] = result as u8;
         reply[1] = tag;
         reply[2] = cmd;
@@ -495,11 +532,23 @@ impl SpiSlave {
         end + CRC_LEN
     }
 
+    /// The CYCLIC reply DATA from the image as it is now; the blocks it carries (CARD,
+    /// OUTPUTS, DRIVE_CMD: the command names its outputs) count as read for the events.
+    fn cyclic_data(&mut self, dpm: &Dpm, req: (u8, u8), reply: &mut [u8; MAX_REPLY]) -> usize {
+        for b in [&layout::BLOCKS[CARD_BLOCK], &layout::BLOCKS[OUTPUTS_BLOCK], &layout::BLOCKS[DRIVE_CMD_BLOCK]] {
+            self.note_read(dpm, b.start, 2);
+        }
+        let events = self.events(dpm);
+        cyclic::build_reply(dpm, events, req, &mut reply[REPLY_HEADER..])
+    }
+
     /// Rebuild an armed reply with the image as it is now, if it answers a request whose
     /// reply carries live data (a CYCLIC exchange): returns its new length. `None`: the reply
     /// stays as built (READ / WRITE / STATUS replies are the image at request time).
-    pub fn refresh(&mut self, _dpm: &Dpm, _reply: &mut [u8; MAX_REPLY]) -> Option<usize> {
-        None
+    pub fn refresh(&mut self, dpm: &Dpm, reply: &mut [u8; MAX_REPLY]) -> Option<usize> {
+        let (tag, req) = self.cyclic?;
+        let n = self.cyclic_data(dpm, req, reply);
+        Some(self.finish(dpm, reply, (ResultCode::Ok, Command::Cyclic as u8, tag, 0), n))
     }
 
     /// An accepted READ of `a..a + n` clears the events of the blocks whose `SEQ_HEAD` it
@@ -610,7 +659,7 @@ impl SpiHostCodec {
     /// `data` is sent for WRITE only; for READ, `len` is the bytes wanted. `None` if `out`
     /// is too short for the frame.
     pub fn encode(&mut self, cmd: Command, addr: u16, len: u16, data: &[u8], out: &mut [u8]) -> Option<(u8, usize)> {
-        let data = if cmd == Command::Write { data } else { &[] };
+        let data = if matches!(cmd, Command::Write | Command::Cyclic) { data } else { &[] };
         let n = REQUEST_HEADER + data.len() + CRC_LEN;
         if out.len() < n {
             return None;
@@ -705,6 +754,11 @@ pub struct SpiHost<B: SpiBus> {
     retried: u32,
     transactions: u32,
     bytes: u32,
+    /// The TAG of the CYCLIC request sent in the last transaction (its reply comes in the
+    /// next one: the next cycle's CYCLIC request fetches it).
+    cyclic_pending: Option<u8>,
+    /// DATA bytes of the last CYCLIC reply (the next transaction is clocked that long).
+    cyclic_reply_len: usize,
 }
 
 impl<B: SpiBus> SpiHost<B> {
@@ -720,7 +774,78 @@ impl<B: SpiBus> SpiHost<B> {
             retried: 0,
             transactions: 0,
             bytes: 0,
+            cyclic_pending: None,
+            cyclic_reply_len: cyclic::MAX_REPLY_DATA,
         }
+    }
+
+    /// One drive cycle's CYCLIC exchange: sends `req` and returns a CYCLIC reply's DATA
+    /// ([`cyclic::CyclicReply::decode`]). In the steady state this is **one** transaction: its
+    /// MISO is the reply to the previous cycle's CYCLIC request, which the card refreshed
+    /// after its last step (the newest command). When there is none to take (the first
+    /// cycle, a block access came between, the reply was late or damaged) a second
+    /// transaction (the same request again) fetches the reply to this one. Never more: a failure is
+    /// returned, and the next cycle tries again (the reference host never blocks its cycle).
+    pub fn cyclic(&mut self, req: &cyclic::CyclicRequest<'_>) -> Result<&[u8], HostError> {
+        let prev = self.cyclic_pending.take();
+        let mut d = [0u8; cyclic::MAX_REQUEST_DATA];
+        if req.len() > d.len() {
+            return Err(HostError::BadRequest);
+        }
+        let k = req.encode(&mut d);
+        let frame = REQUEST_HEADER + k + CRC_LEN;
+        let n = frame.max(REPLY_HEADER + self.cyclic_reply_len + CRC_LEN).min(MAX_TRANSACTION);
+        let (tag, _) = self
+            .codec
+            .encode(Command::Cyclic, 0, k as u16, &d[..k], &mut self.mosi[..n])
+            .ok_or(HostError::BadRequest)?;
+        self.transfer(n)?;
+        if let Some(ptag) = prev {
+            if let Some(r) = self.cyclic_reply(ptag, n) {
+                self.cyclic_pending = Some(tag);
+                return Ok(&self.miso[REPLY_HEADER..REPLY_HEADER + r]);
+            }
+        }
+        // Fetch the reply to this request with the same request once more (its reply
+        // length unknown: the longest), which starts the chain for the next cycle; the card
+        // applies it again, with the same counters: no change.
+        let n = frame.max(REPLY_HEADER + cyclic::MAX_REPLY_DATA + CRC_LEN).min(MAX_TRANSACTION);
+        let (tag2, _) = self
+            .codec
+            .encode(Command::Cyclic, 0, k as u16, &d[..k], &mut self.mosi[..n])
+            .ok_or(HostError::BadRequest)?;
+        self.transfer(n)?;
+        match self.cyclic_reply(tag, n) {
+            Some(r) => {
+                self.cyclic_pending = Some(tag2);
+                Ok(&self.miso[REPLY_HEADER..REPLY_HEADER + r])
+            }
+            None => match SpiHostCodec::decode(&self.miso[..n]) {
+                Ok(r) if r.tag == tag && r.result != ResultCode::Ok => Err(HostError::Refused(r.result)),
+                _ => {
+                    // Perhaps the reply to the repeated request comes next cycle.
+                    self.cyclic_pending = Some(tag2);
+                    Err(HostError::NoReply)
+                }
+            },
+        }
+    }
+
+    /// The CYCLIC reply tagged `tag` in the MISO of the last transaction (`n` bytes): its
+    /// DATA length, or `None`.
+    fn cyclic_reply(&mut self, tag: u8, n: usize) -> Option<usize> {
+        let r = SpiHostCodec::decode(&self.miso[..n]).ok()?;
+        self.last_flags = r.flags;
+        let ok = r.tag == tag
+            && r.cmd == Command::Cyclic as u8
+            && r.result == ResultCode::Ok
+            && r.addr == 0
+            && cyclic::CyclicReply::decode(r.data).is_some();
+        if !ok {
+            return None;
+        }
+        self.cyclic_reply_len = r.data.len();
+        Some(r.data.len())
     }
 
     /// The bus (the loopback card, for a test).
@@ -790,7 +915,10 @@ impl<B: SpiBus> SpiHost<B> {
             Command::Read => usize::from(len),
             Command::Status => STATUS_LEN,
             Command::Write => WRITE_ECHO_LEN,
+            // One per drive cycle, through `cyclic`.
+            Command::Cyclic => return Err(HostError::BadRequest),
         };
+        self.cyclic_pending = None;
         let want = REPLY_HEADER + n_data + CRC_LEN;
         let mut last = HostError::NoReply;
         for attempt in 0..=self.retries {
@@ -868,6 +996,20 @@ impl<B: SpiBus> Transport for SpiHost<B> {
     }
     fn write(&mut self, offset: u16, data: &[u8]) -> Result<(), TransportError> {
         SpiHost::write(self, offset, data).map_err(TransportError::from)
+    }
+    fn cyclic(
+        &mut self,
+        req: &cyclic::CyclicRequest<'_>,
+        out: &mut [u8; cyclic::MAX_REPLY_DATA],
+    ) -> Option<Result<usize, TransportError>> {
+        Some(match SpiHost::cyclic(self, req) {
+            Ok(d) if d.len() <= out.len() => {
+                out[..d.len()].copy_from_slice(d);
+                Ok(d.len())
+            }
+            Ok(_) => Err(TransportError::Corrupt),
+            Err(e) => Err(e.into()),
+        })
     }
 }
 
@@ -1007,9 +1149,12 @@ impl SpiBus for Loopback {
     }
 }
 
+pub mod cyclic;
 pub mod pipeline;
 
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
 mod tests_card;
+#[cfg(test)]
+mod tests_cycle;

@@ -100,7 +100,7 @@ fn golden_request_frames_of_the_docs() {
 
 #[test]
 fn command_codes_are_apart_and_not_stuck_line_values() {
-    let codes = [Command::Read as u8, Command::Write as u8, Command::Status as u8];
+    let codes = [Command::Read as u8, Command::Write as u8, Command::Status as u8, Command::Cyclic as u8];
     for (i, a) in codes.iter().enumerate() {
         assert!(*a != 0x00 && *a != 0xFF);
         assert_eq!(Command::from_code(*a).map(|c| c as u8), Some(*a));
