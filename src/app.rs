@@ -681,7 +681,7 @@ mod tests {
         // loopback card's two reply buffers of its pipeline, one longest transaction of
         // 1034 B each, ≈ 4.1 KiB): a static in the firmware.
         let n = core::mem::size_of::<Application>();
-        assert!(n <= 4608 + 4 * crate::dpm::spi::MAX_TRANSACTION + 256, "Application is {n} bytes");
+        assert!(n <= 4608 + 4 * crate::dpm::spi::MAX_TRANSACTION + 384, "Application is {n} bytes");
     }
 
     #[test]
