@@ -6,7 +6,7 @@
 //! put behind [`SpiHost`]. The board driver (`src/bsp/spi.rs`, STM32F411 SPI2 + DMA1) only
 //! moves bytes; every decision is made here.
 //!
-//! # Byte-level specification (protocol version 1)
+//! # Byte-level specification (protocol version 2)
 //!
 //! **Electrical.** SPI mode 0 (CPOL = 0, CPHA = 0), 8-bit words, most significant bit first,
 //! SCK up to 12 MHz. NSS (active low) frames a **transaction**: NSS falls, the master clocks
@@ -35,11 +35,11 @@
 //!
 //! | byte | field | meaning |
 //! |---|---|---|
-//! | 0 | CMD | [`Command`]: `0xA1` READ, `0xB2` WRITE, `0xC4` STATUS |
+//! | 0 | CMD | [`Command`]: `0xA1` READ, `0xB2` WRITE, `0xC4` STATUS, `0xD8` CYCLIC (version 2, below) |
 //! | 1 | TAG | chosen by the master, echoed in the reply |
 //! | 2..4 | ADDR | u16 offset in the DPM image (`docs/DPM.md`); STATUS: 0 |
-//! | 4..6 | LEN | u16 data length: READ bytes wanted, WRITE bytes of DATA (1..=[`MAX_DATA`]); STATUS: 0 |
-//! | 6..6+n | DATA | WRITE only: n = LEN bytes for ADDR.. |
+//! | 4..6 | LEN | u16 data length: READ bytes wanted, WRITE bytes of DATA (1..=[`MAX_DATA`]); STATUS: 0; CYCLIC: bytes of DATA |
+//! | 6..6+n | DATA | WRITE: n = LEN bytes for ADDR..; CYCLIC: the cycle's DATA (below) |
 //! | 6+n..8+n | CRC | u16 [`crc16`] of bytes 0..6+n |
 //! | 8+n.. | padding | `0x00` up to the end of the transaction |
 //!
@@ -74,7 +74,7 @@
 //! WRITE, TAG 2, ADDR 0x0078 (INPUTS), DATA `12 34` = `B2 02 00 78 00 02 12 34 07 2B`;
 //! STATUS, TAG 3 = `C4 03 00 00 00 00 58 53`.
 //!
-//! **STATUS data** ([`STATUS_LEN`] = 20 bytes, big-endian): 0 protocol version (1), 1
+//! **STATUS data** ([`STATUS_LEN`] = 20 bytes, big-endian): 0 protocol version (2), 1
 //! reserved, 2..4 [`MAX_DATA`], 4..6 image size, 6..8 pending events (bitmap below), then
 //! u16 counters (wrapping): 8 frames accepted, 10 CRC errors, 12 bad command, 14 bad length,
 //! 16 bad address, 18 forbidden writes.
@@ -86,6 +86,15 @@
 //! `SEQ_HEAD` records the value sent. No separate acknowledge exists, so an update that comes
 //! after the host's read is never lost. The card drives IRQ low while the bitmap is not 0
 //! (level, not edge); reply FLAGS bit 0 mirrors it.
+//!
+//! **One drive cycle** (what [`SpiHost::cyclic`] does, under `dpm::host::Host::cycle`): a
+//! CYCLIC request every drive cycle, clocked as long as the longer of it and the expected
+//! reply; its MISO is the reply to the previous cycle's CYCLIC request, which the card
+//! rebuilt from the image after each of its steps while it was armed (so it carries the
+//! newest command). One transaction per drive cycle; when the MISO holds no reply to take
+//! (the first cycle, a block access came between, a late or damaged reply) the same request
+//! is sent once more, whose MISO is the reply to the first: two at most. The CYCLIC grammar
+//! follows at the end of this document.
 //!
 //! **A host access** (what [`SpiHost`] does): the request in one transaction, and in the
 //! next a STATUS request padded to the expected reply, whose MISO is the reply; anything

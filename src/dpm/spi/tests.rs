@@ -708,7 +708,7 @@ proptest! {
 /// example frames it quotes are checked here (CRC and the card's parser).
 fn spi_markdown() -> String {
     let src = include_str!("../spi.rs");
-    let consts: [(&str, String); 10] = [
+    let consts: [(&str, String); 12] = [
         ("[`MAX_TRANSACTION`]", format!("{MAX_TRANSACTION}")),
         ("[`MAX_DATA`]", format!("{MAX_DATA}")),
         ("[`T_READY_US`]", format!("{T_READY_US}")),
@@ -719,6 +719,8 @@ fn spi_markdown() -> String {
         ("[`SpiStats`]", "the card's SPI counters".to_string()),
         ("[`SpiHost`]", "the reference host (`pbcard::dpm::spi::SpiHost`)".to_string()),
         ("`layout::BLOCKS`", "the block table of `docs/DPM.md`".to_string()),
+        ("[`SpiHost::cyclic`]", "the reference host's `SpiHost::cyclic`".to_string()),
+        ("[`cyclic`]", "the CYCLIC exchange below".to_string()),
     ];
     let mut out = String::from(
         "# DPM transport over SPI (board)\n\n\
@@ -732,7 +734,7 @@ fn spi_markdown() -> String {
         let text = text.strip_prefix(' ').unwrap_or(text);
         if text.starts_with("# Byte-level specification") {
             on = true;
-            out.push_str("## Byte-level specification (protocol version 1)\n");
+            out.push_str("## Byte-level specification (protocol version 2)\n");
             continue;
         }
         if on {
@@ -743,6 +745,13 @@ fn spi_markdown() -> String {
             out.push_str(&t);
             out.push('\n');
         }
+    }
+    out.push_str("\n## The CYCLIC exchange (protocol version 2)\n\n");
+    for line in include_str!("cyclic.rs").lines() {
+        let Some(text) = line.strip_prefix("//!") else { break };
+        let text = text.strip_prefix(' ').unwrap_or(text);
+        out.push_str(&text.replace("`SpiSlave::refresh`", "the card's refresh"));
+        out.push('\n');
     }
     out
 }
