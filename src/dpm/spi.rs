@@ -818,7 +818,7 @@ impl<B: SpiBus> SpiHost<B> {
         // Fetch the reply to this request with the same request once more (its reply
         // length unknown: the longest), which starts the chain for the next cycle; the card
         // applies it again, with the same counters: no change.
-        let n = frame.max(REPLY_HEADER + cyclic::MAX_REPLY_DATA + CRC_LEN).min(MAX_TRANSACTION);
+        let n = frame.max(REPLY_HEADER + cyclic::MAX_REPLY_DATA + CRC_LEN);
         let (tag2, _) = self
             .codec
             .encode(Command::Cyclic, 0, k as u16, &d[..k], &mut self.mosi[..n])
