@@ -16,8 +16,8 @@
 #![warn(missing_docs)]
 
 pub use pbcard::dpm::host::{
-    Answer, CardEvents, ConfigOutcome, Cycle, DpmTransport, Error, Host, HostStats, MemoryTransport, OpenError, Options,
-    ParameterServer, Poll, ProcessImage, Table, Transport, TransportError,
+    Answer, CardEvents, ConfigOutcome, Cycle, DpmTransport, Error, Host, HostStats, MemoryTransport, OpenError,
+    Options, ParameterServer, Poll, ProcessImage, Table, Transport, TransportError,
 };
 
 /// The SPI transport of the board (`docs/SPI.md`): the reference SPI master ([`spi::SpiHost`]

@@ -867,6 +867,11 @@ impl<B: SpiBus> SpiHost<B> {
         &mut self.bus
     }
 
+    /// Give the bus back.
+    pub fn into_bus(self) -> B {
+        self.bus
+    }
+
     /// Requests sent again so far.
     pub fn retried(&self) -> u32 {
         self.retried

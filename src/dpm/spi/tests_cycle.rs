@@ -221,3 +221,128 @@ fn cyclic_request_and_reply_grammar() {
     assert_eq!(CyclicRequest::parse(&bad[..n]), None);
     assert_eq!(CyclicReply::decode(&[0; 19]), None);
 }
+
+// ---------------------------------------------------------------------------------------
+// Host restarts at every transaction boundary; arbitrary MISO; the CYCLIC parsers
+
+use crate::dp::Events;
+use crate::dpm::host::{Host, Options};
+use crate::dpm::spi::{BusFault, Loopback, SpiBus, SpiHost};
+use crate::dpm::{Dpm, Link};
+use proptest::prelude::*;
+
+/// A bus in front of the loopback card that dies after `left` more transactions (the host
+/// restarts there: power cut, watchdog, a new program).
+struct Cut {
+    card: Loopback,
+    left: Option<u32>,
+}
+
+impl SpiBus for Cut {
+    fn transfer(&mut self, mosi: &[u8], miso: &mut [u8]) -> Result<(), BusFault> {
+        match &mut self.left {
+            Some(0) => return Err(BusFault),
+            Some(n) => *n -= 1,
+            None => {}
+        }
+        self.card.transfer(mosi, miso)
+    }
+}
+
+fn card_step(link: &mut Link, node: &mut Node, host: &mut Host<SpiHost<Cut>>, now: Instant) {
+    let dpm = &mut host.transport_mut().bus_mut().card;
+    link.publish(node, Events::empty(), dpm.dpm_mut());
+    link.publish_command(&crate::dpm::DriveCommandImage::default(), dpm.dpm_mut());
+    link.collect(now, node, dpm.dpm());
+}
+
+fn state(speed: i16) -> DriveStateImage {
+    DriveStateImage {
+        status: DriveStatus { flags: StatusFlags::READY, speed, ..DriveStatus::default() },
+        ..DriveStateImage::EMPTY
+    }
+}
+
+#[test]
+fn a_host_restart_at_every_transaction_boundary_recovers_without_a_stale_reply() {
+    let cfg = HostConfig { station_address: 9, ..HostConfig::DEFAULT };
+    for k in 0..16u32 {
+        let (mut link, mut node) = (Link::new(), Node::new(DpSlave::new(SLAVE)));
+        link.set_startup_gate(true);
+        let bus = Cut { card: Loopback::new(Dpm::new()), left: None };
+        let mut host = Host::open(SpiHost::new(bus), Options::DEFAULT).unwrap();
+        let mut now = Instant::from_millis(0);
+        card_step(&mut link, &mut node, &mut host, now);
+        host.write_config(&cfg).unwrap();
+        for i in 0..3 {
+            now = now + Duration::from_millis(1);
+            card_step(&mut link, &mut node, &mut host, now);
+            host.cycle(now, &state(100 + i));
+        }
+        // The old host dies after k more transactions, in the middle of whatever it does.
+        host.transport_mut().bus_mut().left = Some(k);
+        for i in 0..4 {
+            host.cycle(now, &state(200 + i));
+            let _ = host.write_config(&cfg);
+            let _ = host.serve_parameters(&mut |_: &_| crate::dpm::host::Answer::Later);
+        }
+        let card = host.into_transport().bus_mut_owned();
+        // The new host: open, CONFIG again, cycles; everything it takes is the card's.
+        let mut host = Host::open(SpiHost::new(Cut { card, left: None }), Options::DEFAULT)
+            .unwrap_or_else(|e| panic!("k {k}: {e:?}"));
+        host.write_config(&cfg).unwrap();
+        for i in 0..5 {
+            now = now + Duration::from_millis(1);
+            card_step(&mut link, &mut node, &mut host, now);
+            let c = host.cycle(now, &state(300 + i));
+            if i > 0 {
+                assert!(c.cyclic && c.poll.error.is_none() && c.command.is_some(), "k {k} cycle {i}: {c:?}");
+            }
+        }
+        card_step(&mut link, &mut node, &mut host, now);
+        assert_eq!(link.read_drive_state(host.transport().bus().card.dpm()).status.speed, 304, "k {k}");
+        assert!(node.slave().is_ready() && node.slave().address() == 9, "k {k}");
+    }
+}
+
+impl SpiHost<Cut> {
+    fn bus_mut_owned(self) -> Loopback {
+        self.into_bus().card
+    }
+}
+
+/// A bus whose MISO is whatever the test gives.
+struct Noise(Vec<u8>);
+
+impl SpiBus for Noise {
+    fn transfer(&mut self, _mosi: &[u8], miso: &mut [u8]) -> Result<(), BusFault> {
+        for (i, b) in miso.iter_mut().enumerate() {
+            *b = self.0.get(i).copied().unwrap_or(0);
+        }
+        Ok(())
+    }
+}
+
+proptest! {
+    #[test]
+    fn the_host_never_panics_nor_takes_noise_for_a_reply(miso in proptest::collection::vec(any::<u8>(), 0..80)) {
+        let mut host = SpiHost::new(Noise(miso));
+        let mut buf = [0u8; 16];
+        prop_assert!(host.read(0x30, &mut buf).is_err());
+        let st = [0u8; 16];
+        let req = CyclicRequest { heartbeat: 1, drive_seq: 1, state_seq: 1, state: &st, rsp: (0, &[]), req: (0, 0) };
+        prop_assert!(host.cyclic(&req).is_err());
+    }
+
+    #[test]
+    fn cyclic_parsers_never_panic_and_round_trip(bytes in proptest::collection::vec(any::<u8>(), 0..120)) {
+        if let Some(r) = CyclicRequest::parse(&bytes) {
+            let mut out = [0u8; 128];
+            let n = r.encode(&mut out);
+            prop_assert_eq!(&out[..n], &bytes[..]);
+        }
+        if let Some(r) = CyclicReply::decode(&bytes) {
+            prop_assert_eq!(20 + r.command.len() + r.request.len(), bytes.len());
+        }
+    }
+}
