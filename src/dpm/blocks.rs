@@ -298,7 +298,8 @@ pub struct HostConfig {
     pub station_address: u8,
     /// Profile: 0 PROFIdrive, 1 manufacturer.
     pub profile: u8,
-    /// Operate mode (drive-defined).
+    /// Operate mode if the master's Set_Prm leaves it 0: 0 the card's default (PROFIdrive),
+    /// 1 PROFIdrive, 2 Bypass, 3 Echo (`layout::operate_mode`); others make CONFIG invalid.
     pub operate_mode: u8,
     /// Communication-loss reaction: 0 the drive's own setting, 1 ramp stop, 2 coast, 3 quick
     /// stop, 4 keep the last setpoint.
@@ -339,6 +340,7 @@ impl HostConfig {
     pub fn is_valid(&self) -> bool {
         self.station_address <= crate::card::MAX_STATION_ADDRESS
             && self.profile <= 1
+            && self.operate_mode <= crate::dpm::layout::operate_mode::ECHO
             && self.comm_loss_reaction <= 4
             && self.io_update_delay <= Self::MAX_IO_UPDATE_DELAY
             && (self.telegram == Telegram::None || self.telegram.is_known())

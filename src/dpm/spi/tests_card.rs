@@ -149,3 +149,15 @@ fn the_fail_safe_command_reaches_the_drive_over_the_frames() {
     assert_eq!(img.command.outputs_seq, img.outputs.seq);
     assert_eq!(c.app.host().stats().unpaired_retries, 0);
 }
+
+#[test]
+fn config_operate_mode_is_1_to_3_or_0_and_other_values_are_refused() {
+    for (mode, valid) in [(0, true), (1, true), (2, true), (3, true), (4, false), (0xFF, false)] {
+        let mut c = Card::card_only();
+        c.step();
+        c.app.host_mut().write_config(&HostConfig { operate_mode: mode, ..HostConfig::DEFAULT }).unwrap();
+        c.step();
+        let want = if valid { ConfigResult::Accepted } else { ConfigResult::Refused };
+        assert_eq!(c.app.link().card_report().config_result(), want, "operate mode {mode}");
+    }
+}
