@@ -13,6 +13,17 @@
 //! any number of bytes (at most [`MAX_TRANSACTION`]), NSS rises. The card's IRQ output
 //! (active low) is described under "Events" below.
 //!
+//! **Timing, pins, timeouts** (design values for the F411 board, not measured on hardware):
+//! NSS low at least 1 µs before the first SCK edge and high at least 1 µs after the last;
+//! every NSS low phase is a transaction, one without clocks too (it is counted and ignored,
+//! but the reply armed for it is gone): the master sends no NSS pulse without clocks. The
+//! card drives MISO and IRQ push-pull once started; during its reset and start-up (a few ms)
+//! both float: the host fits pull-ups on MISO (an absent card then reads `0xFF`, an invalid
+//! RESULT), on IRQ (released = no events) and on NSS (a host in reset selects nothing).
+//! Timeouts: the card counts the drive lost after 200 ms without a new `DRIVE.HEARTBEAT`
+//! (A140 on the drive side is the host's own 200 ms default for `CARD.HEARTBEAT`), and
+//! answers a parameter request the drive leaves unanswered for 500 ms itself (0x11 / 0xDD01).
+//!
 //! **Pipelining (depth 1).** SPI is full duplex, and a slave fed by DMA cannot compute an
 //! answer within a byte time. Therefore the reply to the request sent in transaction *k* is
 //! clocked out on MISO during transaction *k + 1* — in *k + 1* or never: the card arms it
@@ -1131,6 +1142,12 @@ impl SpiBus for Loopback {
             self.dropped = self.dropped.wrapping_add(1);
             self.pipeline.discard();
             miso.fill(NO_REPLY);
+            self.pipeline.transaction_end();
+            return Ok(());
+        }
+        if mosi.is_empty() {
+            // An NSS pulse without clocks: the board counts it and hands nothing on, but the
+            // armed reply is gone.
             self.pipeline.transaction_end();
             return Ok(());
         }
