@@ -32,8 +32,7 @@ use crate::dpm::host::{Host, Options, Transport};
 use crate::dpm::layout::operate_mode;
 use crate::dpm::spi::{Loopback, SpiHost};
 use crate::dpm::{
-    Dpm, DriveCommandImage, Link, MailboxParams, NodeSnapshot, NodeUpdate, ParamCache, PdFlags, ProcessData, PzdWords,
-    Telegram,
+    Dpm, DriveCommandImage, Link, MailboxParams, NodeSnapshot, NodeUpdate, ParamCache, PzdWords, Telegram,
 };
 use crate::drive::params::DriveTable;
 use crate::drive::{DriveConfig, SimDrive};
@@ -103,7 +102,10 @@ impl Application {
     /// drive's control board, through the SPI transport the platform feeds into
     /// [`dpm_mut`](Self::dpm_mut) (`dpm::spi::SpiSlave`).
     pub fn card_only() -> Self {
-        Self::build(SimDrive::new(DriveConfig::DEFAULT), false)
+        let mut app = Self::build(SimDrive::new(DriveConfig::DEFAULT), false);
+        // Issue 16: no parameterisation before the drive has written a valid CONFIG.
+        app.link.set_startup_gate(true);
+        app
     }
 
     fn build(sim: SimDrive, runs: bool) -> Self {
@@ -248,11 +250,8 @@ impl Application {
         self.link.set_init_error(true);
         let mut safe = DriveCommandImage::EMPTY;
         safe.command.flags = CommandFlags::COAST | CommandFlags::COMM_LOSS;
-        let dpm = self.host.transport_mut().dpm_mut();
-        let mut card = dpm.card();
-        card.write_outputs(&ProcessData::new(Telegram::None, PdFlags::empty(), &[]));
-        card.write_card_report(self.link.card_report());
-        self.link.publish_command(&safe, dpm);
+        // OUTPUTS and DRIVE_CMD of one card cycle: the host's pairing check takes it.
+        self.link.publish_safe_state(&safe, self.host.transport_mut().dpm_mut());
     }
 
     /// After a reset that followed [`fail_safe`](Self::fail_safe) (the board keeps a flag in
@@ -380,7 +379,7 @@ pub(crate) mod tests {
     use super::*;
     use crate::card;
     use crate::dp::{DpSlave, DpState};
-    use crate::dpm::{CommState, Telegram};
+    use crate::dpm::{CommState, PdFlags, ProcessData, Telegram};
     use crate::fdl::telegram::{self, FunctionCode, Header};
     use crate::profile::drive_if::ControlProfile;
     use crate::profile::profidrive::{State as DriveState, StopKind};
@@ -695,11 +694,11 @@ pub(crate) mod tests {
         // (record 47 and PKW, 8 mailbox answers each, ≈ 1.1 KiB each), the profile layer
         // (last cycle, PKW server, fault buffer) and the drive's parameter table, plus the SPI
         // frame transport of the drive's host (the host's MOSI and MISO buffers and the
-        // loopback card's reply, one longest transaction of 1034 B each, ≈ 3.1 KiB): a static
-        // in the firmware. The simulated drive's VACON application-ID table (PNU 10001, the
-        // PPO PKW) adds ≈ 0.1 KiB.
+        // loopback card's two reply buffers of its pipeline, one longest transaction of
+        // 1034 B each, ≈ 4.1 KiB): a static in the firmware. The simulated drive's VACON
+        // application-ID table (PNU 10001, the PPO PKW) adds ≈ 0.1 KiB.
         let n = core::mem::size_of::<Application>();
-        assert!(n <= 4608 + 3 * crate::dpm::spi::MAX_TRANSACTION + 256, "Application is {n} bytes");
+        assert!(n <= 4608 + 4 * crate::dpm::spi::MAX_TRANSACTION + 384 + 256, "Application is {n} bytes");
     }
 
     #[test]

@@ -166,6 +166,9 @@ mod app {
             let mut app = Application::new(DriveConfig::DEFAULT);
             #[cfg(not(any(feature = "qemu", feature = "sim-drive")))]
             let mut app = Application::card_only();
+            // Issue 16: CARD.BOOT_ID, another value on every start of the board.
+            #[cfg(feature = "board-f411")]
+            app.link_mut().set_boot_id(crate::bsp::spi::boot_id());
             app.set_baudrate(rate);
             let state = app.profidrive_state().unwrap_or(DriveState::SwitchingOnInhibited);
             Drive {

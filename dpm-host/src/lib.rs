@@ -16,9 +16,20 @@
 #![warn(missing_docs)]
 
 pub use pbcard::dpm::host::{
-    Answer, CardEvents, ConfigOutcome, DpmTransport, Error, Host, HostStats, MemoryTransport, OpenError, Options,
-    ParameterServer, Poll, ProcessImage, Table, Transport, TransportError,
+    Answer, CardEvents, ConfigOutcome, Cycle, DpmTransport, Error, Host, HostStats, MemoryTransport, OpenError,
+    Options, ParameterServer, Poll, ProcessImage, Table, Transport, TransportError,
 };
+
+/// The SPI transport of the board (`docs/SPI.md`): the reference SPI master ([`spi::SpiHost`]
+/// over the board's [`spi::SpiBus`]), its frame codec, the CYCLIC exchange, and the in-process
+/// card with the board's reply pipeline ([`spi::Loopback`]) for a port's tests.
+pub mod spi {
+    pub use pbcard::dpm::spi::cyclic::{CyclicReply, CyclicRequest};
+    pub use pbcard::dpm::spi::{
+        crc16, BusFault, Command, HostError, Loopback, Reply, ReplyError, ResultCode, SpiBus, SpiHost, SpiHostCodec,
+        StatusData, PROTOCOL_VERSION, T_READY_US,
+    };
+}
 
 /// The pbcard items a host works with, re-exported so a port needs one dependency path.
 pub use pbcard::dpm::{

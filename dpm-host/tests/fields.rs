@@ -92,6 +92,7 @@ fn every_field_crosses_the_transport_both_ways() {
         drive_losses: 0x1112,
         late_responses: 0x1314,
         mailbox_timeouts: 0x1516,
+        boot_id: 0x1718,
     };
     let values = ParamValues::new(Format::WORD, 64, &bytes(128, 0x40)).unwrap();
     let req = MailboxRequest { id: 0x0102, axis: 3, ..MailboxRequest::write(3, 0x0304, 0x0506, values) };

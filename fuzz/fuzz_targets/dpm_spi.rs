@@ -5,7 +5,8 @@
 //! * `c & 1 == 0`: the bytes go to `SpiSlave::handle` as one transaction; with `c & 2` a
 //!   valid CRC is written over the frame's announced CRC position first (so the checks
 //!   behind the CRC are reached, not just the CRC itself).
-//! * `c & 1 == 1`: the bytes go to `SpiHostCodec::decode` as MISO.
+//! * `c & 1 == 1`: the bytes go to `SpiHostCodec::decode` as MISO, and to
+//!   `CyclicReply::decode` as CYCLIC reply DATA.
 //!
 //! Checks: no panic; exactly one counter moves per transaction; the reply decodes, echoes
 //! the request, and is never longer than `MAX_REPLY`; the image changes only through an
@@ -13,6 +14,7 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
+use pbcard::dpm::spi::cyclic::CyclicReply;
 use pbcard::dpm::spi::{
     crc16, host_writable, parse_request, Command, ResultCode, SpiHostCodec, SpiSlave, MAX_REPLY, REQUEST_HEADER,
 };
@@ -23,6 +25,10 @@ fuzz_target!(|data: &[u8]| {
     if c & 1 == 1 {
         if let Ok(r) = SpiHostCodec::decode(rest) {
             assert!(r.data.len() + 10 <= rest.len());
+        }
+        // The host's CYCLIC reply parser on the same bytes as DATA.
+        if let Some(r) = CyclicReply::decode(rest) {
+            assert_eq!(20 + r.command.len() + r.request.len(), rest.len());
         }
         return;
     }
@@ -58,6 +64,12 @@ fuzz_target!(|data: &[u8]| {
             assert!(host_writable(a, req.data.len()));
             assert_eq!(&dpm.as_bytes()[a..a + req.data.len()], req.data);
             assert!(changed.iter().all(|i| (a..a + req.data.len()).contains(i)));
+            return;
+        }
+        if req.cmd == Command::Cyclic {
+            // Only host-written bytes change (DRIVE, DRIVE_STATE, MBX_RSP); the reply is one.
+            assert!(changed.iter().all(|&i| host_writable(i, 1)));
+            assert!(CyclicReply::decode(r.data).is_some());
             return;
         }
         if req.cmd == Command::Read {

@@ -23,29 +23,35 @@
 //! stream 4 channel 0 (memory → peripheral, [`TX_LEN`] bytes). No DMA interrupt: the
 //! transaction end is NSS rising.
 //!
-//! ## One transaction
+//! ## One transaction, and the reply pipeline
 //!
 //! NSS rising → EXTI15_10 → [`SpiPort::on_nss_rise`] (a few µs, never blocks on the
 //! protocol): the received length is `RX_LEN - NDTR`; both streams stop; SPI2 is **reset
 //! through RCC** and programmed again — the only way to drop the byte the TX DMA has already
 //! preloaded into the data register (without it, the next reply would start with a stale
-//! byte); RX is re-armed on a spare buffer, TX on the reply the frame task has prepared (or
-//! not at all: MISO then sends `0x00`, "no reply", as the protocol specifies). The received
-//! buffer goes to the frame task (RTIC software task, low priority), which runs
-//! `dpm::spi::SpiSlave::handle` against the image and hands back the reply buffer with
-//! [`SpiPort::reply_ready`]. That is why the HAL's `SpiSlave` / `dma::Transfer` are not
-//! used: they cannot reset and re-program SPI2 between transactions from the interrupt;
-//! GPIO, EXTI and RCC enable / reset come from the HAL.
+//! byte); RX is re-armed on a spare buffer, TX on nothing (MISO sends `0x00`, "no reply").
+//! The received buffer goes to the frame task, which runs `dpm::spi::SpiSlave::handle`
+//! against the image and hands the reply to [`SpiPort::reply_ready`]: if the next
+//! transaction has not begun (NSS high, no byte received), SPI2 is re-programmed at once
+//! with the TX DMA on the reply — it goes out in the **next** transaction (*k + 1*, the
+//! protocol's pipeline, `pbcard::dpm::spi::ReplyPipeline`, the same state machine the
+//! in-process `Loopback` runs); otherwise the reply is late and discarded, never sent in a
+//! later transaction. (The first version armed the previous reply at each NSS rise: the
+//! reply to *k* went out in *k + 2*, and the reference host never found it.)
+//! [`SpiPort::refresh_ready`] re-arms a rebuilt CYCLIC reply the same way after each card
+//! step. That is why the HAL's `SpiSlave` / `dma::Transfer` are not used: they cannot reset
+//! and re-program SPI2 between transactions from the interrupt; GPIO, EXTI and RCC enable /
+//! reset come from the HAL.
 //!
 //! Buffers: two RX and two TX buffers of about 1 KiB each (`cortex_m::singleton!`), owned
 //! by whoever holds the `&'static mut` — the DMA only ever sees a buffer this port holds.
 //! If the frame task still holds the spare RX buffer when a transaction ends (the master
 //! was faster than [`pbcard::dpm::spi::T_READY_US`]), the transaction is dropped and
-//! counted ([`PortStats::dropped`]); the master sees "no reply" and polls or repeats.
+//! counted ([`PortStats::dropped`]); the master sees "no reply" and repeats.
 
 use core::sync::atomic::{compiler_fence, Ordering};
 
-use pbcard::dpm::spi::{MAX_REPLY, MAX_TRANSACTION};
+use pbcard::dpm::spi::{PipelineStats, ReplyPipeline, MAX_REPLY, MAX_TRANSACTION};
 use stm32f4xx_hal::gpio::{Alternate, Edge, ExtiPin, Output, PinState, PushPull, Speed, PB0, PB12, PB13, PB14, PB15};
 use stm32f4xx_hal::pac::{DMA1, EXTI, SPI2, SYSCFG};
 use stm32f4xx_hal::rcc::{Enable, Rcc, Reset};
@@ -88,8 +94,9 @@ pub struct PortStats {
     pub empty: u32,
     /// Transactions dropped because the frame task had not returned the spare buffer.
     pub dropped: u32,
-    /// Transactions during which no reply was armed (MISO `0x00`).
-    pub no_reply: u32,
+    /// The reply pipeline: replies armed in time, late (discarded), transactions without
+    /// a reply, CYCLIC replies refreshed.
+    pub pipeline: PipelineStats,
 }
 
 /// SPI2 slave + DMA1 + NSS EXTI + IRQ pin.
@@ -103,12 +110,8 @@ pub struct SpiPort {
     /// Armed for RX (the DMA writes it).
     rx: Option<&'static mut RxBuf>,
     rx_spare: Option<&'static mut RxBuf>,
-    /// Armed for TX (the DMA reads it).
-    tx: Option<&'static mut TxBuf>,
-    /// A reply prepared for the next transaction.
-    tx_ready: Option<&'static mut TxBuf>,
-    /// Reply buffers nobody uses (two slots: there are two buffers).
-    tx_free: [Option<&'static mut TxBuf>; 2],
+    /// The reply buffers: which one the TX DMA reads (armed), which are free.
+    tx: ReplyPipeline<&'static mut TxBuf>,
     stats: PortStats,
 }
 
@@ -138,36 +141,47 @@ impl SpiPort {
                 }
             }
         }
-        if let Some(sent) = self.tx.take() {
-            self.put_free(sent);
-        }
-        self.tx = self.tx_ready.take();
-        if self.tx.is_none() {
-            self.stats.no_reply = self.stats.no_reply.wrapping_add(1);
-        }
+        self.tx.transaction_end();
         self.start();
         frame
     }
 
-    /// A buffer for the next reply: a free one, else the prepared one not sent yet (a newer
-    /// reply replaces it). `None` only if the frame task already holds one.
+    /// A buffer for the next reply (`None` only if the frame task already holds both).
     pub fn reply_buffer(&mut self) -> Option<&'static mut TxBuf> {
-        let [a, b] = &mut self.tx_free;
-        a.take().or_else(|| b.take()).or_else(|| self.tx_ready.take())
+        self.tx.buffer()
     }
 
-    fn put_free(&mut self, buf: &'static mut TxBuf) {
-        let slot = if self.tx_free[0].is_none() { 0 } else { 1 };
-        self.tx_free[slot] = Some(buf);
+    /// Whether no transaction has begun since the last NSS rise: NSS high and no byte
+    /// received.
+    fn idle(&self) -> bool {
+        let remaining = usize::from(self.dma.st(RX_STREAM).ndtr().read().ndt().bits());
+        self.nss.is_high() && remaining == RX_LEN
     }
 
     /// The reply in `buf` (its first `len` bytes; the rest is zeroed here) goes out in the
-    /// next transaction.
-    pub fn reply_ready(&mut self, buf: &'static mut TxBuf, len: usize) {
+    /// next transaction if that has not begun yet; else it is late and discarded (the
+    /// master sees `0x00` and repeats its request). Returns whether it was armed.
+    pub fn reply_ready(&mut self, buf: &'static mut TxBuf, len: usize) -> bool {
         buf[len.min(TX_LEN)..].fill(0);
-        if let Some(old) = self.tx_ready.replace(buf) {
-            self.put_free(old);
+        let idle = self.idle();
+        if self.tx.ready(buf, idle).is_none() {
+            return false;
         }
+        // Re-program SPI2 with the TX DMA on the armed reply (nothing was clocked yet).
+        self.stop();
+        self.start();
+        true
+    }
+
+    /// A CYCLIC reply rebuilt after a card step (`SpiSlave::refresh` on a copy of the armed
+    /// one) replaces the armed reply, if no transaction has begun.
+    pub fn refresh_ready(&mut self, buf: &'static mut TxBuf, len: usize) -> bool {
+        self.reply_ready(buf, len)
+    }
+
+    /// The armed reply (to copy it for a refresh).
+    pub fn armed(&self) -> Option<&TxBuf> {
+        self.tx.armed().map(|b| &**b)
     }
 
     /// The frame task is done with a received frame.
@@ -193,7 +207,7 @@ impl SpiPort {
 
     /// The port's counters.
     pub fn stats(&self) -> PortStats {
-        self.stats
+        PortStats { pipeline: self.tx.stats(), ..self.stats }
     }
 
     /// Stop both streams and reset SPI2 (drops the preloaded TX byte and any overrun).
@@ -241,7 +255,7 @@ impl SpiPort {
         if let Some(rx) = self.rx.as_deref_mut() {
             arm(&self.dma, RX_STREAM, dr, rx.as_mut_ptr() as u32, RX_LEN as u16, false);
         }
-        if let Some(tx) = self.tx.as_deref() {
+        if let Some(tx) = self.tx.armed().map(|b| &**b) {
             arm(&self.dma, TX_STREAM, dr, tx.as_ptr() as u32, TX_LEN as u16, true);
             self.spi.cr2().modify(|_, w| w.txdmaen().set_bit());
         }
@@ -338,9 +352,7 @@ pub fn init(parts: SpiParts) -> SpiPort {
         irq,
         rx: Some(rx_a),
         rx_spare: Some(rx_b),
-        tx: None,
-        tx_ready: None,
-        tx_free: [Some(tx_a), Some(tx_b)],
+        tx: ReplyPipeline::new(tx_a, tx_b),
         stats: PortStats::default(),
     };
     port.start();
@@ -348,4 +360,26 @@ pub fn init(parts: SpiParts) -> SpiPort {
         "DPM SPI: SPI2 slave mode 0 (NSS PB12, SCK PB13, MISO PB14, MOSI PB15), IRQ PB0 active low, DMA1 streams 3/4"
     );
     port
+}
+
+/// `.uninit` RAM that survives a system reset (panic, HardFault, IWDG): the boot counter
+/// behind `CARD.BOOT_ID` (issue 16), with a check word.
+#[link_section = ".uninit.pbcard_boot"]
+static mut BOOT_COUNTER: core::mem::MaybeUninit<[u32; 2]> = core::mem::MaybeUninit::uninit();
+
+const BOOT_CHECK: u32 = 0xB007_1D00;
+
+/// The boot identifier for `CARD.BOOT_ID`: a counter in RAM that survives resets, one more
+/// on every start (after a power-up the RAM holds noise, which is as good a start value);
+/// never 0. Call once from `init`, before interrupts are enabled.
+pub fn boot_id() -> u16 {
+    // SAFETY: called once from `init` with interrupts off; `[u32; 2]` has no invalid values.
+    let count = unsafe {
+        let p = core::ptr::addr_of_mut!(BOOT_COUNTER) as *mut [u32; 2];
+        let [c, k] = core::ptr::read_volatile(p);
+        let c = if k == BOOT_CHECK ^ c { c.wrapping_add(1) } else { c };
+        core::ptr::write_volatile(p, [c, BOOT_CHECK ^ c]);
+        c
+    };
+    (count as u16).max(1)
 }

@@ -163,6 +163,8 @@ pub struct DpSlave {
     module: Option<&'static Module>,
     /// The only module Chk_Cfg may select (the drive's telegram selection), if any.
     required_module: Option<&'static Module>,
+    /// The application is ready for parameterisation (issue 16 start-up gate).
+    app_ready: bool,
     // Faults and diagnosis flags.
     prm_fault: bool,
     cfg_fault: bool,
@@ -218,6 +220,7 @@ impl DpSlave {
             min_tsdr: BitTimes::MIN_TSDR_DEFAULT,
             module: None,
             required_module: None,
+            app_ready: true,
             prm_fault: false,
             cfg_fault: false,
             not_supported: false,
@@ -445,6 +448,20 @@ impl DpSlave {
             self.diag_changed();
         }
         Ok(())
+    }
+
+    /// The start-up gate (issue 16): while the application is not ready (the card's drive
+    /// has not written a valid configuration yet), a Set_Prm is acknowledged (SC) but not
+    /// taken: the slave stays in Wait_Prm and its diagnosis shows Station_Not_Ready
+    /// (octet 1 bit 1) with Prm_Req (octet 2 bit 0), no Prm_Fault — the master keeps
+    /// parameterising until the card is ready. Default ready.
+    pub fn set_ready(&mut self, ready: bool) {
+        self.app_ready = ready;
+    }
+
+    /// Whether the start-up gate is open ([`Self::set_ready`]).
+    pub fn is_ready(&self) -> bool {
+        self.app_ready
     }
 
     /// The standard diagnosis octets as they are now.
@@ -719,6 +736,10 @@ impl DpSlave {
                 self.stats.not_locking_master = self.stats.not_locking_master.wrapping_add(1);
                 return Reply::ShortAck;
             }
+        }
+        if !self.app_ready {
+            // The start-up gate (`set_ready`): acknowledged, not taken.
+            return Reply::ShortAck;
         }
         match prm::LockRequest::of(req.pdu) {
             Some(prm::LockRequest::MinTsdrOnly(t)) => {

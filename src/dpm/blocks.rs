@@ -178,6 +178,9 @@ pub struct CardReport {
     pub late_responses: u16,
     /// Mailbox requests timed out.
     pub mailbox_timeouts: u16,
+    /// The card's boot identifier (`CARD.BOOT_ID`: another value on every card start; 0 =
+    /// a card that does not show one).
+    pub boot_id: u16,
 }
 
 impl CardReport {
@@ -200,6 +203,7 @@ impl CardReport {
         put16(b, card::DRIVE_LOSSES, self.drive_losses);
         put16(b, card::LATE_RESPONSES, self.late_responses);
         put16(b, card::MAILBOX_TIMEOUTS, self.mailbox_timeouts);
+        put16(b, card::BOOT_ID, self.boot_id);
     }
 
     pub(super) fn decode(b: &[u8]) -> CardReport {
@@ -214,6 +218,7 @@ impl CardReport {
             drive_losses: get16(b, card::DRIVE_LOSSES),
             late_responses: get16(b, card::LATE_RESPONSES),
             mailbox_timeouts: get16(b, card::MAILBOX_TIMEOUTS),
+            boot_id: get16(b, card::BOOT_ID),
         }
     }
 }
@@ -293,7 +298,8 @@ pub struct HostConfig {
     pub station_address: u8,
     /// Profile: 0 PROFIdrive, 1 manufacturer.
     pub profile: u8,
-    /// Operate mode (drive-defined).
+    /// Operate mode if the master's Set_Prm leaves it 0: 0 the card's default (PROFIdrive),
+    /// 1 PROFIdrive, 2 Bypass, 3 Echo (`layout::operate_mode`); others make CONFIG invalid.
     pub operate_mode: u8,
     /// Communication-loss reaction: 0 the drive's own setting, 1 ramp stop, 2 coast, 3 quick
     /// stop, 4 keep the last setpoint.
@@ -334,6 +340,7 @@ impl HostConfig {
     pub fn is_valid(&self) -> bool {
         self.station_address <= crate::card::MAX_STATION_ADDRESS
             && self.profile <= 1
+            && self.operate_mode <= crate::dpm::layout::operate_mode::ECHO
             && self.comm_loss_reaction <= 4
             && self.io_update_delay <= Self::MAX_IO_UPDATE_DELAY
             && (self.telegram == Telegram::None || self.telegram.is_known())

@@ -202,6 +202,11 @@ pub mod card {
     pub const LATE_RESPONSES: usize = 0x12;
     /// u16 mailbox requests timed out (wraps).
     pub const MAILBOX_TIMEOUTS: usize = 0x14;
+    // --- issue 16 (restart rules) ---
+    /// u16 boot identifier: another value on every card start (panic and watchdog resets
+    /// included), never 0; a change tells the host to re-open and rewrite CONFIG.
+    pub const BOOT_ID: usize = 0x16;
+    // --- end issue 16 ---
     /// u16 sequence counter, written first by the card.
     pub const SEQ_TAIL: usize = LEN - 2;
 }
@@ -455,7 +460,7 @@ const _: () = {
     assert!(drive_cmd::EXTRA + 2 * EXTRA_WORDS == drive_cmd::SEQ_TAIL);
     assert!(drive_state::EXTRA + 2 * EXTRA_WORDS == drive_state::SEQ_TAIL);
     assert!(EXTRA_WORDS <= u8::MAX as usize);
-    assert!(card::MAILBOX_TIMEOUTS + 2 <= card::SEQ_TAIL);
+    assert!(card::BOOT_ID + 2 <= card::SEQ_TAIL);
     assert!(drive::EXT_DIAG + EXT_DIAG_CAPACITY <= drive::SEQ_TAIL);
     assert!(config::PZD_IN_MAP + 2 * PZD_MAP_WORDS <= config::IO_UPDATE_DELAY);
     assert!(config::IO_UPDATE_DELAY + 2 <= config::SEQ_TAIL);
@@ -723,7 +728,10 @@ pub const FIELDS: &[Field] = &[
     f!("CARD.DRIVE_LOSSES", card::DRIVE_LOSSES, 2, "u16", C, "consistent block: drive heartbeat losses (wraps)"),
     f!("CARD.LATE_RESPONSES", card::LATE_RESPONSES, 2, "u16", C, "consistent block: mailbox responses ignored, late or unknown REQ_ID (wraps)"),
     f!("CARD.MAILBOX_TIMEOUTS", card::MAILBOX_TIMEOUTS, 2, "u16", C, "consistent block: mailbox requests timed out (wraps)"),
-    f!("CARD.reserved", @ card::START + card::MAILBOX_TIMEOUTS + 2, card::SEQ_TAIL - card::MAILBOX_TIMEOUTS - 2, "reserved", C, "0"),
+    // --- issue 16 (restart rules) ---
+    f!("CARD.BOOT_ID", card::BOOT_ID, 2, "u16", C, "consistent block, layout 3 cards since issue 16 (0 = an older card): changes on every card start (panic / watchdog resets included), never 0; a new value = the card restarted: the host re-opens, rewrites CONFIG and resynchronises the event counters"),
+    f!("CARD.reserved", @ card::START + card::BOOT_ID + 2, card::SEQ_TAIL - card::BOOT_ID - 2, "reserved", C, "0"),
+    // --- end issue 16 ---
     f!("CARD.SEQ_TAIL", card::SEQ_TAIL, 2, "u16", C, SEQ_VALID),
     f!("DRIVE.SEQ_HEAD", drive::SEQ_HEAD, 2, "u16", H, SEQ_VALID),
     f!("DRIVE.HEARTBEAT", drive::HEARTBEAT, 2, "u16", H, "consistent block: changes every drive cycle; unchanged for the card's timeout = drive lost"),
@@ -739,12 +747,12 @@ pub const FIELDS: &[Field] = &[
     f!("CONFIG.SEQ_HEAD", config::SEQ_HEAD, 2, "u16", H, SEQ_VALID),
     f!("CONFIG.STATION_ADDRESS", config::STATION_ADDRESS, 1, "u8", H, "consistent block, SEQ != 0: station address 0..=125, set outside data exchange like Set_Slave_Add (reported as a changed address and stored; refused with result 4 while No_Add_Chg froze it); 126 = keep the card's address"),
     f!("CONFIG.PROFILE", config::PROFILE, 1, "u8", H, "consistent block, SEQ != 0: 0 PROFIdrive, 1 manufacturer"),
-    f!("CONFIG.OPERATE_MODE", config::OPERATE_MODE, 1, "u8", H, "consistent block, SEQ != 0: drive-defined operate mode"),
+    f!("CONFIG.OPERATE_MODE", config::OPERATE_MODE, 1, "u8", H, "consistent block, SEQ != 0: operate mode when the master's Set_Prm user parameter leaves it 0 (DRIVE_CMD.OPERATE_MODE coding): 0 the card's default (PROFIdrive), 1 PROFIdrive, 2 Bypass, 3 Echo; other values: CONFIG refused"),
     f!("CONFIG.COMM_LOSS_REACTION", config::COMM_LOSS_REACTION, 1, "u8", H, "consistent block, SEQ != 0: the drive's communication-loss reaction (P0313-style), DRIVE_CMD coding: 0 its own setting, 1 ramp stop, 2 coast, 3 quick stop, 4 keep last setpoint"),
     f!("CONFIG.TELEGRAM", config::TELEGRAM, 2, "u16", H, "consistent block, SEQ != 0: telegram selection (STATUS.TELEGRAM coding): 0 = any module; else Chk_Cfg with another module is a Cfg_Fault and PNU 922 shows this telegram"),
-    f!("CONFIG.COMM_LOSS_DELAY_MS", config::COMM_LOSS_DELAY_MS, 2, "u16", H, "consistent block, SEQ != 0: communication-loss delay in ms"),
-    f!("CONFIG.PZD_OUT_MAP", config::PZD_OUT_MAP, 16, "u16[8]", H, "consistent block, SEQ != 0: PNU of output PZD3..PZD10, 0 = unmapped"),
-    f!("CONFIG.PZD_IN_MAP", config::PZD_IN_MAP, 16, "u16[8]", H, "consistent block, SEQ != 0: PNU of input PZD3..PZD10, 0 = unmapped"),
+    f!("CONFIG.COMM_LOSS_DELAY_MS", config::COMM_LOSS_DELAY_MS, 2, "u16", H, "reserved in this firmware (accepted, not used; write 0): communication-loss delay in ms — the card reports the loss at once (DRIVE_CMD bit 12), the drive applies its own delay"),
+    f!("CONFIG.PZD_OUT_MAP", config::PZD_OUT_MAP, 16, "u16[8]", H, "reserved in this firmware (accepted, not used; write 0): PNU of output PZD3..PZD10 — the extra words reach the drive raw in DRIVE_CMD.EXTRA"),
+    f!("CONFIG.PZD_IN_MAP", config::PZD_IN_MAP, 16, "u16[8]", H, "reserved in this firmware (accepted, not used; write 0): PNU of input PZD3..PZD10 — the drive sends the extra words raw in DRIVE_STATE.EXTRA"),
     f!("CONFIG.IO_UPDATE_DELAY", config::IO_UPDATE_DELAY, 2, "u16", H, "consistent block, SEQ != 0: I/O update delay in 0.1 s (P0799-style, 0..=9990; 0 = none; a v3 host that leaves it 0 has none): after going online (and after Clear) the drive keeps its previous command this long, then the newest outputs apply"),
     f!("CONFIG.reserved", @ config::START + config::IO_UPDATE_DELAY + 2, config::SEQ_TAIL - config::IO_UPDATE_DELAY - 2, "reserved", H, "0"),
     f!("CONFIG.SEQ_TAIL", config::SEQ_TAIL, 2, "u16", H, SEQ_VALID),

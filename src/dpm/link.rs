@@ -85,6 +85,8 @@ pub struct Link {
     line_errors: u32,
     /// DEVICE.SEQ last taken.
     device_seq: u16,
+    /// Issue 16: no parameterisation before the drive's first valid CONFIG.
+    startup_gate: bool,
 }
 
 impl Default for Link {
@@ -127,6 +129,7 @@ impl Link {
                 drive_losses: 0,
                 late_responses: 0,
                 mailbox_timeouts: 0,
+                boot_id: 1,
             },
             drive_monitor: HeartbeatMonitor::new(Self::DEFAULT_DRIVE_TIMEOUT),
             drive: DriveReport::EMPTY,
@@ -136,7 +139,42 @@ impl Link {
             config_new: false,
             mailbox: Mailbox::new(Mailbox::DEFAULT_TIMEOUT),
             line_errors: 0,
+            startup_gate: false,
         }
+    }
+
+    /// `CARD.BOOT_ID`: the platform's boot identifier (another value on every card start,
+    /// panic and watchdog resets included; 0 is shown as 1). The host re-opens the interface
+    /// and rewrites CONFIG when it changes.
+    pub fn set_boot_id(&mut self, id: u16) {
+        self.report.boot_id = id.max(1);
+    }
+
+    /// The start-up gate (issue 16; on for a card with a drive, off for a card without one,
+    /// whose simulated drive writes no CONFIG): until the drive has written a CONFIG the card
+    /// takes over (result 1 or 4), the slave acknowledges Set_Prm without taking it and shows
+    /// Station_Not_Ready + Prm_Req in its diagnosis ([`crate::dp::DpSlave::set_ready`]), as
+    /// an Anybus module keeps the network off until its host has finished the setup. Applied
+    /// to the node by [`Link::apply`].
+    pub fn set_startup_gate(&mut self, on: bool) {
+        self.startup_gate = on;
+    }
+
+    /// Whether the start-up gate holds the slave back now (on, and no CONFIG taken over yet).
+    pub fn gated(&self) -> bool {
+        self.startup_gate && self.config.is_none()
+    }
+
+    /// The safe state after a card fault ([`crate::app::Application::fail_safe`]): empty
+    /// OUTPUTS (no data exchange), then DRIVE_CMD `cmd` tied to exactly these OUTPUTS, so the
+    /// host's pairing check takes the fail-safe command.
+    pub fn publish_safe_state(&mut self, cmd: &DriveCommandImage, dpm: &mut Dpm) {
+        let pd = ProcessData::new(Telegram::None, PdFlags::empty(), &[]);
+        let mut card = dpm.card();
+        self.outputs_seq = card.write_outputs(&pd);
+        card.write_card_report(&self.report);
+        self.last_outputs = Some(pd);
+        self.publish_command(cmd, dpm);
     }
 
     /// How long the drive's heartbeat may stay unchanged.
@@ -399,6 +437,9 @@ impl Link {
     pub fn apply(&mut self, node: &mut Node, update: &NodeUpdate) {
         if let Some(t) = &update.config {
             self.apply_config(node, t);
+        }
+        if node.slave().is_ready() == self.gated() {
+            node.slave_mut().set_ready(!self.gated());
         }
         if update.ext_diag {
             // Ext_Diag (Station_Status_1 b3) only for a fault: a PLC raises OB82 and shows the

@@ -6,37 +6,51 @@
 //! put behind [`SpiHost`]. The board driver (`src/bsp/spi.rs`, STM32F411 SPI2 + DMA1) only
 //! moves bytes; every decision is made here.
 //!
-//! # Byte-level specification (protocol version 1)
+//! # Byte-level specification (protocol version 2)
 //!
 //! **Electrical.** SPI mode 0 (CPOL = 0, CPHA = 0), 8-bit words, most significant bit first,
 //! SCK up to 12 MHz. NSS (active low) frames a **transaction**: NSS falls, the master clocks
 //! any number of bytes (at most [`MAX_TRANSACTION`]), NSS rises. The card's IRQ output
 //! (active low) is described under "Events" below.
 //!
-//! **Pipelining.** SPI is full duplex, and a slave fed by DMA cannot compute an answer
-//! within a byte time. Therefore the reply to the request sent in transaction *k* is clocked
-//! out on MISO during transaction *k + 1*, while the master sends its next request on MOSI.
-//! The master must clock at least as many bytes as the longer of (its request frame, the
-//! reply it expects); the master pads its request with `0x00`, the card pads its reply with
-//! `0x00`. Between NSS rising and the next NSS falling the master leaves the card
+//! **Timing, pins, timeouts** (design values for the F411 board, not measured on hardware):
+//! NSS low at least 1 µs before the first SCK edge and high at least 1 µs after the last;
+//! every NSS low phase is a transaction, one without clocks too (it is counted and ignored,
+//! but the reply armed for it is gone): the master sends no NSS pulse without clocks. The
+//! card drives MISO and IRQ push-pull once started; during its reset and start-up (a few ms)
+//! both float: the host fits pull-ups on MISO (an absent card then reads `0xFF`, an invalid
+//! RESULT), on IRQ (released = no events) and on NSS (a host in reset selects nothing).
+//! Timeouts: the card counts the drive lost after 200 ms without a new `DRIVE.HEARTBEAT`
+//! (A140 on the drive side is the host's own 200 ms default for `CARD.HEARTBEAT`), and
+//! answers a parameter request the drive leaves unanswered for 500 ms itself (0x11 / 0xDD01).
+//!
+//! **Pipelining (depth 1).** SPI is full duplex, and a slave fed by DMA cannot compute an
+//! answer within a byte time. Therefore the reply to the request sent in transaction *k* is
+//! clocked out on MISO during transaction *k + 1* — in *k + 1* or never: the card arms it
+//! the moment it is built, if *k + 1* has not begun; a reply built later is discarded, and
+//! *k + 1* then carries `0x00` bytes only (first byte `0x00` = "no reply in this
+//! transaction"). The master clocks at least as many bytes as the longer of (its request
+//! frame, the reply it expects); the master pads its request with `0x00`, the card pads its
+//! reply with `0x00`. Between NSS rising and the next NSS falling the master leaves the card
 //! [`T_READY_US`] µs (a design target, not measured on hardware: the board's frame task
-//! runs at the lowest priority and can wait behind one application step). A card that is not ready sends `0x00` bytes only (first
-//! byte `0x00` = "no reply in this transaction"); the master then polls with a STATUS
-//! request. Each reply echoes the request's TAG, so a reply is never taken for another
-//! request. READ and WRITE are idempotent: a master that lost a reply repeats the request;
-//! it also repeats a request refused with CRC_ERROR, BAD_LENGTH or BAD_COMMAND (a flipped
-//! bit in CMD or LEN moves the CRC, so line errors show as these too), while BAD_ADDRESS and
-//! FORBIDDEN_WRITE are decided on CRC-checked content and are final.
+//! runs above the application step; see `src/bsp/spi.rs`). Each reply echoes the request's
+//! TAG, CMD and ADDR, and its DATA length is the one asked (a WRITE's reply carries the
+//! request's CRC), so a reply is never taken for another request, a stale one of a
+//! restarted host included. READ and WRITE are idempotent: a master that got no reply
+//! (`0x00`, a damaged or a foreign one) repeats the request; it also repeats a request
+//! refused with CRC_ERROR, BAD_LENGTH or BAD_COMMAND (a flipped bit in CMD or LEN moves the
+//! CRC, so line errors show as these too), while BAD_ADDRESS and FORBIDDEN_WRITE are decided
+//! on CRC-checked content and are final.
 //!
 //! **Request frame** (MOSI; big-endian):
 //!
 //! | byte | field | meaning |
 //! |---|---|---|
-//! | 0 | CMD | [`Command`]: `0xA1` READ, `0xB2` WRITE, `0xC4` STATUS |
+//! | 0 | CMD | [`Command`]: `0xA1` READ, `0xB2` WRITE, `0xC4` STATUS, `0xD8` CYCLIC (version 2, below) |
 //! | 1 | TAG | chosen by the master, echoed in the reply |
 //! | 2..4 | ADDR | u16 offset in the DPM image (`docs/DPM.md`); STATUS: 0 |
-//! | 4..6 | LEN | u16 data length: READ bytes wanted, WRITE bytes of DATA (1..=[`MAX_DATA`]); STATUS: 0 |
-//! | 6..6+n | DATA | WRITE only: n = LEN bytes for ADDR.. |
+//! | 4..6 | LEN | u16 data length: READ bytes wanted, WRITE bytes of DATA (1..=[`MAX_DATA`]); STATUS: 0; CYCLIC: bytes of DATA |
+//! | 6..6+n | DATA | WRITE: n = LEN bytes for ADDR..; CYCLIC: the cycle's DATA (below) |
 //! | 6+n..8+n | CRC | u16 [`crc16`] of bytes 0..6+n |
 //! | 8+n.. | padding | `0x00` up to the end of the transaction |
 //!
@@ -49,8 +63,8 @@
 //! | 2 | CMD | the request's CMD (as received) |
 //! | 3 | FLAGS | bit 0: events pending (the IRQ line is asserted); other bits 0 |
 //! | 4..6 | ADDR | the request's ADDR (as received) |
-//! | 6..8 | LEN | u16 n = bytes of DATA that follow (READ OK: the LEN asked; STATUS OK: [`STATUS_LEN`]; else 0) |
-//! | 8..8+n | DATA | READ: image bytes ADDR..ADDR+n; STATUS: see below |
+//! | 6..8 | LEN | u16 n = bytes of DATA that follow (READ OK: the LEN asked; WRITE OK: 2; STATUS OK: [`STATUS_LEN`]; else 0) |
+//! | 8..8+n | DATA | READ: image bytes ADDR..ADDR+n; WRITE: the request's CRC (u16); STATUS: see below |
 //! | 8+n..10+n | CRC | u16 [`crc16`] of bytes 0..8+n |
 //! | 10+n.. | padding | `0x00` |
 //!
@@ -71,7 +85,7 @@
 //! WRITE, TAG 2, ADDR 0x0078 (INPUTS), DATA `12 34` = `B2 02 00 78 00 02 12 34 07 2B`;
 //! STATUS, TAG 3 = `C4 03 00 00 00 00 58 53`.
 //!
-//! **STATUS data** ([`STATUS_LEN`] = 20 bytes, big-endian): 0 protocol version (1), 1
+//! **STATUS data** ([`STATUS_LEN`] = 20 bytes, big-endian): 0 protocol version (2), 1
 //! reserved, 2..4 [`MAX_DATA`], 4..6 image size, 6..8 pending events (bitmap below), then
 //! u16 counters (wrapping): 8 frames accepted, 10 CRC errors, 12 bad command, 14 bad length,
 //! 16 bad address, 18 forbidden writes.
@@ -84,16 +98,26 @@
 //! after the host's read is never lost. The card drives IRQ low while the bitmap is not 0
 //! (level, not edge); reply FLAGS bit 0 mirrors it.
 //!
-//! **A host cycle** (what [`SpiHost`] does): READ STATUS/OUTPUTS/CARD when IRQ is low, WRITE
-//! INPUTS/DRIVE, and after each request one STATUS request to fetch its reply, matching the
-//! TAG; a STATUS reply with another TAG is older and skipped, `0x00` means "poll again".
+//! **One drive cycle** (what [`SpiHost::cyclic`] does, under `dpm::host::Host::cycle`): a
+//! CYCLIC request every drive cycle, clocked as long as the longer of it and the expected
+//! reply; its MISO is the reply to the previous cycle's CYCLIC request, which the card
+//! rebuilt from the image after each of its steps while it was armed (so it carries the
+//! newest command). One transaction per drive cycle; when the MISO holds no reply to take
+//! (the first cycle, a block access came between, a late or damaged reply) the same request
+//! is sent once more, whose MISO is the reply to the first: two at most. The CYCLIC grammar
+//! follows at the end of this document.
+//!
+//! **A host access** (what [`SpiHost`] does): the request in one transaction, and in the
+//! next a STATUS request padded to the expected reply, whose MISO is the reply; anything
+//! but the echoing reply sends the request again (three retries).
 
 use super::host::{Transport, TransportError};
-use super::layout::{Writer, BLOCKS};
+use super::layout::{self, Writer, BLOCKS};
 use super::{Dpm, IMAGE_SIZE};
+pub use pipeline::{PipelineStats, ReplyPipeline};
 
 /// Protocol version, first byte of the STATUS data.
-pub const PROTOCOL_VERSION: u8 = 1;
+pub const PROTOCOL_VERSION: u8 = 2;
 /// Most data bytes one READ or WRITE moves.
 pub const MAX_DATA: usize = 1024;
 /// Request header: CMD, TAG, ADDR, LEN.
@@ -116,8 +140,19 @@ pub const T_READY_US: u32 = 200;
 pub const NO_REPLY: u8 = 0x00;
 /// Reply FLAGS bit 0: events pending (IRQ asserted).
 pub const FLAG_EVENTS: u8 = 1 << 0;
+/// Bytes of DATA in the reply to an accepted WRITE: the request's CRC, so the host can tell
+/// the reply to its own WRITE from any other (a stale one after a restart).
+pub const WRITE_ECHO_LEN: usize = 2;
+
+/// Indices in `layout::BLOCKS` of the blocks a CYCLIC reply carries.
+const CARD_BLOCK: usize = 5;
+const OUTPUTS_BLOCK: usize = 2;
+const DRIVE_CMD_BLOCK: usize = 10;
 
 const _: () = {
+    assert!(BLOCKS[CARD_BLOCK].start == layout::card::START);
+    assert!(BLOCKS[OUTPUTS_BLOCK].start == layout::outputs::START);
+    assert!(BLOCKS[DRIVE_CMD_BLOCK].start == layout::drive_cmd::START);
     assert!(BLOCKS.len() <= 16, "the events bitmap is a u16");
     assert!(MAX_DATA <= u16::MAX as usize);
     assert!(IMAGE_SIZE <= u16::MAX as usize);
@@ -136,6 +171,8 @@ pub enum Command {
     Write = 0xB2,
     /// The card's protocol status and counters; also the "poll" that fetches a reply.
     Status = 0xC4,
+    /// One drive cycle's exchange (protocol version 2, [`cyclic`]).
+    Cyclic = 0xD8,
 }
 
 impl Command {
@@ -145,6 +182,7 @@ impl Command {
             0xA1 => Some(Command::Read),
             0xB2 => Some(Command::Write),
             0xC4 => Some(Command::Status),
+            0xD8 => Some(Command::Cyclic),
             _ => None,
         }
     }
@@ -152,7 +190,7 @@ impl Command {
     /// Bytes of DATA a request with `len` in its LEN field carries.
     pub const fn data_len(self, len: u16) -> usize {
         match self {
-            Command::Write => len as usize,
+            Command::Write | Command::Cyclic => len as usize,
             Command::Read | Command::Status => 0,
         }
     }
@@ -284,6 +322,8 @@ pub struct Request<'a> {
     pub len: u16,
     /// WRITE data (empty otherwise).
     pub data: &'a [u8],
+    /// The frame's CRC (a WRITE's reply echoes it).
+    pub crc: u16,
 }
 
 /// Why a transaction was refused, with what could be read of its header (for the reply's
@@ -331,6 +371,12 @@ pub fn parse_request(rx: &[u8]) -> Result<Request<'_>, Refusal> {
     match cmd {
         Command::Status if addr != 0 || len != 0 => return Err(refuse(ResultCode::BadLength)),
         Command::Status => {}
+        Command::Cyclic => {
+            let data = &rx[REQUEST_HEADER..REQUEST_HEADER + data_len];
+            if addr != 0 || cyclic::CyclicRequest::parse(data).is_none() {
+                return Err(refuse(ResultCode::BadLength));
+            }
+        }
         Command::Read | Command::Write => {
             if n == 0 || n > MAX_DATA {
                 return Err(refuse(ResultCode::BadLength));
@@ -343,7 +389,14 @@ pub fn parse_request(rx: &[u8]) -> Result<Request<'_>, Refusal> {
             }
         }
     }
-    Ok(Request { cmd, tag: rx[1], addr, len, data: &rx[REQUEST_HEADER..REQUEST_HEADER + data_len] })
+    Ok(Request {
+        cmd,
+        tag: rx[1],
+        addr,
+        len,
+        data: &rx[REQUEST_HEADER..REQUEST_HEADER + data_len],
+        crc: get16(rx, frame - CRC_LEN),
+    })
 }
 
 /// Whether `b` is all `0x00` (the padding check: four bytes per step).
@@ -385,6 +438,9 @@ pub const EVENT_BLOCKS: u16 = {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct SpiSlave {
     stats: SpiStats,
+    /// The last accepted request was CYCLIC: its TAG and the MBX_REQ fragment it asked for
+    /// (the armed reply is refreshed from them).
+    cyclic: Option<(u8, (u8, u8))>,
     /// Per block: the `SEQ_HEAD` value the host last read (0 = never read).
     host_seen: [u16; BLOCKS.len()],
 }
@@ -407,6 +463,7 @@ impl SpiSlave {
                 bad_address: 0,
                 forbidden_writes: 0,
             },
+            cyclic: None,
             host_seen: [0; BLOCKS.len()],
         }
     }
@@ -439,6 +496,7 @@ impl SpiSlave {
     /// transaction, followed by `0x00` padding) is written to the start of `reply`. Returns
     /// the reply's length. Never panics, whatever `rx` holds.
     pub fn handle(&mut self, rx: &[u8], dpm: &mut Dpm, reply: &mut [u8; MAX_REPLY]) -> usize {
+        self.cyclic = None;
         let (result, cmd, tag, addr, n) = match parse_request(rx) {
             Ok(req) => {
                 let n = match req.cmd {
@@ -451,9 +509,19 @@ impl SpiSlave {
                     Command::Write => {
                         let a = usize::from(req.addr);
                         dpm.as_bytes_mut()[a..a + req.data.len()].copy_from_slice(req.data);
-                        0
+                        put16(reply, REPLY_HEADER, req.crc);
+                        WRITE_ECHO_LEN
                     }
                     Command::Status => STATUS_LEN,
+                    Command::Cyclic => match cyclic::CyclicRequest::parse(req.data) {
+                        Some(c) => {
+                            c.apply(dpm);
+                            self.cyclic = Some((req.tag, c.req));
+                            self.cyclic_data(dpm, c.req, reply)
+                        }
+                        // `parse_request` checked it.
+                        None => 0,
+                    },
                 };
                 self.stats.count(ResultCode::Ok);
                 if req.cmd == Command::Status {
@@ -466,6 +534,12 @@ impl SpiSlave {
                 (r.result, r.cmd, r.tag, r.addr, 0)
             }
         };
+        self.finish(dpm, reply, (result, cmd, tag, addr), n)
+    }
+
+    /// The reply header and CRC around `n` bytes of DATA already in place.
+    fn finish(&self, dpm: &Dpm, reply: &mut [u8; MAX_REPLY], head: (ResultCode, u8, u8, u16), n: usize) -> usize {
+        let (result, cmd, tag, addr) = head;
         reply[0] = result as u8;
         reply[1] = tag;
         reply[2] = cmd;
@@ -476,6 +550,25 @@ impl SpiSlave {
         let crc = crc16(&reply[..end]);
         put16(reply, end, crc);
         end + CRC_LEN
+    }
+
+    /// The CYCLIC reply DATA from the image as it is now; the blocks it carries (CARD,
+    /// OUTPUTS, DRIVE_CMD: the command names its outputs) count as read for the events.
+    fn cyclic_data(&mut self, dpm: &Dpm, req: (u8, u8), reply: &mut [u8; MAX_REPLY]) -> usize {
+        for b in [&layout::BLOCKS[CARD_BLOCK], &layout::BLOCKS[OUTPUTS_BLOCK], &layout::BLOCKS[DRIVE_CMD_BLOCK]] {
+            self.note_read(dpm, b.start, 2);
+        }
+        let events = self.events(dpm);
+        cyclic::build_reply(dpm, events, req, &mut reply[REPLY_HEADER..])
+    }
+
+    /// Rebuild an armed reply with the image as it is now, if it answers a request whose
+    /// reply carries live data (a CYCLIC exchange): returns its new length. `None`: the reply
+    /// stays as built (READ / WRITE / STATUS replies are the image at request time).
+    pub fn refresh(&mut self, dpm: &Dpm, reply: &mut [u8; MAX_REPLY]) -> Option<usize> {
+        let (tag, req) = self.cyclic?;
+        let n = self.cyclic_data(dpm, req, reply);
+        Some(self.finish(dpm, reply, (ResultCode::Ok, Command::Cyclic as u8, tag, 0), n))
     }
 
     /// An accepted READ of `a..a + n` clears the events of the blocks whose `SEQ_HEAD` it
@@ -586,7 +679,7 @@ impl SpiHostCodec {
     /// `data` is sent for WRITE only; for READ, `len` is the bytes wanted. `None` if `out`
     /// is too short for the frame.
     pub fn encode(&mut self, cmd: Command, addr: u16, len: u16, data: &[u8], out: &mut [u8]) -> Option<(u8, usize)> {
-        let data = if cmd == Command::Write { data } else { &[] };
+        let data = if matches!(cmd, Command::Write | Command::Cyclic) { data } else { &[] };
         let n = REQUEST_HEADER + data.len() + CRC_LEN;
         if out.len() < n {
             return None;
@@ -665,7 +758,10 @@ pub enum HostError {
 
 /// The host side over any [`SpiBus`]: `read(offset, buf)` / `write(offset, data)` on the
 /// card's image, split into frames of at most [`MAX_DATA`] bytes, each confirmed by its
-/// reply (fetched with STATUS polls, TAG-matched; CRC errors either way are retried).
+/// reply, fetched in the next transaction (a STATUS request padded to the reply's length).
+/// A reply is taken only when it echoes the request: TAG, CMD, ADDR, and the data length
+/// asked (a WRITE: the request's CRC); anything else — `0x00` (the card was late), a stale
+/// reply, a damaged one, a line-error refusal — sends the request again, up to the retries.
 #[derive(Debug, Clone)]
 pub struct SpiHost<B: SpiBus> {
     bus: B,
@@ -674,14 +770,19 @@ pub struct SpiHost<B: SpiBus> {
     miso: [u8; MAX_TRANSACTION],
     /// Requests sent again after a lost or corrupted reply.
     retries: u8,
-    /// STATUS polls per request while the card answers "no reply".
-    polls: u8,
     last_flags: u8,
     retried: u32,
+    transactions: u32,
+    bytes: u32,
+    /// The TAG of the CYCLIC request sent in the last transaction (its reply comes in the
+    /// next one: the next cycle's CYCLIC request fetches it).
+    cyclic_pending: Option<u8>,
+    /// DATA bytes of the last CYCLIC reply (the next transaction is clocked that long).
+    cyclic_reply_len: usize,
 }
 
 impl<B: SpiBus> SpiHost<B> {
-    /// Three retries, eight polls per try.
+    /// Three retries.
     pub fn new(bus: B) -> Self {
         SpiHost {
             bus,
@@ -689,10 +790,82 @@ impl<B: SpiBus> SpiHost<B> {
             mosi: [0; MAX_TRANSACTION],
             miso: [0; MAX_TRANSACTION],
             retries: 3,
-            polls: 8,
             last_flags: 0,
             retried: 0,
+            transactions: 0,
+            bytes: 0,
+            cyclic_pending: None,
+            cyclic_reply_len: cyclic::MAX_REPLY_DATA,
         }
+    }
+
+    /// One drive cycle's CYCLIC exchange: sends `req` and returns a CYCLIC reply's DATA
+    /// ([`cyclic::CyclicReply::decode`]). In the steady state this is **one** transaction: its
+    /// MISO is the reply to the previous cycle's CYCLIC request, which the card refreshed
+    /// after its last step (the newest command). When there is none to take (the first
+    /// cycle, a block access came between, the reply was late or damaged) a second
+    /// transaction (the same request again) fetches the reply to this one. Never more: a failure is
+    /// returned, and the next cycle tries again (the reference host never blocks its cycle).
+    pub fn cyclic(&mut self, req: &cyclic::CyclicRequest<'_>) -> Result<&[u8], HostError> {
+        let prev = self.cyclic_pending.take();
+        let mut d = [0u8; cyclic::MAX_REQUEST_DATA];
+        if req.len() > d.len() {
+            return Err(HostError::BadRequest);
+        }
+        let k = req.encode(&mut d);
+        let frame = REQUEST_HEADER + k + CRC_LEN;
+        let n = frame.max(REPLY_HEADER + self.cyclic_reply_len + CRC_LEN).min(MAX_TRANSACTION);
+        let (tag, _) = self
+            .codec
+            .encode(Command::Cyclic, 0, k as u16, &d[..k], &mut self.mosi[..n])
+            .ok_or(HostError::BadRequest)?;
+        self.transfer(n)?;
+        if let Some(ptag) = prev {
+            if let Some(r) = self.cyclic_reply(ptag, n) {
+                self.cyclic_pending = Some(tag);
+                return Ok(&self.miso[REPLY_HEADER..REPLY_HEADER + r]);
+            }
+        }
+        // Fetch the reply to this request with the same request once more (its reply
+        // length unknown: the longest), which starts the chain for the next cycle; the card
+        // applies it again, with the same counters: no change.
+        let n = frame.max(REPLY_HEADER + cyclic::MAX_REPLY_DATA + CRC_LEN);
+        let (tag2, _) = self
+            .codec
+            .encode(Command::Cyclic, 0, k as u16, &d[..k], &mut self.mosi[..n])
+            .ok_or(HostError::BadRequest)?;
+        self.transfer(n)?;
+        match self.cyclic_reply(tag, n) {
+            Some(r) => {
+                self.cyclic_pending = Some(tag2);
+                Ok(&self.miso[REPLY_HEADER..REPLY_HEADER + r])
+            }
+            None => match SpiHostCodec::decode(&self.miso[..n]) {
+                Ok(r) if r.tag == tag && r.result != ResultCode::Ok => Err(HostError::Refused(r.result)),
+                _ => {
+                    // Perhaps the reply to the repeated request comes next cycle.
+                    self.cyclic_pending = Some(tag2);
+                    Err(HostError::NoReply)
+                }
+            },
+        }
+    }
+
+    /// The CYCLIC reply tagged `tag` in the MISO of the last transaction (`n` bytes): its
+    /// DATA length, or `None`.
+    fn cyclic_reply(&mut self, tag: u8, n: usize) -> Option<usize> {
+        let r = SpiHostCodec::decode(&self.miso[..n]).ok()?;
+        self.last_flags = r.flags;
+        let ok = r.tag == tag
+            && r.cmd == Command::Cyclic as u8
+            && r.result == ResultCode::Ok
+            && r.addr == 0
+            && cyclic::CyclicReply::decode(r.data).is_some();
+        if !ok {
+            return None;
+        }
+        self.cyclic_reply_len = r.data.len();
+        Some(r.data.len())
     }
 
     /// The bus (the loopback card, for a test).
@@ -705,9 +878,20 @@ impl<B: SpiBus> SpiHost<B> {
         &mut self.bus
     }
 
+    /// Give the bus back.
+    pub fn into_bus(self) -> B {
+        self.bus
+    }
+
     /// Requests sent again so far.
     pub fn retried(&self) -> u32 {
         self.retried
+    }
+
+    /// Transactions run so far, and the bytes clocked in them (each byte one SCK octet,
+    /// both directions at once).
+    pub fn traffic(&self) -> (u32, u32) {
+        (self.transactions, self.bytes)
     }
 
     /// FLAGS of the last reply: [`FLAG_EVENTS`] = the card has pending events (IRQ).
@@ -721,6 +905,7 @@ impl<B: SpiBus> SpiHost<B> {
         for (i, chunk) in buf.chunks_mut(MAX_DATA).enumerate() {
             let at = offset + (i * MAX_DATA) as u16;
             let data = self.exchange(Command::Read, at, chunk.len() as u16, &[])?;
+            // `exchange` checked the length against the one asked.
             chunk.copy_from_slice(data);
         }
         Ok(())
@@ -742,15 +927,24 @@ impl<B: SpiBus> SpiHost<B> {
         StatusData::decode(d).ok_or(HostError::NoReply)
     }
 
+    /// One full-duplex transaction of `n` bytes from `self.mosi` (counted).
+    pub(crate) fn transfer(&mut self, n: usize) -> Result<(), HostError> {
+        self.transactions = self.transactions.wrapping_add(1);
+        self.bytes = self.bytes.wrapping_add(n as u32);
+        self.bus.transfer(&self.mosi[..n], &mut self.miso[..n]).map_err(|_| HostError::Bus)
+    }
+
     /// One request and its reply's data (in `self.miso`).
     fn exchange(&mut self, cmd: Command, addr: u16, len: u16, data: &[u8]) -> Result<&[u8], HostError> {
-        let want = REPLY_HEADER
-            + match cmd {
-                Command::Read => usize::from(len),
-                Command::Status => STATUS_LEN,
-                Command::Write => 0,
-            }
-            + CRC_LEN;
+        let n_data = match cmd {
+            Command::Read => usize::from(len),
+            Command::Status => STATUS_LEN,
+            Command::Write => WRITE_ECHO_LEN,
+            // One per drive cycle, through `cyclic`.
+            Command::Cyclic => return Err(HostError::BadRequest),
+        };
+        self.cyclic_pending = None;
+        let want = REPLY_HEADER + n_data + CRC_LEN;
         let mut last = HostError::NoReply;
         for attempt in 0..=self.retries {
             if attempt > 0 {
@@ -761,43 +955,36 @@ impl<B: SpiBus> SpiHost<B> {
             let frame = REQUEST_HEADER + if cmd == Command::Write { data.len() } else { 0 } + CRC_LEN;
             let out = self.mosi.get_mut(..frame).ok_or(HostError::BadRequest)?;
             let (tag, n) = self.codec.encode(cmd, addr, len, data, out).ok_or(HostError::BadRequest)?;
-            self.bus.transfer(&self.mosi[..n], &mut self.miso[..n]).map_err(|_| HostError::Bus)?;
-            match self.poll_reply(tag, want)? {
-                Some(ResultCode::Ok) => {
-                    let n = usize::from(get16(&self.miso, 6));
-                    return Ok(&self.miso[REPLY_HEADER..REPLY_HEADER + n]);
+            let request_crc = get16(&self.mosi, n - CRC_LEN);
+            self.transfer(n)?;
+            // The next transaction fetches the reply: a STATUS request padded to it.
+            let fetch = (REQUEST_HEADER + CRC_LEN).max(want).min(MAX_TRANSACTION);
+            let out = &mut self.mosi[..fetch];
+            self.codec.encode(Command::Status, 0, 0, &[], out).ok_or(HostError::BadRequest)?;
+            self.transfer(fetch)?;
+            let r = match SpiHostCodec::decode(&self.miso[..fetch]) {
+                Ok(r) => r,
+                // `0x00`: the card was late (or dropped the request); else a damaged reply.
+                Err(_) => continue,
+            };
+            self.last_flags = r.flags;
+            if r.tag != tag || r.cmd != cmd as u8 || r.addr != addr {
+                // Not the reply to this request (a stale one): ask again.
+                continue;
+            }
+            match r.result {
+                ResultCode::Ok => {
+                    let echo_ok = r.data.len() == n_data && (cmd != Command::Write || get16(r.data, 0) == request_crc);
+                    if echo_ok {
+                        return Ok(&self.miso[REPLY_HEADER..REPLY_HEADER + n_data]);
+                    }
                 }
                 // Our (well-formed) request was damaged on the way: send it again.
-                Some(r) if r.line_error() => last = HostError::Refused(r),
-                None => last = HostError::NoReply,
-                Some(r) => return Err(HostError::Refused(r)),
+                r if r.line_error() => last = HostError::Refused(r),
+                r => return Err(HostError::Refused(r)),
             }
         }
         Err(last)
-    }
-
-    /// Poll with STATUS until the reply tagged `tag` comes: its RESULT, or `None` when it
-    /// did not come (lost, corrupted).
-    fn poll_reply(&mut self, tag: u8, want: usize) -> Result<Option<ResultCode>, HostError> {
-        for _ in 0..self.polls {
-            // The poll is padded to the reply we expect (the card clocks it out meanwhile).
-            let len = (REQUEST_HEADER + CRC_LEN).max(want).min(MAX_TRANSACTION);
-            let out = &mut self.mosi[..len];
-            self.codec.encode(Command::Status, 0, 0, &[], out).ok_or(HostError::BadRequest)?;
-            self.bus.transfer(&self.mosi[..len], &mut self.miso[..len]).map_err(|_| HostError::Bus)?;
-            match SpiHostCodec::decode(&self.miso[..len]) {
-                Ok(r) if r.tag == tag => {
-                    self.last_flags = r.flags;
-                    return Ok(Some(r.result));
-                }
-                // An older reply (a poll's): ours comes later.
-                Ok(r) => self.last_flags = r.flags,
-                Err(ReplyError::NoReply) => {}
-                // The reply to our request was damaged: it cannot be fetched again.
-                Err(_) => return Ok(None),
-            }
-        }
-        Ok(None)
     }
 }
 
@@ -835,6 +1022,20 @@ impl<B: SpiBus> Transport for SpiHost<B> {
     fn write(&mut self, offset: u16, data: &[u8]) -> Result<(), TransportError> {
         SpiHost::write(self, offset, data).map_err(TransportError::from)
     }
+    fn cyclic(
+        &mut self,
+        req: &cyclic::CyclicRequest<'_>,
+        out: &mut [u8; cyclic::MAX_REPLY_DATA],
+    ) -> Option<Result<usize, TransportError>> {
+        Some(match SpiHost::cyclic(self, req) {
+            Ok(d) if d.len() <= out.len() => {
+                out[..d.len()].copy_from_slice(d);
+                Ok(d.len())
+            }
+            Ok(_) => Err(TransportError::Corrupt),
+            Err(e) => Err(e.into()),
+        })
+    }
 }
 
 impl SpiHost<Loopback> {
@@ -849,23 +1050,37 @@ impl SpiHost<Loopback> {
     }
 }
 
-/// An in-process card behind an [`SpiBus`]: the image, an [`SpiSlave`], and the reply
-/// pipelined into the next transaction exactly as the board does it (`0x00` padding, "no
-/// reply" while busy). For the QEMU build, the soft slave and the tests.
+/// An in-process card behind an [`SpiBus`]: the image, an [`SpiSlave`], and the board's
+/// reply pipeline ([`ReplyPipeline`], the same state machine `src/bsp/spi.rs` runs): the reply
+/// to transaction *k* goes out in *k + 1* or never. Fault injection models the board's two
+/// ways of missing it: [`set_late`](Self::set_late) (the frame task finished after the next
+/// NSS fall) and [`set_busy`](Self::set_busy) (the frame task still held the receive buffer).
+/// For the QEMU build, the soft slave and the tests.
 #[derive(Debug, Clone)]
 pub struct Loopback {
     dpm: Dpm,
     slave: SpiSlave,
-    reply: [u8; MAX_REPLY],
-    reply_len: usize,
+    replies: [[u8; MAX_REPLY]; 2],
+    lens: [usize; 2],
+    pipeline: ReplyPipeline<usize>,
     busy: u32,
+    late: u32,
     dropped: u32,
 }
 
 impl Loopback {
     /// A card serving `dpm`, no reply pending.
     pub fn new(dpm: Dpm) -> Self {
-        Loopback { dpm, slave: SpiSlave::new(), reply: [0; MAX_REPLY], reply_len: 0, busy: 0, dropped: 0 }
+        Loopback {
+            dpm,
+            slave: SpiSlave::new(),
+            replies: [[0; MAX_REPLY]; 2],
+            lens: [0; 2],
+            pipeline: ReplyPipeline::new(0, 1),
+            busy: 0,
+            late: 0,
+            dropped: 0,
+        }
     }
 
     /// The image.
@@ -883,16 +1098,32 @@ impl Loopback {
         &self.slave
     }
 
+    /// The card's protocol state, writable (a test restarts it).
+    pub fn slave_mut(&mut self) -> &mut SpiSlave {
+        &mut self.slave
+    }
+
+    /// The reply pipeline's counters.
+    pub fn pipeline(&self) -> PipelineStats {
+        self.pipeline.stats()
+    }
+
     /// The IRQ line (asserted = true).
     pub fn irq(&self) -> bool {
         self.slave.irq(&self.dpm)
     }
 
     /// Fault injection: the next `n` transactions find the card busy — MISO `0x00`, the
-    /// request dropped (what the board does when its frame task has not taken the previous
-    /// frame yet).
+    /// request dropped, the reply armed for it lost (what the board does when its frame task
+    /// has not returned the receive buffer yet).
     pub fn set_busy(&mut self, n: u32) {
         self.busy = n;
+    }
+
+    /// Fault injection: the replies to the next `n` transactions are late (built after the
+    /// following transaction began): each is discarded, that transaction's MISO is `0x00`.
+    pub fn set_late(&mut self, n: u32) {
+        self.late = n;
     }
 
     /// Transactions dropped while busy.
@@ -909,16 +1140,52 @@ impl SpiBus for Loopback {
         if self.busy > 0 {
             self.busy -= 1;
             self.dropped = self.dropped.wrapping_add(1);
+            self.pipeline.discard();
             miso.fill(NO_REPLY);
+            self.pipeline.transaction_end();
             return Ok(());
         }
-        let k = self.reply_len.min(miso.len());
-        miso[..k].copy_from_slice(&self.reply[..k]);
-        miso[k..].fill(0);
-        self.reply_len = self.slave.handle(mosi, &mut self.dpm, &mut self.reply);
+        if mosi.is_empty() {
+            // An NSS pulse without clocks: the board counts it and hands nothing on, but the
+            // armed reply is gone.
+            self.pipeline.transaction_end();
+            return Ok(());
+        }
+        // The board rebuilds an armed CYCLIC reply after each card step (the image may have
+        // changed since the request): the loopback does it when the transaction begins.
+        if let Some(&i) = self.pipeline.armed() {
+            if let Some(n) = self.slave.refresh(&self.dpm, &mut self.replies[i]) {
+                self.lens[i] = n;
+            }
+        }
+        match self.pipeline.armed() {
+            Some(&i) => {
+                let k = self.lens[i].min(miso.len());
+                miso[..k].copy_from_slice(&self.replies[i][..k]);
+                miso[k..].fill(0);
+            }
+            None => miso.fill(NO_REPLY),
+        }
+        self.pipeline.transaction_end();
+        let Some(i) = self.pipeline.buffer() else { return Ok(()) };
+        self.lens[i] = self.slave.handle(mosi, &mut self.dpm, &mut self.replies[i]);
+        let idle = if self.late > 0 {
+            self.late -= 1;
+            false
+        } else {
+            true
+        };
+        self.pipeline.ready(i, idle);
         Ok(())
     }
 }
 
+pub mod cyclic;
+pub mod pipeline;
+
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_card;
+#[cfg(test)]
+mod tests_cycle;

@@ -20,9 +20,11 @@ pub mod transport;
 
 use crate::dpm::codec::{self, BlockCodec, BlockError, Header};
 use crate::dpm::layout::{self, cap, CARD_EVENT_COUNT, EXT_DIAG_CAPACITY};
+use crate::dpm::spi::cyclic;
 use crate::dpm::{
-    mailbox, CardEvent, CardReport, ConfigResult, DriveCommandImage, DriveReport, DriveStateImage, HeartbeatMonitor,
-    HostConfig, Identity, Liveness, MailboxRequest, MailboxResponse, ParamValues, ProcessData, Status, Torn,
+    mailbox, CardEvent, CardReport, CommState, ConfigResult, DriveCommandImage, DriveReport, DriveStateImage,
+    HeartbeatMonitor, HostConfig, Identity, Liveness, MailboxRequest, MailboxResponse, ParamValues, ProcessData,
+    Status, Torn,
 };
 use crate::profile::param::{ParamError, ParameterAccess};
 use crate::time::{Duration, Instant};
@@ -225,12 +227,36 @@ pub struct Poll {
     pub card_returned: bool,
     /// Card → drive events since the last poll (none on the first read after [`Host::open`]).
     pub events: CardEvents,
+    /// `CARD.BOOT_ID` changed: the card restarted. This poll has re-opened the interface
+    /// (header checked again), rewritten the last CONFIG, taken the event counters as they
+    /// are now (no events reported for the restart's counter reset) and forgotten the
+    /// mailbox state; the card's start-up gate opens once it takes the CONFIG over.
+    pub card_restarted: bool,
     /// The CARD block as read now (`None`: not served, torn on every attempt, or the transport
     /// failed — see `error`).
     pub report: Option<CardReport>,
     /// The first failure of this poll (the DRIVE write or the CARD read), if any.
     pub error: Option<Error>,
 }
+
+/// What one [`Host::cycle`] exchanged.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Cycle {
+    /// The card's heartbeat, events and restart, as [`Host::poll`] reports them (`report`
+    /// is `None` in a CYCLIC exchange, which carries the CARD fields the drive needs only).
+    pub poll: Poll,
+    /// The drive-neutral command with its DRIVE_CMD counter (`None`: none consistent this
+    /// cycle: keep the last one, the card heartbeat decides when it is too old).
+    pub command: Option<(u16, DriveCommandImage)>,
+    /// `STATUS.COMM_STATE` (P0740 coding) as the card sent it.
+    pub comm: Option<CommState>,
+    /// The cycle ran as one CYCLIC exchange (else as block accesses).
+    pub cyclic: bool,
+}
+
+/// Index of MBX_REQ in `layout::BLOCKS` (its bit in the events bitmap).
+const MBX_REQ_BLOCK: usize = 8;
+const _: () = assert!(layout::BLOCKS[MBX_REQ_BLOCK].start == layout::mbx_req::START);
 
 /// The drive's answer to a parameter request ([`ParameterServer`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -297,6 +323,8 @@ pub struct HostStats {
     pub stale_responses: u32,
     /// Card heartbeat losses.
     pub card_losses: u32,
+    /// Card restarts seen (`CARD.BOOT_ID` changed).
+    pub card_restarts: u32,
 }
 
 /// The host side of the DPM interface over a [`Transport`]: open and check the image, read
@@ -331,6 +359,14 @@ pub struct Host<T> {
     card_lost: bool,
     events_seen: Option<[u8; CARD_EVENT_COUNT]>,
     config_written: Option<u16>,
+    /// The configuration written last (rewritten after a card restart).
+    last_config: Option<HostConfig>,
+    /// `CARD.BOOT_ID` as last read (0 = not known yet / a card without one).
+    boot_id: u16,
+    /// The DRIVE report as last written whole (a CYCLIC cycle writes only the heartbeat).
+    report_written: Option<DriveReport>,
+    /// From the last CYCLIC reply: whether MBX_REQ changed (`None`: unknown, look).
+    mailbox_hint: Option<bool>,
     request_seen: u16,
     /// `MBX_REQ.SEQ_HEAD` of the last consistent read of MBX_REQ (0 = none yet).
     request_block_seq: u16,
@@ -381,6 +417,10 @@ impl<T: Transport> Host<T> {
             card_lost: false,
             events_seen: None,
             config_written: None,
+            last_config: None,
+            boot_id: 0,
+            report_written: None,
+            mailbox_hint: None,
             request_seen: 0,
             request_block_seq: 0,
             request_open: None,
@@ -470,7 +510,35 @@ impl<T: Transport> Host<T> {
         let r = self.write(&codec::CONFIG, cfg, &mut seq);
         self.seq_config = seq;
         self.config_written = Some(seq);
+        self.last_config = Some(*cfg);
         r
+    }
+
+    /// `CARD.BOOT_ID` as last read by [`Self::poll`] (0: not known yet, or a card without one).
+    pub fn boot_id(&self) -> u16 {
+        self.boot_id
+    }
+
+    /// The card restarted (its BOOT_ID changed): check the header again, rewrite the last
+    /// CONFIG, forget the mailbox state (the card's request ids start again). The event
+    /// counters are taken by the caller.
+    fn card_restart(&mut self) -> Result<(), Error> {
+        self.stats.card_restarts = self.stats.card_restarts.wrapping_add(1);
+        let mut buf = [0u8; layout::header::LEN];
+        if let Err(e) = self.transport.read(codec::HEADER.start() as u16, &mut buf) {
+            return Err(self.transport_error(e));
+        }
+        match codec::HEADER.decode(&buf) {
+            Ok((_, h)) if h.magic == layout::MAGIC && h.layout_version != 0 => self.header = h,
+            _ => return Err(Error::Transport(TransportError::Corrupt)),
+        }
+        self.request_seen = 0;
+        self.request_block_seq = 0;
+        self.request_open = None;
+        if let Some(cfg) = self.last_config {
+            self.write_config(&cfg)?;
+        }
+        Ok(())
     }
 
     /// Where the configuration written last stands, from `CARD.CONFIG_ACK` / `CONFIG_RESULT`.
@@ -617,24 +685,15 @@ impl<T: Transport> Host<T> {
             let mut report = self.report;
             report.heartbeat = self.heartbeat;
             let mut seq = self.seq_drive;
-            if let Err(e) = self.write(&codec::DRIVE, &report, &mut seq) {
-                error = Some(e);
+            match self.write(&codec::DRIVE, &report, &mut seq) {
+                Ok(_) => self.report_written = Some(self.report),
+                Err(e) => error = Some(e),
             }
             self.seq_drive = seq;
         }
-        let mut events = CardEvents::default();
         let report = if self.has(cap::CARD_EVENTS) {
             match self.read(&codec::CARD) {
-                Ok((_, r)) => {
-                    self.card_heartbeat = r.heartbeat;
-                    if let Some(seen) = self.events_seen {
-                        for (i, c) in events.counts.iter_mut().enumerate() {
-                            *c = r.events[i].wrapping_sub(seen[i]);
-                        }
-                    }
-                    self.events_seen = Some(r.events);
-                    Some(r)
-                }
+                Ok((_, r)) => Some(r),
                 Err(e) => {
                     error = error.or(Some(e));
                     None
@@ -643,6 +702,40 @@ impl<T: Transport> Host<T> {
         } else {
             None
         };
+        let seen = report.map(|r| (r.heartbeat, r.events, r.boot_id));
+        self.observe_card(now, seen, report, error)
+    }
+
+    /// The card part of a poll or a cycle: the heartbeat judged (`card` = heartbeat, event
+    /// counters and boot id as read now; `None`: not read, counts as unchanged), a new
+    /// BOOT_ID handled ([`Poll::card_restarted`]), the events since the last read.
+    fn observe_card(
+        &mut self,
+        now: Instant,
+        card: Option<(u16, [u8; CARD_EVENT_COUNT], u16)>,
+        report: Option<CardReport>,
+        mut error: Option<Error>,
+    ) -> Poll {
+        let mut events = CardEvents::default();
+        let mut card_restarted = false;
+        if let Some((heartbeat, counters, boot_id)) = card {
+            self.card_heartbeat = heartbeat;
+            if boot_id != 0 && self.boot_id != 0 && boot_id != self.boot_id {
+                card_restarted = true;
+                // The restarted card's counters start again: resynchronise.
+                self.events_seen = None;
+                if let Err(e) = self.card_restart() {
+                    error = error.or(Some(e));
+                }
+            }
+            self.boot_id = boot_id;
+            if let Some(seen) = self.events_seen {
+                for (i, c) in events.counts.iter_mut().enumerate() {
+                    *c = counters[i].wrapping_sub(seen[i]);
+                }
+            }
+            self.events_seen = Some(counters);
+        }
         let before = self.card_monitor.liveness();
         let card = self.card_monitor.observe(now, self.card_heartbeat);
         let card_lost = card == Liveness::Lost && before != Liveness::Lost;
@@ -656,7 +749,108 @@ impl<T: Transport> Host<T> {
         if card_returned {
             self.card_lost = false;
         }
-        Poll { card, card_lost, card_returned, events, report, error }
+        Poll { card, card_lost, card_returned, events, card_restarted, report, error }
+    }
+
+    /// One drive cycle in one exchange (issue 16 item 2): the drive's heartbeat and `state`
+    /// (DRIVE_STATE, sized to its extra words) out; the card's heartbeat, flags, events,
+    /// boot id, communication state and the newest drive-neutral command (DRIVE_CMD, sized
+    /// to the telegram) in. Over the SPI frames this is the CYCLIC exchange: one transaction
+    /// per cycle in the steady state, two at most (`docs/SPI.md`); a changed fault / warning
+    /// report or extended diagnosis adds one DRIVE write, a new mailbox request is left to
+    /// [`Self::serve_parameters`] (the reply's events say when). A transport without CYCLIC
+    /// (a dual-port RAM) does the same with block accesses ([`Self::poll`],
+    /// [`Self::status`], [`Self::read_command`], [`Self::write_state`]).
+    pub fn cycle(&mut self, now: Instant, state: &DriveStateImage) -> Cycle {
+        let needed = cap::CARD_EVENTS | cap::DRIVE_REPORTS | cap::DRIVE_CMD | cap::DRIVE_STATE;
+        if self.has(needed) {
+            if let Some(c) = self.cycle_cyclic(now, state) {
+                return c;
+            }
+        }
+        let poll = self.poll(now);
+        let comm = self.status().ok().map(|s| s.comm);
+        let command = self.read_command().ok();
+        let mut poll = poll;
+        if let Err(e) = self.write_state(state) {
+            poll.error = poll.error.or(Some(e));
+        }
+        self.mailbox_hint = None;
+        Cycle { poll, command, comm, cyclic: false }
+    }
+
+    /// [`Self::cycle`] over a transport with CYCLIC (`None`: it has none).
+    fn cycle_cyclic(&mut self, now: Instant, state: &DriveStateImage) -> Option<Cycle> {
+        let mut error = None;
+        let mut drive_seq = next_seq(self.seq_drive);
+        self.heartbeat = next_seq(self.heartbeat);
+        if self.report_written != Some(self.report) {
+            // The report changed: DRIVE whole this cycle (with the new heartbeat).
+            let mut report = self.report;
+            report.heartbeat = self.heartbeat;
+            let mut seq = self.seq_drive;
+            match self.write(&codec::DRIVE, &report, &mut seq) {
+                Ok(_) => self.report_written = Some(self.report),
+                Err(e) => error = Some(e),
+            }
+            self.seq_drive = seq;
+            drive_seq = 0;
+        }
+        let state_seq = next_seq(self.seq_state);
+        let mut blk = [0u8; layout::drive_state::LEN];
+        if codec::DRIVE_STATE.encode(state, state_seq, &mut blk).is_err() {
+            return None;
+        }
+        let words = usize::from(blk[layout::drive_state::EXTRA_COUNT]);
+        let n = if words == 0 && state.inputs_seq == 0 {
+            cyclic::STATE_BASE
+        } else {
+            layout::drive_state::EXTRA - layout::drive_state::FLAGS + 2 * words
+        };
+        let flags = layout::drive_state::FLAGS;
+        let req = cyclic::CyclicRequest {
+            heartbeat: self.heartbeat,
+            drive_seq,
+            state_seq,
+            state: &blk[flags..flags + n],
+            rsp: (0, &[]),
+            req: (0, 0),
+        };
+        let mut out = [0u8; cyclic::MAX_REPLY_DATA];
+        let r = self.transport.cyclic(&req, &mut out)?;
+        // The counters advance even if the exchange failed (the card may have applied it).
+        if drive_seq != 0 {
+            self.seq_drive = drive_seq;
+        }
+        self.seq_state = state_seq;
+        let reply = match r {
+            Ok(k) => cyclic::CyclicReply::decode(&out[..k]),
+            Err(e) => {
+                error = error.or(Some(self.transport_error(e)));
+                None
+            }
+        };
+        let Some(reply) = reply else {
+            self.mailbox_hint = None;
+            let poll = self.observe_card(now, None, None, error.or(Some(Error::Transport(TransportError::Corrupt))));
+            return Some(Cycle { poll, command: None, comm: None, cyclic: true });
+        };
+        let mbx_bit = 1u16 << MBX_REQ_BLOCK;
+        self.mailbox_hint = Some(reply.events & mbx_bit != 0);
+        let command = if reply.command_seq != 0 {
+            let mut b = [0u8; layout::drive_cmd::LEN];
+            let c = reply.command;
+            b[..2].copy_from_slice(&reply.command_seq.to_be_bytes());
+            b[layout::drive_cmd::FLAGS..layout::drive_cmd::FLAGS + c.len()].copy_from_slice(c);
+            b[layout::drive_cmd::SEQ_TAIL..].copy_from_slice(&reply.command_seq.to_be_bytes());
+            codec::DRIVE_CMD.decode(&b).ok()
+        } else {
+            None
+        };
+        let comm = CommState::from_code(reply.comm_state);
+        let seen = Some((reply.card_heartbeat, reply.card_events, reply.boot_id));
+        let poll = self.observe_card(now, seen, None, error);
+        Some(Cycle { poll, command, comm, cyclic: true })
     }
 
     // -----------------------------------------------------------------------------------
@@ -669,6 +863,10 @@ impl<T: Transport> Host<T> {
         // The card starts every write of MBX_REQ with a new SEQ_HEAD: while it is the value
         // of the last consistent read, the block holds what was read then (no new request),
         // and two bytes answer instead of the whole block (the drive polls every cycle).
+        if self.request_block_seq != 0 && self.mailbox_hint == Some(false) {
+            // The last CYCLIC reply said MBX_REQ is unchanged since the host read it.
+            return Ok(None);
+        }
         if self.request_block_seq != 0 {
             match self.read_u16(codec::MBX_REQ.start()) {
                 Ok(head) if head == self.request_block_seq => return Ok(None),

@@ -7,6 +7,7 @@
 //! a block in one ascending pass). Every transport here does; an SPI frame of command / address
 //! / length / data does by construction.
 
+use crate::dpm::spi::cyclic::{CyclicRequest, MAX_REPLY_DATA};
 use crate::dpm::Dpm;
 
 /// Why a transport access failed.
@@ -45,6 +46,17 @@ pub trait Transport {
     fn read(&mut self, offset: u16, buf: &mut [u8]) -> Result<(), TransportError>;
     /// Write `data` at `offset`.
     fn write(&mut self, offset: u16, data: &[u8]) -> Result<(), TransportError>;
+    /// One drive cycle's CYCLIC exchange (`docs/SPI.md`, protocol version 2): the reply DATA
+    /// into `out`, its length returned. `None`: this transport has none (a dual-port RAM);
+    /// [`super::Host::cycle`] then uses the block accesses.
+    fn cyclic(
+        &mut self,
+        req: &CyclicRequest<'_>,
+        out: &mut [u8; MAX_REPLY_DATA],
+    ) -> Option<Result<usize, TransportError>> {
+        let _ = (req, out);
+        None
+    }
 }
 
 impl<T: Transport + ?Sized> Transport for &mut T {
@@ -53,6 +65,13 @@ impl<T: Transport + ?Sized> Transport for &mut T {
     }
     fn write(&mut self, offset: u16, data: &[u8]) -> Result<(), TransportError> {
         (**self).write(offset, data)
+    }
+    fn cyclic(
+        &mut self,
+        req: &CyclicRequest<'_>,
+        out: &mut [u8; MAX_REPLY_DATA],
+    ) -> Option<Result<usize, TransportError>> {
+        (**self).cyclic(req, out)
     }
 }
 

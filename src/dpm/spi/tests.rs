@@ -100,7 +100,7 @@ fn golden_request_frames_of_the_docs() {
 
 #[test]
 fn command_codes_are_apart_and_not_stuck_line_values() {
-    let codes = [Command::Read as u8, Command::Write as u8, Command::Status as u8];
+    let codes = [Command::Read as u8, Command::Write as u8, Command::Status as u8, Command::Cyclic as u8];
     for (i, a) in codes.iter().enumerate() {
         assert!(*a != 0x00 && *a != 0xFF);
         assert_eq!(Command::from_code(*a).map(|c| c as u8), Some(*a));
@@ -416,24 +416,58 @@ fn events_are_set_by_card_writes_and_cleared_by_reading_seq_head() {
 // The pipelined host against a busy card
 
 #[test]
-fn the_host_polls_a_busy_card_and_resends_a_dropped_request() {
+fn the_reply_to_transaction_k_is_clocked_out_in_k_plus_1_exactly() {
+    let mut card = Loopback::new(busy_image());
+    let mut miso = [0u8; 64];
+    // k = 0: a READ; its MISO carries nothing (no earlier request).
+    let req = read_frame(7, 0x30, 16);
+    let mut mosi = [0u8; 64];
+    mosi[..req.len()].copy_from_slice(&req);
+    card.transfer(&mosi, &mut miso).unwrap();
+    assert!(miso.iter().all(|&b| b == 0));
+    // k = 1: a STATUS request; MISO carries the READ's reply.
+    let poll = frame(Command::Status as u8, 8, 0, 0, &[]);
+    let mut mosi = [0u8; 64];
+    mosi[..poll.len()].copy_from_slice(&poll);
+    card.transfer(&mosi, &mut miso).unwrap();
+    let r = SpiHostCodec::decode(&miso).unwrap();
+    assert_eq!((r.tag, r.cmd, r.addr, r.data), (7, Command::Read as u8, 0x30, &busy_image().as_bytes()[0x30..0x40]));
+    // k = 2: zeros; MISO carries the STATUS reply, never the READ's again.
+    card.transfer(&[0; 64], &mut miso).unwrap();
+    assert_eq!(SpiHostCodec::decode(&miso).unwrap().tag, 8);
+    // A late reply is discarded: the next transaction carries 0x00, the one after that the
+    // reply to the transaction in between (here an all-zero one, refused for its CRC), never the late one.
+    card.set_late(1);
+    card.transfer(&mosi, &mut miso).unwrap(); // STATUS tag 8 again, reply late
+    card.transfer(&[0; 64], &mut miso).unwrap();
+    assert_eq!(miso[0], NO_REPLY);
+    card.transfer(&[0; 64], &mut miso).unwrap();
+    assert_eq!(SpiHostCodec::decode(&miso).unwrap().result, ResultCode::CrcError);
+    assert_eq!(card.pipeline().late, 1);
+}
+
+#[test]
+fn the_host_resends_after_a_late_or_dropped_reply() {
+    // The request itself is dropped (the card was busy): the fetch sees 0x00, the host
+    // sends the request again.
     let mut host = SpiHost::new(Loopback::new(busy_image()));
-    // The request itself is dropped: the host polls 8 times, then sends it again.
     host.bus_mut().set_busy(1);
     let mut buf = [0u8; 16];
     host.read(0x30, &mut buf).unwrap();
     assert_eq!(&buf, &host.bus().dpm().as_bytes()[0x30..0x40]);
     assert_eq!(host.retried(), 1);
+    assert_eq!(host.traffic().0, 4, "request + fetch, twice");
 
-    // The request arrives; the first polls find the card busy (and are dropped): the reply
-    // comes with a later poll.
+    // The reply is late (the board's frame task behind a longer job): the same.
     let mut host = SpiHost::new(Loopback::new(busy_image()));
-    host.write(layout::inputs::START as u16, &[9; 2]).unwrap(); // a reply is pending now
-    let retried = host.retried();
-    host.bus_mut().set_busy(0);
+    host.bus_mut().set_late(1);
     host.write(layout::inputs::START as u16, &[8; 2]).unwrap();
-    assert_eq!(host.retried(), retried);
+    assert_eq!(host.retried(), 1);
     assert_eq!(&host.bus().dpm().as_bytes()[layout::inputs::START..][..2], &[8, 8]);
+    // On time: one request, one fetch.
+    let before = host.traffic().0;
+    host.write(layout::inputs::START as u16, &[9; 2]).unwrap();
+    assert_eq!(host.traffic().0 - before, 2);
 
     // A card that never answers: NoReply after every retry, nothing written.
     let mut host = SpiHost::new(Loopback::new(Dpm::new()));
@@ -441,7 +475,90 @@ fn the_host_polls_a_busy_card_and_resends_a_dropped_request() {
     assert_eq!(host.write(layout::inputs::START as u16, &[1]), Err(HostError::NoReply));
     assert_eq!(host.bus().dpm(), &Dpm::new());
     assert_eq!(host.retried(), 3);
-    assert_eq!(host.bus().dropped(), 4 * 9);
+    assert_eq!(host.bus().dropped(), 4 * 2);
+}
+
+/// The pipeline of the first board driver (the reply to *k* in *k + 2*), as a bus: the
+/// reference host must not take anything from it for a reply, and must not panic.
+struct TwoDeep {
+    card: Loopback,
+    held: Vec<u8>,
+}
+
+impl SpiBus for TwoDeep {
+    fn transfer(&mut self, mosi: &[u8], miso: &mut [u8]) -> Result<(), BusFault> {
+        let mut now = vec![0u8; miso.len()];
+        self.card.transfer(mosi, &mut now)?;
+        let k = self.held.len().min(miso.len());
+        miso.fill(0);
+        miso[..k].copy_from_slice(&self.held[..k]);
+        self.held = now;
+        Ok(())
+    }
+}
+
+#[test]
+fn a_reply_one_transaction_too_late_is_never_taken() {
+    let mut host = SpiHost::new(TwoDeep { card: Loopback::new(busy_image()), held: Vec::new() });
+    let mut buf = [0u8; 16];
+    assert_eq!(host.read(0x30, &mut buf), Err(HostError::NoReply));
+    assert_eq!(host.write(layout::inputs::START as u16, &[1, 2]), Err(HostError::NoReply));
+}
+
+/// A bus that replays one recorded MISO once (a reply of the host's previous life, TAG
+/// sequence restarted) and then behaves.
+struct Stale {
+    card: Loopback,
+    replay: Option<Vec<u8>>,
+    n: u32,
+}
+
+impl SpiBus for Stale {
+    fn transfer(&mut self, mosi: &[u8], miso: &mut [u8]) -> Result<(), BusFault> {
+        self.card.transfer(mosi, miso)?;
+        self.n += 1;
+        if self.n == 2 {
+            if let Some(r) = self.replay.take() {
+                let k = r.len().min(miso.len());
+                miso.fill(0);
+                miso[..k].copy_from_slice(&r[..k]);
+            }
+        }
+        Ok(())
+    }
+}
+
+#[test]
+fn stale_replies_with_our_tag_are_never_taken_and_never_panic() {
+    // Replies with TAG 0 (the first TAG of a restarted host) to other requests: another
+    // address, another command, another length, another WRITE (same address and length).
+    let mut stale = Vec::new();
+    let mut dpm = busy_image();
+    let mut slave = SpiSlave::new();
+    let inputs = layout::inputs::START as u16;
+    for req in [
+        read_frame(0, 0x32, 16),
+        read_frame(0, 0x30, 4),
+        read_frame(0, 0x30, 200),
+        write_frame(0, 0x30, &[1; 16]),
+        write_frame(0, inputs, &[7, 7]),
+        frame(Command::Status as u8, 0, 0, 0, &[]),
+    ] {
+        stale.push(handle(&mut slave, &mut dpm, &req).1);
+    }
+    for (i, r) in stale.into_iter().enumerate() {
+        let card = Loopback::new(busy_image());
+        let mut host = SpiHost::new(Stale { card, replay: Some(r), n: 0 });
+        if i == 4 {
+            host.write(inputs, &[5, 5]).unwrap();
+            assert_eq!(&host.bus().card.dpm().as_bytes()[usize::from(inputs)..][..2], &[5, 5]);
+        } else {
+            let mut buf = [0u8; 16];
+            host.read(0x30, &mut buf).unwrap();
+            assert_eq!(&buf, &busy_image().as_bytes()[0x30..0x40], "stale reply {i} taken");
+        }
+        assert_eq!(host.retried(), 1, "stale reply {i}: one retry");
+    }
 }
 
 /// A bus that flips one bit of one chosen transaction (MOSI or MISO side) in front of a
@@ -591,7 +708,7 @@ proptest! {
 /// example frames it quotes are checked here (CRC and the card's parser).
 fn spi_markdown() -> String {
     let src = include_str!("../spi.rs");
-    let consts: [(&str, String); 10] = [
+    let consts: [(&str, String); 12] = [
         ("[`MAX_TRANSACTION`]", format!("{MAX_TRANSACTION}")),
         ("[`MAX_DATA`]", format!("{MAX_DATA}")),
         ("[`T_READY_US`]", format!("{T_READY_US}")),
@@ -602,6 +719,8 @@ fn spi_markdown() -> String {
         ("[`SpiStats`]", "the card's SPI counters".to_string()),
         ("[`SpiHost`]", "the reference host (`pbcard::dpm::spi::SpiHost`)".to_string()),
         ("`layout::BLOCKS`", "the block table of `docs/DPM.md`".to_string()),
+        ("[`SpiHost::cyclic`]", "the reference host's `SpiHost::cyclic`".to_string()),
+        ("[`cyclic`]", "the CYCLIC exchange below".to_string()),
     ];
     let mut out = String::from(
         "# DPM transport over SPI (board)\n\n\
@@ -615,7 +734,7 @@ fn spi_markdown() -> String {
         let text = text.strip_prefix(' ').unwrap_or(text);
         if text.starts_with("# Byte-level specification") {
             on = true;
-            out.push_str("## Byte-level specification (protocol version 1)\n");
+            out.push_str("## Byte-level specification (protocol version 2)\n");
             continue;
         }
         if on {
@@ -626,6 +745,13 @@ fn spi_markdown() -> String {
             out.push_str(&t);
             out.push('\n');
         }
+    }
+    out.push_str("\n## The CYCLIC exchange (protocol version 2)\n\n");
+    for line in include_str!("cyclic.rs").lines() {
+        let Some(text) = line.strip_prefix("//!") else { break };
+        let text = text.strip_prefix(' ').unwrap_or(text);
+        out.push_str(&text.replace("`SpiSlave::refresh`", "the card's refresh"));
+        out.push('\n');
     }
     out
 }

@@ -1,0 +1,348 @@
+//! Issue 16 item 2 through the shipped card: the CYCLIC exchange of one drive cycle between
+//! the card (`Application::card_only`, its DP slave in data exchange with ST1 / PPO 5 under
+//! the scripted master) and a drive running the reference host's [`Host::cycle`] over the
+//! real frames (`SpiHost` → `Loopback` with the board's reply pipeline). The benchmark
+//! `cyclic_exchange_figures` prints transactions, bytes and setpoint latency per drive cycle
+//! (`cargo test --lib --target x86_64-unknown-linux-gnu cyclic_exchange_figures -- --nocapture`).
+
+use crate::app::Application;
+use crate::card::{self, Module};
+use crate::dp::{DpSlave, DpState};
+use crate::dpm::host::Cycle;
+use crate::dpm::spi::cyclic::{CyclicReply, CyclicRequest};
+use crate::dpm::{DriveStateImage, HostConfig};
+use crate::node::Node;
+use crate::profile::drive_if::{DriveStatus, StatusFlags};
+use crate::testkit::{feed, Frame, Rig, ScriptedMaster, SetPrm};
+use crate::time::{Duration, Instant};
+
+const MASTER: u8 = 2;
+const SLAVE: u8 = 5;
+/// The drive cycle of the benchmark.
+const DRIVE_CYCLE_US: u64 = 1000;
+/// SPI clock of the latency figure.
+const SCK_HZ: u64 = 10_000_000;
+
+struct CardRig {
+    node: Node,
+    app: Application,
+    master: ScriptedMaster,
+    now: Instant,
+}
+
+impl Rig for CardRig {
+    fn master(&mut self) -> &mut ScriptedMaster {
+        &mut self.master
+    }
+    fn deliver(&mut self, frame: &[u8]) -> Option<Frame> {
+        feed(&mut self.node, self.now, frame)
+    }
+    fn settle(&mut self) {
+        self.now = self.now + Duration::from_millis(1);
+        self.app.step(self.now, &mut self.node);
+    }
+    fn dp_state(&self) -> DpState {
+        self.node.slave().state()
+    }
+    fn input_len(&self) -> usize {
+        self.node.slave().input_len()
+    }
+}
+
+fn module(reference: u16) -> &'static Module {
+    card::MODULES.iter().find(|m| m.reference == reference).unwrap()
+}
+
+/// The card in data exchange with `m`, the drive's CONFIG written (start-up gate).
+fn rig(m: &Module) -> CardRig {
+    let mut r = CardRig {
+        node: Node::new(DpSlave::new(SLAVE)),
+        app: Application::card_only(),
+        master: ScriptedMaster::new(MASTER, SLAVE),
+        now: Instant::from_millis(0),
+    };
+    r.settle();
+    r.app.host_mut().write_config(&HostConfig::DEFAULT).unwrap();
+    r.settle();
+    r.bring_up(&SetPrm::CARD, m.cfg);
+    r
+}
+
+/// The drive's answer to a command: running at the setpoint, extra words echoed.
+fn state_for(c: &Cycle, last: &mut DriveStateImage) -> DriveStateImage {
+    if let Some((_, cmd)) = c.command {
+        *last = DriveStateImage {
+            status: DriveStatus {
+                flags: StatusFlags::READY | StatusFlags::RUNNING,
+                speed: cmd.command.speed_setpoint,
+                ..DriveStatus::default()
+            },
+            inputs_seq: 0,
+            extra: cmd.extra,
+        };
+    }
+    *last
+}
+
+/// Outputs of module `m` with setpoint `sp` (STW1 047F; PPO 5: PKW zero, PZD3.. = `i`).
+fn outputs(m: &Module, sp: i16) -> Vec<u8> {
+    let mut o = vec![0u8; usize::from(m.outputs)];
+    let at = if m.reference == 105 { 8 } else { 0 };
+    o[at..at + 2].copy_from_slice(&0x047Fu16.to_be_bytes());
+    o[at + 2..at + 4].copy_from_slice(&sp.to_be_bytes());
+    for (i, w) in o[at + 4..].chunks_mut(2).enumerate() {
+        w.copy_from_slice(&(0x100 + i as u16).to_be_bytes());
+    }
+    o
+}
+
+#[derive(Debug, Default)]
+struct Figures {
+    cycles: u32,
+    transactions: u32,
+    bytes: u32,
+    max_transactions: u32,
+    max_bytes: u32,
+    latency_us: f64,
+}
+
+/// Run the drive at a 1 ms cycle with a new setpoint every 7.3 ms (all phases against the
+/// drive cycle): per cycle transactions and bytes (steady state), and the worst time from
+/// the Data_Exchange with a new setpoint until the drive holds another setpoint than before
+/// (the drive cycle it comes with, plus that cycle's transaction at 10 MHz).
+fn run(m: &Module) -> Figures {
+    let mut r = rig(m);
+    let mut last = DriveStateImage::EMPTY;
+    let t0 = r.now;
+    let mut f = Figures::default();
+    let mut sp: i16 = 0x1000;
+    let mut dx_at: Option<(u64, i16)> = None;
+    let mut next_dx = 2_300u64;
+    let mut worst = 0u64;
+    // The setpoint the drive holds (a new Data_Exchange changes it: scaled per profile).
+    let mut seen = 0i16;
+    let mut prev = Cycle { poll: r.app.host_mut().poll(r.now), command: None, comm: None, cyclic: false };
+    // Simulated time in µs from t0, in 100 µs steps: Data_Exchange + card step whenever due,
+    // a drive cycle every DRIVE_CYCLE_US.
+    for tick in 0..30_000u64 {
+        let us = tick * 100;
+        let now = t0 + Duration::from_micros(us);
+        r.now = now;
+        if us >= next_dx {
+            sp = if sp == 0x1000 { 0x2000 } else { 0x1000 };
+            let pdu = outputs(m, sp);
+            r.data_exchange(&pdu);
+            r.app.step(now, &mut r.node);
+            if dx_at.is_none() {
+                dx_at = Some((us, seen));
+            }
+            next_dx += 7_300;
+        }
+        if us % 1000 == 500 {
+            // The card's 1 ms housekeeping step, between drive cycles.
+            r.app.step(now, &mut r.node);
+        }
+        if us % DRIVE_CYCLE_US == 0 {
+            let state = state_for(&prev, &mut last);
+            let (t_before, b_before) = r.app.host().transport().traffic();
+            let c = r.app.host_mut().cycle(now, &state);
+            let (t_after, b_after) = r.app.host().transport().traffic();
+            let (dt, db) = (t_after - t_before, b_after - b_before);
+            if tick > 5_000 {
+                f.cycles += 1;
+                f.transactions += dt;
+                f.bytes += db;
+                f.max_transactions = f.max_transactions.max(dt);
+                f.max_bytes = f.max_bytes.max(db);
+                assert!(c.cyclic && c.poll.error.is_none(), "{c:?}");
+            }
+            if let (Some((at, want)), Some((_, cmd))) = (dx_at, c.command) {
+                if cmd.command.speed_setpoint != want {
+                    let clock_us = u64::from(db) * 8 * 1_000_000 / SCK_HZ;
+                    worst = worst.max(us - at + clock_us);
+                    dx_at = None;
+                }
+            }
+            if let Some((_, cmd)) = c.command {
+                seen = cmd.command.speed_setpoint;
+            }
+            prev = c;
+        }
+    }
+    assert_eq!(r.app.host().stats().transport_errors, 0);
+    // The drive's answer reached the master: the input image carries the echoed speed.
+    let pdu = r.data_exchange(&outputs(m, sp));
+    let at = if m.reference == 105 { 8 } else { 0 };
+    assert_eq!(pdu.len(), usize::from(m.inputs));
+    let nist = i16::from_be_bytes([pdu[at + 2], pdu[at + 3]]);
+    assert!((nist - sp).abs() <= 0x222, "NIST {nist:#x} follows NSOLL {sp:#x}");
+    f.latency_us = worst as f64;
+    f
+}
+
+#[test]
+fn cyclic_exchange_figures() {
+    let mut out = String::from(
+        "drive cycle over the SPI frames (Host::cycle → SpiHost → Loopback, board pipeline), 1 ms drive cycle, 10 MHz SCK\n\
+         | telegram | transactions / cycle (max) | bytes / cycle (max) | setpoint latency, worst |\n|---|---|---|---|\n",
+    );
+    for (name, reference) in [("ST1", 1u16), ("PPO 5", 105)] {
+        let f = run(module(reference));
+        let avg_t = f64::from(f.transactions) / f64::from(f.cycles);
+        let avg_b = f64::from(f.bytes) / f64::from(f.cycles);
+        out += &format!(
+            "| {name} | {avg_t:.2} ({}) | {avg_b:.1} ({}) | {:.0} µs |\n",
+            f.max_transactions, f.max_bytes, f.latency_us
+        );
+        assert!(f.max_transactions <= 2, "{name}: {f:?}");
+        assert!(f.max_bytes <= 64, "{name}: {f:?}");
+        assert!(f.latency_us <= (DRIVE_CYCLE_US + 500) as f64, "{name}: {f:?}");
+    }
+    out += "| Anybus CompactCom 40 (issue 16) | 1 | ≈ 34 | ≈ 14 µs per transaction at 20 MHz |\n";
+    println!("{out}");
+}
+
+#[test]
+fn cyclic_request_and_reply_grammar() {
+    let state = [7u8; 16];
+    let rsp = [1u8, 2, 3];
+    let req = CyclicRequest { heartbeat: 5, drive_seq: 6, state_seq: 7, state: &state, rsp: (4, &rsp), req: (2, 10) };
+    let mut d = [0u8; 64];
+    let n = req.encode(&mut d);
+    assert_eq!(n, req.len());
+    assert_eq!(CyclicRequest::parse(&d[..n]), Some(req));
+    // Every length that disagrees is refused.
+    assert_eq!(CyclicRequest::parse(&d[..n - 1]), None);
+    let mut bad = d;
+    bad[6] = 200;
+    assert_eq!(CyclicRequest::parse(&bad[..n]), None);
+    let mut bad = d;
+    bad[9] = 140; // fragment beyond MBX_REQ
+    assert_eq!(CyclicRequest::parse(&bad[..n]), None);
+    assert_eq!(CyclicReply::decode(&[0; 19]), None);
+}
+
+// ---------------------------------------------------------------------------------------
+// Host restarts at every transaction boundary; arbitrary MISO; the CYCLIC parsers
+
+use crate::dp::Events;
+use crate::dpm::host::{Host, Options};
+use crate::dpm::spi::{BusFault, Loopback, SpiBus, SpiHost};
+use crate::dpm::{Dpm, Link};
+use proptest::prelude::*;
+
+/// A bus in front of the loopback card that dies after `left` more transactions (the host
+/// restarts there: power cut, watchdog, a new program).
+struct Cut {
+    card: Loopback,
+    left: Option<u32>,
+}
+
+impl SpiBus for Cut {
+    fn transfer(&mut self, mosi: &[u8], miso: &mut [u8]) -> Result<(), BusFault> {
+        match &mut self.left {
+            Some(0) => return Err(BusFault),
+            Some(n) => *n -= 1,
+            None => {}
+        }
+        self.card.transfer(mosi, miso)
+    }
+}
+
+fn card_step(link: &mut Link, node: &mut Node, host: &mut Host<SpiHost<Cut>>, now: Instant) {
+    let dpm = &mut host.transport_mut().bus_mut().card;
+    link.publish(node, Events::empty(), dpm.dpm_mut());
+    link.publish_command(&crate::dpm::DriveCommandImage::default(), dpm.dpm_mut());
+    link.collect(now, node, dpm.dpm());
+}
+
+fn state(speed: i16) -> DriveStateImage {
+    DriveStateImage {
+        status: DriveStatus { flags: StatusFlags::READY, speed, ..DriveStatus::default() },
+        ..DriveStateImage::EMPTY
+    }
+}
+
+#[test]
+fn a_host_restart_at_every_transaction_boundary_recovers_without_a_stale_reply() {
+    let cfg = HostConfig { station_address: 9, ..HostConfig::DEFAULT };
+    for k in 0..16u32 {
+        let (mut link, mut node) = (Link::new(), Node::new(DpSlave::new(SLAVE)));
+        link.set_startup_gate(true);
+        let bus = Cut { card: Loopback::new(Dpm::new()), left: None };
+        let mut host = Host::open(SpiHost::new(bus), Options::DEFAULT).unwrap();
+        let mut now = Instant::from_millis(0);
+        card_step(&mut link, &mut node, &mut host, now);
+        host.write_config(&cfg).unwrap();
+        for i in 0..3 {
+            now = now + Duration::from_millis(1);
+            card_step(&mut link, &mut node, &mut host, now);
+            host.cycle(now, &state(100 + i));
+        }
+        // The old host dies after k more transactions, in the middle of whatever it does.
+        host.transport_mut().bus_mut().left = Some(k);
+        for i in 0..4 {
+            host.cycle(now, &state(200 + i));
+            let _ = host.write_config(&cfg);
+            let _ = host.serve_parameters(&mut |_: &_| crate::dpm::host::Answer::Later);
+        }
+        let card = host.into_transport().bus_mut_owned();
+        // The new host: open, CONFIG again, cycles; everything it takes is the card's.
+        let mut host = Host::open(SpiHost::new(Cut { card, left: None }), Options::DEFAULT)
+            .unwrap_or_else(|e| panic!("k {k}: {e:?}"));
+        host.write_config(&cfg).unwrap();
+        for i in 0..5 {
+            now = now + Duration::from_millis(1);
+            card_step(&mut link, &mut node, &mut host, now);
+            let c = host.cycle(now, &state(300 + i));
+            if i > 0 {
+                assert!(c.cyclic && c.poll.error.is_none() && c.command.is_some(), "k {k} cycle {i}: {c:?}");
+            }
+        }
+        card_step(&mut link, &mut node, &mut host, now);
+        assert_eq!(link.read_drive_state(host.transport().bus().card.dpm()).status.speed, 304, "k {k}");
+        assert!(node.slave().is_ready() && node.slave().address() == 9, "k {k}");
+    }
+}
+
+impl SpiHost<Cut> {
+    fn bus_mut_owned(self) -> Loopback {
+        self.into_bus().card
+    }
+}
+
+/// A bus whose MISO is whatever the test gives.
+struct Noise(Vec<u8>);
+
+impl SpiBus for Noise {
+    fn transfer(&mut self, _mosi: &[u8], miso: &mut [u8]) -> Result<(), BusFault> {
+        for (i, b) in miso.iter_mut().enumerate() {
+            *b = self.0.get(i).copied().unwrap_or(0);
+        }
+        Ok(())
+    }
+}
+
+proptest! {
+    #[test]
+    fn the_host_never_panics_nor_takes_noise_for_a_reply(miso in proptest::collection::vec(any::<u8>(), 0..80)) {
+        let mut host = SpiHost::new(Noise(miso));
+        let mut buf = [0u8; 16];
+        prop_assert!(host.read(0x30, &mut buf).is_err());
+        let st = [0u8; 16];
+        let req = CyclicRequest { heartbeat: 1, drive_seq: 1, state_seq: 1, state: &st, rsp: (0, &[]), req: (0, 0) };
+        prop_assert!(host.cyclic(&req).is_err());
+    }
+
+    #[test]
+    fn cyclic_parsers_never_panic_and_round_trip(bytes in proptest::collection::vec(any::<u8>(), 0..120)) {
+        if let Some(r) = CyclicRequest::parse(&bytes) {
+            let mut out = [0u8; 128];
+            let n = r.encode(&mut out);
+            prop_assert_eq!(&out[..n], &bytes[..]);
+        }
+        if let Some(r) = CyclicReply::decode(&bytes) {
+            prop_assert_eq!(20 + r.command.len() + r.request.len(), bytes.len());
+        }
+    }
+}
