@@ -317,6 +317,18 @@ mod tests {
             let _ = record(fi, &data);
         }
 
+        /// The record decoder of DS_Write / DS_Read and Data_Transport takes any index and data.
+        #[test]
+        fn any_record_data_decodes(
+            index in prop_oneof![Just(47u8), Just(INDEX), any::<u8>()],
+            data in proptest::collection::vec(any::<u8>(), 0..240),
+            pnus in proptest::collection::vec(any::<u16>(), 0..4),
+            sel in any::<Option<u16>>(),
+        ) {
+            let _ = crate::decode::record_write(index, &data);
+            let _ = crate::decode::record_read(index, &data, &pnus, sel);
+        }
+
         /// What the card encodes comes back field by field: I&M1–3 texts (printable, as a
         /// master writes them) written through the card's I&M function and read back are the
         /// decoded fields; an I&M4 signature its bytes.
