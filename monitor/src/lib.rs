@@ -5,9 +5,10 @@
 //! Slave_Diag, Global_Control, Set_Slave_Add), DP-V1 ([`pbcard::dpv1::pdu`]; the records of
 //! DS_Write / DS_Read and of MSAC_C2 Data_Transport through one decoder, I&M0–I&M4 in [`im`]
 //! with the I&M call tracked per relation) and PROFIdrive (record-47 parameter access
-//! [`pbcard::profile::param`], PKW, STW1/ZSW1 of a telegram known from the Chk_Cfg). Per station it matches every request with its response, measures the
-//! response time against the GSD's MaxTsdr for the rate, counts retries and missing answers
-//! and the Data_Exchange cycle time.
+//! [`pbcard::profile::param`], PKW, STW1/ZSW1 of a telegram known from the Chk_Cfg). Per
+//! station it matches every request with its response, measures the response time against the
+//! GSD's MaxTsdr for the rate, counts retries and missing answers and the Data_Exchange cycle
+//! time.
 //!
 //! The pipeline: bytes (+ times) → [`cut::Cutter`] (telegrams cut by syntax, garbage shown as
 //! such) → [`Monitor::on_cut`] → [`Line`]s (text with [`Line::text_line`], JSON with

@@ -594,6 +594,69 @@ fn a_recorded_im_and_class2_session_decodes_field_by_field() {
     );
 }
 
+/// A DP-V1 frame between master `m` (SAP `msap`) and station 3 (SAP `sap`).
+fn dpv1_frame(m: u8, msap: u8, sap: u8, request: bool, pdu: &[u8]) -> Vec<u8> {
+    let hdr = if request {
+        Header { da: 3, sa: m, fc: FunctionCode::request(0xD, true, true), dsap: Some(sap), ssap: Some(msap) }
+    } else {
+        Header { da: m, sa: 3, fc: FunctionCode::response(ResponseStatus::Dl), dsap: Some(msap), ssap: Some(sap) }
+    };
+    testkit::frame(&hdr, pdu).to_vec()
+}
+
+#[test]
+fn a_device_answering_bare_im_records_is_decoded_by_the_call_of_each_relation() {
+    // A 64-byte record after a zero header: `fields` blank-padded to 54.
+    let rec = |fields: &str| {
+        let mut r = vec![0u8; 10];
+        r.extend_from_slice(fields.as_bytes());
+        r.resize(64, b' ');
+        r
+    };
+    let read = [0x5E, 0x00, 0xFF, 0xF0];
+    let answer = |data: &[u8]| [&[0x5E, 0x00, 0xFF, data.len() as u8][..], data].concat();
+    let (c1, c2) = ((MASTER, 51, 51), (10, 50, 40));
+    let mut bytes = Vec::new();
+    let mut x = |(m, msap, sap): (u8, u8, u8), req: &[u8], resp: Option<&[u8]>| {
+        bytes.extend(dpv1_frame(m, msap, sap, true, req));
+        match resp {
+            Some(r) => bytes.extend(dpv1_frame(m, msap, sap, false, r)),
+            None => bytes.push(0xE5),
+        }
+    };
+    // MSAC_C1 selects I&M1, the MSAC_C2 connection I&M3; each read answers the bare record.
+    x(c1, &[0x5F, 0x00, 0xFF, 0x04, 0x08, 0x00, 0xFD, 0xE9], Some(&[0x5F, 0x00, 0xFF, 0x04]));
+    x(c2, &[0x5F, 0x00, 0xFF, 0x04, 0x08, 0x00, 0xFD, 0xEB], Some(&[0x5F, 0x00, 0xFF, 0x04]));
+    let mut im1 = b"F".to_vec();
+    im1.resize(32, b' ');
+    im1.extend_from_slice(b"L");
+    x(c1, &read, Some(&answer(&rec(std::str::from_utf8(&im1).unwrap()))));
+    x(c2, &read, Some(&answer(&rec("D"))));
+    // A refused call selects nothing: MSAC_C1 stays on I&M1, and an answer with another
+    // record's header is flagged.
+    x(c1, &[0x5F, 0x00, 0xFF, 0x04, 0x08, 0x00, 0xFD, 0xF0], Some(&[0xDF, 0x80, 0xB0, 0x00]));
+    x(c1, &read, Some(&answer(&[&[0x08, 0x00, 0xFD, 0xEB][..], &rec("D")].concat())));
+    // The connection closes; its next read has no call.
+    x(c2, &[0x58, 0x00, 0x20, 0x00], None);
+    x(c2, &read, Some(&answer(&rec(""))));
+    let (lines, _) = decode_raw(Product::card(), None, &bytes);
+    let all = dump(&lines);
+    assert!(lines.iter().all(|l| l.service != "Unknown" && l.kind == "telegram"), "{all}");
+    let reads: Vec<&str> = lines.iter().filter(|l| l.request == Some("DS_Read")).map(|l| l.text.as_str()).collect();
+    assert_eq!(
+        reads,
+        [
+            "slot 0 index 255 length 64: IM_Index 65001 (the call on this relation), without call header: I&M1: TAG_FUNCTION \"F\", TAG_LOCATION \"L\"",
+            "slot 0 index 255 length 64: IM_Index 65003 (the call on this relation), without call header: I&M3: DESCRIPTOR \"D\"",
+            "slot 0 index 255 length 68: IM_Index 65003: I&M3: DESCRIPTOR \"D\" (NOT the record the call on this relation selected, IM_Index 65001)",
+            "slot 0 index 255 length 64: no call seen on this relation, read as I&M0: I&M0: MANUFACTURER_ID 8224, ORDER_ID \"\", SERIAL_NUMBER \"\", HARDWARE_REVISION 8224, SOFTWARE_REVISION ?32.32.32, REV_COUNTER 8224, PROFILE_ID 0x2020, PROFILE_SPECIFIC_TYPE 8224, IM_VERSION 32.32, IM_SUPPORTED 0x2020",
+        ],
+        "{all}"
+    );
+    let refused = find(&lines, |l| l.request == Some("DS_Write") && l.error.is_some(), "the refused call");
+    assert!(refused.text.contains("Error_Code_1 B0 (access: invalid index)"), "{}", refused.text);
+}
+
 #[test]
 #[ignore = "prints the decoded session (README example): cargo test -p pbcard-monitor --test replay -- --ignored --nocapture"]
 fn print_the_session() {
