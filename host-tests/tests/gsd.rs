@@ -14,6 +14,7 @@ use std::path::{Path, PathBuf};
 use gsd_parser::{GenericStationDescription, PrmBuilder, PrmValueConstraint, SupportedSpeeds, UserPrmDataType};
 use pbcard::card;
 use pbcard::time::Baudrate;
+use pbcard_monitor::product::{gsd_max_tsdr, read_gsd};
 
 /// The GSD file, named 4-character vendor abbreviation + ident number in hex (reference §6.1).
 const GSD_FILE: &str = "ODCP0F11.gsd";
@@ -41,15 +42,12 @@ fn gsd_text() -> String {
     std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()))
 }
 
-/// Parse with gsd-parser. gsd-parser panics (unwrap) on an `Ext_User_Prm_Data_Ref` to an
-/// undefined `ExtUserPrmData`, so check that with our own scanner first for a clear message.
+/// Parse with gsd-parser, through the tools' GSD loader (`pbcard_monitor::product::read_gsd`).
+/// gsd-parser panics (unwrap) on an `Ext_User_Prm_Data_Ref` to an undefined `ExtUserPrmData`,
+/// so check that with our own scanner first for a clear message.
 fn parse() -> GenericStationDescription {
-    let text = gsd_text();
-    assert_refs_defined(&Scan::new(&text));
-    match gsd_parser::parser::parse(&gsd_path(), &text) {
-        Ok(gsd) => gsd,
-        Err(e) => panic!("gsd-parser rejects the GSD:\n{e}"),
-    }
+    assert_refs_defined(&Scan::new(&gsd_text()));
+    read_gsd(&gsd_path()).unwrap_or_else(|e| panic!("gsd-parser rejects the GSD:\n{e}"))
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -88,22 +86,6 @@ fn gsd_rate(rate: Baudrate) -> (SupportedSpeeds, &'static str) {
         Baudrate::B3M => (SupportedSpeeds::B3000000, "3M"),
         Baudrate::B6M => (SupportedSpeeds::B6000000, "6M"),
         Baudrate::B12M => (SupportedSpeeds::B12000000, "12M"),
-    }
-}
-
-fn gsd_max_tsdr(gsd: &GenericStationDescription, rate: Baudrate) -> u16 {
-    let t = &gsd.max_tsdr;
-    match rate {
-        Baudrate::B9600 => t.b9600,
-        Baudrate::B19200 => t.b19200,
-        Baudrate::B45450 => t.b45450,
-        Baudrate::B93750 => t.b93750,
-        Baudrate::B187500 => t.b187500,
-        Baudrate::B500k => t.b500000,
-        Baudrate::B1500k => t.b1500000,
-        Baudrate::B3M => t.b3000000,
-        Baudrate::B6M => t.b6000000,
-        Baudrate::B12M => t.b12000000,
     }
 }
 

@@ -1,6 +1,8 @@
 //! Field-by-field text of the DP, DP-V1 and PROFIdrive data units, with the project's parsers
 //! (`pbcard::dp`, `pbcard::dpv1::pdu`, `pbcard::profile::param`, `pbcard::profile::pkw`) and the
-//! names of the reference and the manuals (reference §2–§5).
+//! names of the reference and the manuals (reference §2–§5). The record data of DS_Write /
+//! DS_Read and of MSAC_C2 Data_Transport go through one decoder ([`record_write`],
+//! [`record_read`]): record 47 as PROFIdrive, index 255 as I&M ([`crate::im`]).
 
 use std::fmt::Write as _;
 
@@ -13,6 +15,7 @@ use pbcard::fdl::telegram::{FunctionCode, RequestFunction};
 use pbcard::profile::param::{Attribute, ErrorValue, Format, ParamRequest, ParamResponse, RequestId, ValueBlock};
 use pbcard::profile::pkw::PkwWords;
 
+use crate::im;
 use crate::product::Product;
 use pbcard_softslave::hex;
 
@@ -631,23 +634,41 @@ pub fn param_response(data: &[u8], pnus: &[u16]) -> (String, Option<u16>) {
     }
 }
 
+/// The data a master writes to a record — a DS_Write, or the request half of an MSAC_C2
+/// Data_Transport (reference §4.2): record 47 a PROFIdrive parameter request
+/// ([`param_request`]), index 255 an I&M call ([`im::call`]), others the bytes.
+pub fn record_write(index: u8, data: &[u8]) -> String {
+    if index == pbcard::profile::param::RECORD_INDEX {
+        param_request(data).0
+    } else if index == im::INDEX {
+        im::call(data)
+    } else {
+        hex(data)
+    }
+}
+
+/// The data a record answers — a DS_Read response, or the response half of an MSAC_C2
+/// Data_Transport: record 47 a PROFIdrive parameter response ([`param_response`], named by
+/// the request's `pnus`; the error value by name is returned too), index 255 the I&M record
+/// ([`im::response`], `im_selected` = the relation's last call), others the bytes.
+pub fn record_read(index: u8, data: &[u8], pnus: &[u16], im_selected: Option<u16>) -> (String, Option<String>) {
+    if index == pbcard::profile::param::RECORD_INDEX {
+        let (t, e) = param_response(data, pnus);
+        (t, e.map(|v| error_value(ErrorValue(v))))
+    } else if index == im::INDEX {
+        (im::response(data, im_selected), None)
+    } else {
+        (hex(data), None)
+    }
+}
+
 /// A DP-V1 request PDU (reference §4.2) with its PROFIdrive content.
 pub fn dpv1_request(r: &Request<'_>) -> String {
     match r {
         Request::Read(x) => format!("slot {} index {} length {}", x.slot, x.index, x.length),
-        Request::Write(x) => {
-            let mut s = format!("slot {} index {} length {}", x.slot, x.index, x.data.len());
-            if x.index == pbcard::profile::param::RECORD_INDEX {
-                let _ = write!(s, ": {}", param_request(x.data).0);
-            } else if x.index == 255 && x.data.len() >= 4 && x.data[0] == 0x08 {
-                let im = u16::from_be_bytes([x.data[2], x.data[3]]);
-                let _ = write!(s, ": I&M function call, IM_Index {im} (I&M{})", im.wrapping_sub(65000));
-            } else {
-                let _ = write!(s, ": {}", hex(x.data));
-            }
-            s
+        Request::Write(x) | Request::DataTransport(x) => {
+            format!("slot {} index {} length {}: {}", x.slot, x.index, x.data.len(), record_write(x.index, x.data))
         }
-        Request::DataTransport(x) => format!("slot {} index {} length {}: {}", x.slot, x.index, x.data.len(), hex(x.data)),
         Request::AlarmAck(a) => format!(
             "slot {} Alarm_Type {} Seq_Nr {} {}",
             a.slot,
@@ -671,56 +692,16 @@ pub fn dpv1_request(r: &Request<'_>) -> String {
     }
 }
 
-/// I&M0 (PROFIBUS Profile Guidelines Part 1: 10-byte header, then the fields).
-fn im0(d: &[u8]) -> Option<String> {
-    if d.len() != 64 {
-        return None;
-    }
-    let b = &d[10..];
-    let text =
-        |r: &[u8]| r.iter().map(|&c| if (0x20..0x7F).contains(&c) { c as char } else { '.' }).collect::<String>();
-    let w = |i: usize| u16::from_be_bytes([b[i], b[i + 1]]);
-    Some(format!(
-        "I&M0: MANUFACTURER_ID {}, ORDER_ID \"{}\", SERIAL_NUMBER \"{}\", HARDWARE_REVISION {}, SOFTWARE_REVISION {}{}.{}.{}, REV_COUNTER {}, PROFILE_ID 0x{:04X}, PROFILE_SPECIFIC_TYPE {}, IM_VERSION {}.{}, IM_SUPPORTED 0x{:04X}",
-        w(0),
-        text(&b[2..22]).trim_end(),
-        text(&b[22..38]).trim_end(),
-        w(38),
-        b[40] as char,
-        b[41],
-        b[42],
-        b[43],
-        w(44),
-        w(46),
-        w(48),
-        b[50],
-        b[51],
-        w(52)
-    ))
-}
-
-/// A DP-V1 response PDU; `pnus` are the record-47 request's PNUs. Returns the text, the error
-/// text (negative response or PROFIdrive error value) and the first PNU.
-pub fn dpv1_response(r: &Response<'_>, pnus: &[u16]) -> (String, Option<String>) {
+/// A DP-V1 response PDU; `pnus` are the record-47 request's PNUs, `im_selected` the FI_Index
+/// the last I&M call on this relation selected. Returns the text and the error text (negative
+/// response or PROFIdrive error value).
+pub fn dpv1_response(r: &Response<'_>, pnus: &[u16], im_selected: Option<u16>) -> (String, Option<String>) {
     match r {
-        Response::Read(x) => {
-            let mut s = format!("slot {} index {} length {}", x.slot, x.index, x.data.len());
-            let mut err = None;
-            if x.index == pbcard::profile::param::RECORD_INDEX {
-                let (t, e) = param_response(x.data, pnus);
-                err = e.map(|v| error_value(ErrorValue(v)));
-                let _ = write!(s, ": {t}");
-            } else if let Some(t) = (x.index == 255).then(|| im0(x.data)).flatten() {
-                let _ = write!(s, ": {t}");
-            } else {
-                let _ = write!(s, ": {}", hex(x.data));
-            }
-            (s, err)
+        Response::Read(x) | Response::DataTransport(x) => {
+            let (t, err) = record_read(x.index, x.data, pnus, im_selected);
+            (format!("slot {} index {} length {}: {t}", x.slot, x.index, x.data.len()), err)
         }
         Response::Write { slot, index, length } => (format!("slot {slot} index {index} length {length} written"), None),
-        Response::DataTransport(x) => {
-            (format!("slot {} index {} length {}: {}", x.slot, x.index, x.data.len(), hex(x.data)), None)
-        }
         Response::AlarmAck(a) => {
             (format!("slot {} Alarm_Type {} Seq_Nr {} acknowledged", a.slot, a.alarm_type, a.seq_nr()), None)
         }

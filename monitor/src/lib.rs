@@ -2,11 +2,13 @@
 //!
 //! Decodes what it hears with the pbcard project's own parsers: FDL frames
 //! ([`pbcard::fdl::telegram`]), the DP services ([`pbcard::dp`]: Set_Prm, Chk_Cfg/Get_Cfg,
-//! Slave_Diag, Global_Control, Set_Slave_Add), DP-V1 ([`pbcard::dpv1::pdu`]) and PROFIdrive
-//! (record-47 parameter access [`pbcard::profile::param`], PKW, STW1/ZSW1 of a telegram known
-//! from the Chk_Cfg). Per station it matches every request with its response, measures the
-//! response time against the GSD's MaxTsdr for the rate, counts retries and missing answers
-//! and the Data_Exchange cycle time.
+//! Slave_Diag, Global_Control, Set_Slave_Add), DP-V1 ([`pbcard::dpv1::pdu`]; the records of
+//! DS_Write / DS_Read and of MSAC_C2 Data_Transport through one decoder, I&M0–I&M4 in [`im`]
+//! with the I&M call tracked per relation) and PROFIdrive (record-47 parameter access
+//! [`pbcard::profile::param`], PKW, STW1/ZSW1 of a telegram known from the Chk_Cfg). Per
+//! station it matches every request with its response, measures the response time against the
+//! GSD's MaxTsdr for the rate, counts retries and missing answers and the Data_Exchange cycle
+//! time.
 //!
 //! The pipeline: bytes (+ times) → [`cut::Cutter`] (telegrams cut by syntax, garbage shown as
 //! such) → [`Monitor::on_cut`] → [`Line`]s (text with [`Line::text_line`], JSON with
@@ -23,6 +25,7 @@
 pub mod capture;
 pub mod cut;
 pub mod decode;
+pub mod im;
 pub mod product;
 
 use std::collections::BTreeMap;
@@ -222,6 +225,9 @@ struct Job {
     slot: Option<u8>,
     index: Option<u8>,
     pnus: Vec<u16>,
+    /// Index 255: the FI_Index of the I&M call a write / Data_Transport carries, or for a
+    /// read the one the relation's last call selected.
+    im: Option<u16>,
 }
 
 #[derive(Debug, Default)]
@@ -237,6 +243,9 @@ struct Station {
     last_dx_us: Option<u64>,
     /// Set_Prm bytes waiting for the acknowledgement.
     prm_sent: Option<bool>,
+    /// The FI_Index the last accepted I&M call selected, per relation (master, the station's
+    /// SAP: 51 = MSAC_C1, a server SAP = that MSAC_C2 connection; reference §4.7).
+    im_calls: BTreeMap<(u8, u8), u16>,
 }
 
 /// The request on the line waiting for its answer.
@@ -491,6 +500,8 @@ impl Monitor {
                 let dpv1 = d.pdu.get(7).is_some_and(|b| b & 0x80 != 0);
                 let st = self.station(da);
                 st.prm_sent = Some(dpv1);
+                // MSAC_C1 ends when the station leaves data exchange: its I&M calls are gone.
+                st.im_calls.retain(|&(_, sap), _| sap != SAP_C1);
                 ("Set_Prm", decode::set_prm(d.pdu, product), None)
             }
             Some(sap::CHK_CFG) => {
@@ -527,18 +538,29 @@ impl Monitor {
             Ok(r) => {
                 let service = decode::dpv1_service(r.function());
                 let mut job = Job { service, ..Default::default() };
+                let st = self.station(d.da);
                 match &r {
-                    pdu::Request::Read(x) => (job.slot, job.index) = (Some(x.slot), Some(x.index)),
+                    pdu::Request::Read(x) => {
+                        (job.slot, job.index) = (Some(x.slot), Some(x.index));
+                        if x.index == im::INDEX {
+                            job.im = st.im_calls.get(&key).copied();
+                        }
+                    }
                     pdu::Request::Write(x) | pdu::Request::DataTransport(x) => {
                         (job.slot, job.index) = (Some(x.slot), Some(x.index));
                         if x.index == pbcard::profile::param::RECORD_INDEX {
                             job.pnus = decode::param_request(x.data).1;
+                        } else if x.index == im::INDEX {
+                            job.im = im::call_index(x.data);
                         }
                     }
                     pdu::Request::AlarmAck(a) => job.slot = Some(a.slot),
+                    // A connection opened or closed on this SAP: a new relation.
+                    pdu::Request::Initiate(_) | pdu::Request::Abort(_) => {
+                        st.im_calls.remove(&key);
+                    }
                     _ => {}
                 }
-                let st = self.station(d.da);
                 // A read of record 47 fetches the response to the last record-47 write.
                 if let (pdu::Request::Read(x), Some(w)) = (&r, st.jobs.get(&(d.sa, 255 - s))) {
                     if x.index == pbcard::profile::param::RECORD_INDEX {
@@ -683,8 +705,24 @@ impl Monitor {
             {
                 match pdu::Response::parse(pdu) {
                     Ok(r) => {
-                        let pnus = o.job.as_ref().map_or(&[][..], |j| j.pnus.as_slice());
-                        let (t, err) = decode::dpv1_response(&r, pnus);
+                        let job = o.job.as_ref();
+                        let pnus = job.map_or(&[][..], |j| j.pnus.as_slice());
+                        let (t, err) = decode::dpv1_response(&r, pnus, job.and_then(|j| j.im));
+                        if let (Some(j), Some(dsap)) = (job, o.dsap) {
+                            match r {
+                                // A call the station accepted selects the record on this relation.
+                                pdu::Response::Write { index: im::INDEX, .. }
+                                | pdu::Response::DataTransport(pdu::DataRequest { index: im::INDEX, .. }) => {
+                                    if let Some(fi) = j.im {
+                                        st.im_calls.insert((o.sa, dsap), fi);
+                                    }
+                                }
+                                pdu::Response::Abort(_) => {
+                                    st.im_calls.remove(&(o.sa, dsap));
+                                }
+                                _ => {}
+                            }
+                        }
                         if let Some(e) = err {
                             line.error = Some(e);
                             st.stats.errors += 1;

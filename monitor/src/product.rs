@@ -4,8 +4,37 @@
 
 use std::path::Path;
 
+use gsd_parser::GenericStationDescription;
 use pbcard::card;
 use pbcard::time::Baudrate;
+
+/// Read a GSD file with `gsd-parser` (reference §6): the one GSD loader of the project's tools —
+/// the monitor's `--gsd` and `host-tests/tests/gsd.rs`. The file is ISO 8859-1 (every byte a
+/// character); a file gsd-parser panics on is an error, as is one it rejects.
+pub fn read_gsd(path: &Path) -> Result<GenericStationDescription, String> {
+    let text = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let text: String = text.iter().map(|&b| b as char).collect();
+    std::panic::catch_unwind(|| gsd_parser::parser::parse(path, &text))
+        .map_err(|_| format!("{}: gsd-parser could not read the file", path.display()))?
+        .map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// The GSD's `MaxTsdr_<rate>` at `rate`, in bit times.
+pub fn gsd_max_tsdr(gsd: &GenericStationDescription, rate: Baudrate) -> u16 {
+    let t = &gsd.max_tsdr;
+    match rate {
+        Baudrate::B9600 => t.b9600,
+        Baudrate::B19200 => t.b19200,
+        Baudrate::B45450 => t.b45450,
+        Baudrate::B93750 => t.b93750,
+        Baudrate::B187500 => t.b187500,
+        Baudrate::B500k => t.b500000,
+        Baudrate::B1500k => t.b1500000,
+        Baudrate::B3M => t.b3000000,
+        Baudrate::B6M => t.b6000000,
+        Baudrate::B12M => t.b12000000,
+    }
+}
 
 /// A GSD module.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -94,16 +123,9 @@ impl Product {
         }
     }
 
-    /// Read a GSD file with `gsd-parser`.
+    /// The names and MaxTsdr of a GSD file ([`read_gsd`]).
     pub fn from_gsd(path: &Path) -> Result<Self, String> {
-        let text = std::fs::read(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-        // GSD files are ISO 8859-1: every byte is a character.
-        let text: String = text.iter().map(|&b| b as char).collect();
-        // gsd-parser panics on some malformed files; a bad file must not stop the monitor.
-        let parsed = std::panic::catch_unwind(|| gsd_parser::parser::parse(path, &text))
-            .map_err(|_| format!("{}: gsd-parser could not read the file", path.display()))?
-            .map_err(|e| format!("{}: {e}", path.display()))?;
-        let t = &parsed.max_tsdr;
+        let parsed = read_gsd(path)?;
         let mut user_prms: Vec<PrmName> = parsed
             .user_prm_data
             .data_ref
@@ -133,18 +155,7 @@ impl Product {
                 .map(|m| ModuleName { name: m.name.trim().to_string(), cfg: m.config.clone() })
                 .collect(),
             user_prms,
-            max_tsdr: Baudrate::ALL.map(|r| match r {
-                Baudrate::B9600 => t.b9600,
-                Baudrate::B19200 => t.b19200,
-                Baudrate::B45450 => t.b45450,
-                Baudrate::B93750 => t.b93750,
-                Baudrate::B187500 => t.b187500,
-                Baudrate::B500k => t.b500000,
-                Baudrate::B1500k => t.b1500000,
-                Baudrate::B3M => t.b3000000,
-                Baudrate::B6M => t.b6000000,
-                Baudrate::B12M => t.b12000000,
-            }),
+            max_tsdr: Baudrate::ALL.map(|r| gsd_max_tsdr(&parsed, r)),
         })
     }
 

@@ -6,6 +6,9 @@
 //!   with exact times: bring-up, data exchange, a DP-V1 record-47 parameter read, Global_Control,
 //!   one lost answer and its retry — replayed from the capture format and decoded with every
 //!   request matched to its response and no `Unknown`;
+//! * a second recorded session with I&M (an I&M1 write, I&M0 / I&M1 reads over MSAC_C1 and over
+//!   an MSAC_C2 connection, each with its own call) and MSAC_C2 Data_Transport of record 47 and
+//!   of I&M1, its decoded lines asserted field by field;
 //! * garbage between frames, and the same bytes as raw input (cut by syntax, no times);
 //! * the VACON OPTE3/E5 §6.4.4 and WEG CFW-11 §4.2.5 parameter-access examples decoded field by
 //!   field.
@@ -380,6 +383,280 @@ fn weg_cfw11_4_2_5_examples_field_by_field() {
     assert!(resp.ends_with("PNU 100 = error 0x02 low or high limit exceeded"), "{resp}");
 }
 
+/// The PDU of a DP-V1 answer frame (`E5` = none yet).
+fn answer_pdu(frame: &[u8]) -> Option<Vec<u8>> {
+    match pbcard::fdl::telegram::decode(frame) {
+        pbcard::fdl::telegram::Decoded::Frame(pbcard::fdl::telegram::Telegram::Data(d), _) => Some(d.pdu.to_vec()),
+        _ => None,
+    }
+}
+
+/// The class-2 master of the I&M session.
+const C2_MASTER: u8 = 10;
+
+impl Bus {
+    /// A DP-V1 request from `sa` to `dsap` (SSAP `ssap`), then polls until the response PDU.
+    fn dpv1(&mut self, sa: u8, dsap: u8, ssap: u8, pdu: &[u8]) -> Vec<u8> {
+        let f = self.master.request(sa, Some(dsap), Some(ssap), pdu, true);
+        let mut r = self.send(&f, false).expect("an answer");
+        for _ in 0..20 {
+            if r != [0xE5] {
+                return answer_pdu(&r).expect("a data telegram");
+            }
+            let poll = self.master.request(sa, Some(dsap), Some(ssap), &[], true);
+            r = self.send(&poll, false).expect("an answer");
+        }
+        panic!("no DP-V1 response");
+    }
+}
+
+/// Initiate.req: Send_Timeout 3 s, Read/Write supported, 2-byte address blocks (API 0, SCL 0).
+const INITIATE: [u8; 20] = [0x57, 0, 0, 0, 0x01, 0x2C, 0x01, 0x00, 0, 0, 0, 0, 0, 2, 0, 2, 0, 0, 0, 0];
+
+/// `08 00 FI_Index`, then (for a write) the 10-byte header and `content` blank-padded to 54.
+fn im_call(fi: u16, content: Option<&[u8]>) -> Vec<u8> {
+    let mut d = vec![0x08, 0x00];
+    d.extend_from_slice(&fi.to_be_bytes());
+    if let Some(c) = content {
+        d.extend_from_slice(&[0; 10]);
+        let mut c = c.to_vec();
+        c.resize(54, b' ');
+        d.extend_from_slice(&c);
+    }
+    d
+}
+
+fn ds_write(index: u8, data: &[u8]) -> Vec<u8> {
+    [&[0x5F, 0x00, index, data.len() as u8][..], data].concat()
+}
+
+const TAG: &str = "TAG_FUNCTION \"Pump 3 main drive\", TAG_LOCATION \"Hall B, rack 7\"";
+
+/// A card session with I&M and MSAC_C2, recorded: an I&M1 write, I&M0 and I&M1 reads over
+/// MSAC_C1 and over an MSAC_C2 connection (each relation with its own call), and an MSAC_C2
+/// Data_Transport of record 47 and of I&M1. The card's answers are checked on the way.
+fn im_session() -> (String, Vec<u8>) {
+    let mut b = Bus::new();
+    b.srd(Some(60), &[]);
+    b.srd(Some(61), &SetPrm::CARD.dpv1_status_1(0x80).pdu());
+    b.srd(Some(62), card::MODULES[0].cfg);
+    b.srd(None, &[0x04, 0x7E, 0x00, 0x00]);
+    let mut tags = b"Pump 3 main drive".to_vec();
+    tags.resize(32, b' ');
+    tags.extend_from_slice(b"Hall B, rack 7");
+    // MSAC_C1: write I&M1, select and read I&M0, select and read I&M1.
+    let c1 = |b: &mut Bus, pdu: &[u8]| b.dpv1(MASTER, 51, 51, pdu);
+    assert_eq!(c1(&mut b, &ds_write(255, &im_call(65001, Some(&tags)))), [0x5F, 0x00, 0xFF, 68], "I&M1 written");
+    assert_eq!(c1(&mut b, &ds_write(255, &im_call(65000, None))), [0x5F, 0x00, 0xFF, 4]);
+    let im0 = c1(&mut b, &[0x5E, 0x00, 0xFF, 0xF0]);
+    assert_eq!(im0[..8], [0x5E, 0x00, 0xFF, 68, 0x08, 0x00, 0xFD, 0xE8], "I&M0 with its call header");
+    assert_eq!(c1(&mut b, &ds_write(255, &im_call(65001, None))), [0x5F, 0x00, 0xFF, 4]);
+    let im1 = c1(&mut b, &[0x5E, 0x00, 0xFF, 0xF0]);
+    assert_eq!(im1[4..8], [0x08, 0x00, 0xFD, 0xE9]);
+    assert_eq!(im1[18..18 + 54], tags.iter().copied().chain(std::iter::repeat(b' ')).take(54).collect::<Vec<_>>());
+    // MSAC_C2: the resource manager, the connection, then I&M0 selected on it while MSAC_C1
+    // keeps I&M1 selected.
+    let rm = b.dpv1(C2_MASTER, 49, 50, &INITIATE);
+    assert_eq!((rm.len(), rm[0]), (4, 0x56), "RM: continue on a server SAP");
+    let sap = rm[1];
+    assert_eq!(b.dpv1(C2_MASTER, sap, 50, &INITIATE)[0], 0x57, "Initiate.res");
+    let c2 = |b: &mut Bus, pdu: &[u8]| b.dpv1(C2_MASTER, sap, 50, pdu);
+    assert_eq!(c2(&mut b, &ds_write(255, &im_call(65000, None))), [0x5F, 0x00, 0xFF, 4]);
+    assert_eq!(c2(&mut b, &[0x5E, 0x00, 0xFF, 0xF0])[4..8], [0x08, 0x00, 0xFD, 0xE8], "C2: I&M0");
+    assert_eq!(c1(&mut b, &[0x5E, 0x00, 0xFF, 0xF0])[4..8], [0x08, 0x00, 0xFD, 0xE9], "C1 still I&M1");
+    assert_eq!(c2(&mut b, &ds_write(255, &im_call(65001, None))), [0x5F, 0x00, 0xFF, 4]);
+    assert_eq!(c2(&mut b, &[0x5E, 0x00, 0xFF, 0xF0]), im1, "C2: I&M1");
+    // Data_Transport (write + read in one PDU): record 47 reads PNU 918; I&M1 with its call.
+    let dt = c2(&mut b, &[0x51, 0x00, 0x2F, 0x0A, 0x07, 0x01, 0x01, 0x01, 0x10, 0x01, 0x03, 0x96, 0x00, 0x00]);
+    assert_eq!(dt, [0x51, 0x00, 0x2F, 0x08, 0x07, 0x01, 0x01, 0x01, 0x42, 0x01, 0x00, SLAVE], "PNU 918 = 5");
+    let dt = c2(&mut b, &[&[0x51, 0x00, 0xFF, 0x04][..], &im_call(65001, None)].concat());
+    assert_eq!(dt[..8], [0x51, 0x00, 0xFF, 68, 0x08, 0x00, 0xFD, 0xE9]);
+    // The master closes the connection (Abort, acknowledged with SC).
+    let abort = b.master.request(C2_MASTER, Some(sap), Some(50), &[0x58, 0x00, 0x20, 0x00], true);
+    assert_eq!(b.send(&abort, false).as_deref(), Some(&[0xE5][..]));
+    let text = String::from_utf8(b.capture.into_inner()).unwrap();
+    (text, b.raw)
+}
+
+#[test]
+fn a_recorded_im_and_class2_session_decodes_field_by_field() {
+    let (text, raw) = im_session();
+    let (lines, mon) = replay(Product::card(), &text, None);
+    let all = dump(&lines);
+    assert!(lines.iter().all(|l| l.service != "Unknown" && l.kind == "telegram"), "{all}");
+    let st = &mon.stations()[&SLAVE];
+    assert_eq!((st.missing, st.answered, st.errors), (0, st.requests, 0), "{all}");
+    assert!(!all.contains("NOT the record") && !all.contains("no call seen"), "{all}");
+    // The raw bytes decode to the same texts.
+    let (raw_lines, _) = decode_raw(Product::card(), None, &raw);
+    let texts = |l: &[Line]| l.iter().map(|l| l.text.clone()).collect::<Vec<_>>();
+    assert_eq!(texts(&lines), texts(&raw_lines));
+
+    let requests = |sa: u8, service: &str| -> Vec<&Line> {
+        lines.iter().filter(|l| l.sa == Some(sa) && l.service == service && l.request.is_none() && !l.poll).collect()
+    };
+    let responses = |da: u8, service: &str| -> Vec<&Line> {
+        lines.iter().filter(|l| l.da == Some(da) && l.request == Some(service) && l.sd != Some("SC")).collect()
+    };
+    // MSAC_C1: the I&M1 write, field by field.
+    let w = requests(MASTER, "DS_Write");
+    assert_eq!(w.len(), 3, "{all}");
+    assert_eq!((w[0].slot, w[0].index, w[0].dsap, w[0].ssap), (Some(0), Some(255), Some(51), Some(51)));
+    assert_eq!(
+        w[0].text,
+        format!("MSAC_C1 slot 0 index 255 length 68: I&M function call, IM_Index 65001: I&M1: {TAG}")
+    );
+    assert_eq!(
+        w[1].text,
+        "MSAC_C1 slot 0 index 255 length 4: I&M function call, IM_Index 65000 (I&M0): selected for the next read"
+    );
+    assert_eq!(
+        w[2].text,
+        "MSAC_C1 slot 0 index 255 length 4: I&M function call, IM_Index 65001 (I&M1): selected for the next read"
+    );
+    let wr = responses(MASTER, "DS_Write");
+    assert_eq!(wr[0].text, "slot 0 index 255 length 68 written");
+    assert_eq!((wr[0].index, wr[0].dsap, wr[0].ssap), (Some(255), Some(51), Some(51)));
+    // MSAC_C1 reads: I&M0 (the card's identity), I&M1, and I&M1 again after MSAC_C2's call.
+    let r = responses(MASTER, "DS_Read");
+    assert_eq!(r.len(), 3, "{all}");
+    let im0 = &r[0].text;
+    assert!(
+        im0.starts_with(&format!(
+            "slot 0 index 255 length 68: IM_Index 65000: I&M0: MANUFACTURER_ID {}, ORDER_ID \"{}\", SERIAL_NUMBER \"",
+            card::IM_MANUFACTURER_ID,
+            card::IM_ORDER_ID
+        )),
+        "{im0}"
+    );
+    let sw = card::IM_SOFTWARE_REVISION;
+    for part in [
+        format!("SOFTWARE_REVISION {}{}.{}.{}", sw[0] as char, sw[1], sw[2], sw[3]),
+        "REV_COUNTER 0, PROFILE_ID 0x3A00, PROFILE_SPECIFIC_TYPE 0, IM_VERSION 1.1, IM_SUPPORTED 0x000F".into(),
+    ] {
+        assert!(im0.contains(&part), "'{part}' in {im0}");
+    }
+    assert_eq!(r[1].text, format!("slot 0 index 255 length 68: IM_Index 65001: I&M1: {TAG}"));
+    assert_eq!(r[2].text, r[1].text, "MSAC_C1 keeps its own call");
+    assert_eq!((r[1].slot, r[1].index), (Some(0), Some(255)));
+    // MSAC_C2: the connection, its own calls and reads.
+    let init = requests(C2_MASTER, "Initiate");
+    assert_eq!(init.len(), 2, "{all}");
+    assert_eq!(init[0].dsap, Some(49));
+    assert!(init[0].text.starts_with("MSAC_C2 resource manager Send_Timeout 3000 ms"), "{}", init[0].text);
+    let sap = init[1].dsap.expect("the server SAP");
+    assert!(responses(C2_MASTER, "Initiate")[0].text.starts_with(&format!("resource manager: continue on SAP {sap}")));
+    let w = requests(C2_MASTER, "DS_Write");
+    assert_eq!(
+        w[0].text,
+        "MSAC_C2 slot 0 index 255 length 4: I&M function call, IM_Index 65000 (I&M0): selected for the next read"
+    );
+    assert_eq!(w[0].dsap, Some(sap));
+    let r2 = responses(C2_MASTER, "DS_Read");
+    assert_eq!(r2.len(), 2, "{all}");
+    assert_eq!(r2[0].text, im0.as_str(), "the same I&M0 over MSAC_C2");
+    assert_eq!(r2[0].ssap, Some(sap));
+    assert_eq!(r2[1].text, format!("slot 0 index 255 length 68: IM_Index 65001: I&M1: {TAG}"));
+    // Data_Transport: record 47 as the record-47 decoder shows it on MSAC_C1, and I&M1.
+    let dt = requests(C2_MASTER, "Data_Transport");
+    assert_eq!(dt.len(), 2, "{all}");
+    assert_eq!(
+        dt[0].text,
+        "MSAC_C2 slot 0 index 47 length 10: PROFIdrive request parameter, ref 7, axis 1: PNU 918 (station address) value"
+    );
+    assert_eq!((dt[0].slot, dt[0].index, dt[0].pnu), (Some(0), Some(47), Some(918)));
+    assert_eq!(
+        dt[1].text,
+        "MSAC_C2 slot 0 index 255 length 4: I&M function call, IM_Index 65001 (I&M1): selected for the next read"
+    );
+    let dtr = responses(C2_MASTER, "Data_Transport");
+    assert_eq!(
+        dtr[0].text,
+        format!("slot 0 index 47 length 8: PROFIdrive response 01 request parameter ok, ref 7, axis 1, 1 parameters: PNU 918 = Word 0x{SLAVE:04X} ({SLAVE})")
+    );
+    assert_eq!(
+        (dtr[0].service, dtr[0].index, dtr[0].pnu, dtr[0].error.as_deref()),
+        ("Response", Some(47), Some(918), None)
+    );
+    assert!(
+        dtr[0].text_line().contains(" Response(Data_Transport) slot 0 index 47 length 8: "),
+        "{}",
+        dtr[0].text_line()
+    );
+    assert_eq!(dtr[1].text, format!("slot 0 index 255 length 68: IM_Index 65001: I&M1: {TAG}"));
+    let abort = requests(C2_MASTER, "Abort");
+    assert_eq!(abort.len(), 1, "{all}");
+    // JSON: the Data_Transport response carries the fields the issue names.
+    let j: serde_json::Value = serde_json::from_str(&dtr[0].json()).unwrap();
+    assert_eq!(
+        (j["request"].as_str(), j["index"].as_u64(), j["pnu"].as_u64()),
+        (Some("Data_Transport"), Some(47), Some(918))
+    );
+}
+
+/// A DP-V1 frame between master `m` (SAP `msap`) and station 3 (SAP `sap`).
+fn dpv1_frame(m: u8, msap: u8, sap: u8, request: bool, pdu: &[u8]) -> Vec<u8> {
+    let hdr = if request {
+        Header { da: 3, sa: m, fc: FunctionCode::request(0xD, true, true), dsap: Some(sap), ssap: Some(msap) }
+    } else {
+        Header { da: m, sa: 3, fc: FunctionCode::response(ResponseStatus::Dl), dsap: Some(msap), ssap: Some(sap) }
+    };
+    testkit::frame(&hdr, pdu).to_vec()
+}
+
+#[test]
+fn a_device_answering_bare_im_records_is_decoded_by_the_call_of_each_relation() {
+    // A 64-byte record after a zero header: `fields` blank-padded to 54.
+    let rec = |fields: &str| {
+        let mut r = vec![0u8; 10];
+        r.extend_from_slice(fields.as_bytes());
+        r.resize(64, b' ');
+        r
+    };
+    let read = [0x5E, 0x00, 0xFF, 0xF0];
+    let answer = |data: &[u8]| [&[0x5E, 0x00, 0xFF, data.len() as u8][..], data].concat();
+    let (c1, c2) = ((MASTER, 51, 51), (10, 50, 40));
+    let mut bytes = Vec::new();
+    let mut x = |(m, msap, sap): (u8, u8, u8), req: &[u8], resp: Option<&[u8]>| {
+        bytes.extend(dpv1_frame(m, msap, sap, true, req));
+        match resp {
+            Some(r) => bytes.extend(dpv1_frame(m, msap, sap, false, r)),
+            None => bytes.push(0xE5),
+        }
+    };
+    // MSAC_C1 selects I&M1, the MSAC_C2 connection I&M3; each read answers the bare record.
+    x(c1, &[0x5F, 0x00, 0xFF, 0x04, 0x08, 0x00, 0xFD, 0xE9], Some(&[0x5F, 0x00, 0xFF, 0x04]));
+    x(c2, &[0x5F, 0x00, 0xFF, 0x04, 0x08, 0x00, 0xFD, 0xEB], Some(&[0x5F, 0x00, 0xFF, 0x04]));
+    let mut im1 = b"F".to_vec();
+    im1.resize(32, b' ');
+    im1.extend_from_slice(b"L");
+    x(c1, &read, Some(&answer(&rec(std::str::from_utf8(&im1).unwrap()))));
+    x(c2, &read, Some(&answer(&rec("D"))));
+    // A refused call selects nothing: MSAC_C1 stays on I&M1, and an answer with another
+    // record's header is flagged.
+    x(c1, &[0x5F, 0x00, 0xFF, 0x04, 0x08, 0x00, 0xFD, 0xF0], Some(&[0xDF, 0x80, 0xB0, 0x00]));
+    x(c1, &read, Some(&answer(&[&[0x08, 0x00, 0xFD, 0xEB][..], &rec("D")].concat())));
+    // The connection closes; its next read has no call.
+    x(c2, &[0x58, 0x00, 0x20, 0x00], None);
+    x(c2, &read, Some(&answer(&rec(""))));
+    let (lines, _) = decode_raw(Product::card(), None, &bytes);
+    let all = dump(&lines);
+    assert!(lines.iter().all(|l| l.service != "Unknown" && l.kind == "telegram"), "{all}");
+    let reads: Vec<&str> = lines.iter().filter(|l| l.request == Some("DS_Read")).map(|l| l.text.as_str()).collect();
+    assert_eq!(
+        reads,
+        [
+            "slot 0 index 255 length 64: IM_Index 65001 (the call on this relation), without call header: I&M1: TAG_FUNCTION \"F\", TAG_LOCATION \"L\"",
+            "slot 0 index 255 length 64: IM_Index 65003 (the call on this relation), without call header: I&M3: DESCRIPTOR \"D\"",
+            "slot 0 index 255 length 68: IM_Index 65003: I&M3: DESCRIPTOR \"D\" (NOT the record the call on this relation selected, IM_Index 65001)",
+            "slot 0 index 255 length 64: no call seen on this relation, read as I&M0: I&M0: MANUFACTURER_ID 8224, ORDER_ID \"\", SERIAL_NUMBER \"\", HARDWARE_REVISION 8224, SOFTWARE_REVISION ?32.32.32, REV_COUNTER 8224, PROFILE_ID 0x2020, PROFILE_SPECIFIC_TYPE 8224, IM_VERSION 32.32, IM_SUPPORTED 0x2020",
+        ],
+        "{all}"
+    );
+    let refused = find(&lines, |l| l.request == Some("DS_Write") && l.error.is_some(), "the refused call");
+    assert!(refused.text.contains("Error_Code_1 B0 (access: invalid index)"), "{}", refused.text);
+}
+
 #[test]
 #[ignore = "prints the decoded session (README example): cargo test -p pbcard-monitor --test replay -- --ignored --nocapture"]
 fn print_the_session() {
@@ -387,4 +664,7 @@ fn print_the_session() {
     println!("{text}");
     let (lines, mon) = replay(Product::card(), &text, None);
     println!("{}\n{}", dump(&lines), mon.summary());
+    let (text, _) = im_session();
+    let (lines, _) = replay(Product::card(), &text, None);
+    println!("{}", dump(&lines));
 }
