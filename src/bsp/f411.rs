@@ -711,12 +711,19 @@ pub fn init(dp: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYS
     dp.DBGMCU.cr().modify(|_, w| w.dbg_sleep().set_bit());
     dp.DBGMCU.apb1_fz().modify(|_, w| w.dbg_iwdg_stop().set_bit());
 
+    // Issue 11 3a: the regulator at scale 1 before the PLL runs at 96 MHz (PWR_CR.VOS = 0b11,
+    // "scale 1, HCLK ≤ 100 MHz"; the reset value 0b10 is scale 2, rated ≤ 84 MHz, and
+    // stm32f4xx-hal's `freeze` leaves it). RM0383 §5.4.1: VOS can be modified only while the
+    // PLL is off and takes effect when it is switched on; PWR_CSR.VOSRDY then says the
+    // regulator has reached the level.
+    scale1_before_pll(&dp.RCC, &dp.PWR);
     let mut rcc = dp.RCC.freeze(
         rcc::Config::hse(Hertz::from_raw(clocks::HSE_HZ))
             .sysclk(Hertz::from_raw(clocks::SYSCLK_HZ))
             .pclk1(Hertz::from_raw(clocks::PCLK1_HZ))
             .pclk2(Hertz::from_raw(clocks::PCLK2_HZ)),
     );
+    let vos_ready = wait_vos_ready(&dp.PWR);
     let sysclk = rcc.clocks.sysclk().raw();
     let pclk2 = rcc.clocks.pclk2().raw();
     let timclk1 = rcc.clocks.timclk1().raw();
@@ -732,6 +739,12 @@ pub fn init(dp: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYS
         acr.prften().bit_is_set(),
         acr.icen().bit_is_set(),
         acr.dcen().bit_is_set()
+    );
+
+    defmt::info!(
+        "regulator: PWR_CR.VOS = {=u8:#04b} (scale 1), VOSRDY {=bool}",
+        dp.PWR.cr().read().vos().bits(),
+        vos_ready
     );
 
     let clock = super::clock::start(syst, sysclk);
@@ -776,4 +789,34 @@ pub fn init(dp: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYS
         mosi: gpiob.pb15,
     };
     Board { line, clock, leds, flash: super::flash::JournalFlash::new(dp.FLASH), iwdg: dp.IWDG, spi }
+}
+
+/// PWR_CR.VOS = scale 1 (0b11) with the PLL off (RM0383 §5.4.1). After a reset the PLL is
+/// off; should anything have left it on (a debugger script), the system clock goes back to
+/// HSI and the PLL is stopped first, which `freeze` then programs and starts again.
+fn scale1_before_pll(rcc: &stm32f4xx_hal::pac::RCC, pwr: &stm32f4xx_hal::pac::PWR) {
+    if rcc.cr().read().pllon().bit_is_set() {
+        rcc.cfgr().modify(|_, w| w.sw().hsi());
+        while !rcc.cfgr().read().sws().is_hsi() {}
+        rcc.cr().modify(|_, w| w.pllon().clear_bit());
+        while rcc.cr().read().pllrdy().bit_is_set() {}
+    }
+    rcc.apb1enr().modify(|_, w| w.pwren().set_bit());
+    // A peripheral clock is on only a few AHB cycles after its enable bit (the F4 errata's
+    // "delay after an RCC peripheral clock enabling"): a read-back and a DSB before the access.
+    let _ = rcc.apb1enr().read();
+    cortex_m::asm::dsb();
+    pwr.cr().modify(|_, w| w.vos().scale1());
+}
+
+/// Wait (bounded: ≈ 1 ms at 96 MHz) until PWR_CSR.VOSRDY says the regulator is at the VOS
+/// level; `false` if it did not come (logged; the card runs on, as it did before this check).
+fn wait_vos_ready(pwr: &stm32f4xx_hal::pac::PWR) -> bool {
+    for _ in 0..1000 {
+        if pwr.csr().read().vosrdy().bit_is_set() {
+            return true;
+        }
+        cortex_m::asm::delay(96);
+    }
+    false
 }
