@@ -170,6 +170,9 @@ pub struct DmaLine {
     tsyn_pos: Option<u16>,
     tx: Tx,
     stats: LineStats,
+    /// The bit rate is trustworthy (crystal running): responses may go out. `false` after a
+    /// crystal failure: listen only, DE never set.
+    transmit: bool,
 }
 
 static mut RX_RING_BUF: [u8; RX_RING] = [0; RX_RING];
@@ -178,7 +181,8 @@ static mut TX_BUF: [u8; MAX_FRAME_LEN] = [0; MAX_FRAME_LEN];
 impl DmaLine {
     /// Take USART1, DMA2 and TIM5 (clocks enabled and reset here), start TIM5 free-running at
     /// `timclk_hz`, program 11-bit characters at `rate` and start the receive DMA. Call once
-    /// (it owns the static DMA buffers). The NVIC lines are unmasked by RTIC.
+    /// (it owns the static DMA buffers). The NVIC lines are unmasked by RTIC. `transmit`:
+    /// the bit rate comes from the crystal; `false` = listen only (no response, DE never on).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         usart: USART1,
@@ -189,6 +193,7 @@ impl DmaLine {
         pclk_hz: u32,
         timclk_hz: u32,
         rate: Baudrate,
+        transmit: bool,
         rcc: &mut RCC,
     ) -> Result<Self, UnsupportedRate> {
         de.disable();
@@ -228,6 +233,7 @@ impl DmaLine {
             tsyn_pos: None,
             tx: Tx::Idle,
             stats: LineStats::default(),
+            transmit,
         };
         line.usart.cr2().write(|w| w.stop().stop1());
         line.set_baud(rate)?;
@@ -459,7 +465,7 @@ impl DmaLine {
     /// than `min_tsdr` after its last stop bit and no later than `max_tsdr` — or not at all
     /// ([`line::tx_plan`]). Returns what was done.
     pub fn respond(&mut self, request: &FrameMeta, bytes: &[u8], min_tsdr: BitTimes, max_tsdr: BitTimes) -> TxPlan {
-        if bytes.is_empty() || bytes.len() > self.tx_buf.len() {
+        if !self.transmit || bytes.is_empty() || bytes.len() > self.tx_buf.len() {
             self.stats.dropped_bad_length = self.stats.dropped_bad_length.wrapping_add(1);
             return TxPlan::Drop(TxDrop::Busy);
         }
@@ -717,8 +723,14 @@ pub fn init(dp: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYS
     // PLL is off and takes effect when it is switched on; PWR_CSR.VOSRDY then says the
     // regulator has reached the level.
     scale1_before_pll(&dp.RCC, &dp.PWR);
+    // Issue 11 3g: the crystal is started here with a timeout (the HAL's `freeze` waits for
+    // HSERDY forever). Without it the card runs from HSI (same 96 MHz tree) but never drives
+    // the bus: HSI's tolerance (±1 % at 25 °C, more over temperature, DS10314) is far outside
+    // PROFIBUS's ±0.3 % — a defined fault, logged, with the DPM side still running.
+    let crystal = start_hse(&dp.RCC);
+    let config = if crystal { rcc::Config::hse(Hertz::from_raw(clocks::HSE_HZ)) } else { rcc::Config::hsi() };
     let mut rcc = dp.RCC.freeze(
-        rcc::Config::hse(Hertz::from_raw(clocks::HSE_HZ))
+        config
             .sysclk(Hertz::from_raw(clocks::SYSCLK_HZ))
             .pclk1(Hertz::from_raw(clocks::PCLK1_HZ))
             .pclk2(Hertz::from_raw(clocks::PCLK2_HZ)),
@@ -747,6 +759,15 @@ pub fn init(dp: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYS
         vos_ready
     );
 
+    if !crystal {
+        defmt::error!(
+            "HSE ({=u32} Hz crystal) did not start within {=u32} ms: running from HSI, the PROFIBUS line stays silent",
+            clocks::HSE_HZ,
+            HSE_TIMEOUT_MS
+        );
+    }
+    brown_out_level(&dp.FLASH);
+
     let clock = super::clock::start(syst, sysclk);
 
     let gpioa = dp.GPIOA.split(&mut rcc);
@@ -762,10 +783,11 @@ pub fn init(dp: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYS
         fs: gpiob.pb8.into_push_pull_output_in_state(PinState::Low),
     };
 
-    let line = match DmaLine::new(dp.USART1, dp.DMA2, dp.TIM5, (tx, rx), DePin(de), pclk2, timclk1, rate, &mut rcc) {
-        Ok(l) => l,
-        Err(e) => defmt::panic!("line rate {} not reachable at PCLK2 {=u32} Hz", e.0, pclk2),
-    };
+    let line =
+        match DmaLine::new(dp.USART1, dp.DMA2, dp.TIM5, (tx, rx), DePin(de), pclk2, timclk1, rate, crystal, &mut rcc) {
+            Ok(l) => l,
+            Err(e) => defmt::panic!("line rate {} not reachable at PCLK2 {=u32} Hz", e.0, pclk2),
+        };
     let (over8, brr) = usart_brr(pclk2, rate.bits_per_second()).unwrap_or((false, 0));
     defmt::info!(
         "USART1 {} = {=u32} bit/s (OVER8 {=bool}, BRR {=u16:#x}), SYSCLK {=u32} Hz, TIM5 {=u32} Hz",
@@ -819,4 +841,61 @@ fn wait_vos_ready(pwr: &stm32f4xx_hal::pac::PWR) -> bool {
         cortex_m::asm::delay(96);
     }
     false
+}
+
+/// How long the crystal may take to start (HSE_STARTUP_TIMEOUT of ST's own drivers: 100 ms;
+/// a 25 MHz crystal typically needs 2 ms, DS10314 t_SU(HSE)).
+pub const HSE_TIMEOUT_MS: u32 = 100;
+
+/// Switch the crystal oscillator on and wait for RCC_CR.HSERDY at most [`HSE_TIMEOUT_MS`]
+/// (counted in HSI cycles: the core runs from the 16 MHz HSI after reset). `false`: HSEON
+/// is cleared again and the clock tree is built on HSI.
+fn start_hse(rcc: &stm32f4xx_hal::pac::RCC) -> bool {
+    rcc.cr().modify(|_, w| w.hseon().set_bit());
+    // Polled every 1 600 cycles = 100 µs at 16 MHz.
+    for _ in 0..HSE_TIMEOUT_MS * 10 {
+        if rcc.cr().read().hserdy().bit_is_set() {
+            return true;
+        }
+        cortex_m::asm::delay(1_600);
+    }
+    rcc.cr().modify(|_, w| w.hseon().clear_bit());
+    false
+}
+
+/// FLASH_OPTCR.BOR_LEV for brown-out level 3 (RM0383 §3.8.6: 00 = VBOR3 ≈ 2.7 V, 01 = VBOR2,
+/// 10 = VBOR1, 11 = off — the factory value; the stm32f4 PAC's enumeration of this field names
+/// 0 "off", so the raw bits are used here).
+const BOR_LEV_LEVEL3: u32 = 0b00;
+const OPTCR_BOR_LEV_SHIFT: u32 = 2;
+const OPTCR_BOR_LEV_MASK: u32 = 0b11 << OPTCR_BOR_LEV_SHIFT;
+const OPTCR_OPTLOCK: u32 = 1 << 0;
+const OPTCR_OPTSTRT: u32 = 1 << 1;
+const OPTKEY1: u32 = 0x0819_2A3B;
+const OPTKEY2: u32 = 0x4C5D_6E7F;
+const FLASH_SR_BSY: u32 = 1 << 16;
+
+/// Issue 11 3g: the brown-out reset at level 3 (≈ 2.7 V), the lowest supply at which 3 flash
+/// wait states are rated at 96 MHz (RM0383 Table 5: 2.7–3.6 V). The option byte is written
+/// **only when it differs** — once, at the first boot of a new card — never on every boot
+/// (option-byte programming wears the option sector and a power loss during it is the one
+/// risky moment): the read-modify-write keeps RDP, nWRP and the user bits as they are. The
+/// line is not running yet (DE low), so the stall of the write costs nothing.
+fn brown_out_level(flash: &stm32f4xx_hal::pac::FLASH) {
+    let optcr = flash.optcr().read().bits();
+    let level = (optcr & OPTCR_BOR_LEV_MASK) >> OPTCR_BOR_LEV_SHIFT;
+    if level == BOR_LEV_LEVEL3 {
+        defmt::info!("brown-out reset: level 3 (option byte BOR_LEV = 0b00)");
+        return;
+    }
+    while flash.sr().read().bits() & FLASH_SR_BSY != 0 {}
+    flash.optkeyr().write(|w| unsafe { w.bits(OPTKEY1) });
+    flash.optkeyr().write(|w| unsafe { w.bits(OPTKEY2) });
+    let new = (optcr & !(OPTCR_BOR_LEV_MASK | OPTCR_OPTLOCK | OPTCR_OPTSTRT)) | (BOR_LEV_LEVEL3 << OPTCR_BOR_LEV_SHIFT);
+    flash.optcr().write(|w| unsafe { w.bits(new) });
+    flash.optcr().write(|w| unsafe { w.bits(new | OPTCR_OPTSTRT) });
+    while flash.sr().read().bits() & FLASH_SR_BSY != 0 {}
+    flash.optcr().modify(|r, w| unsafe { w.bits(r.bits() | OPTCR_OPTLOCK) });
+    let now = (flash.optcr().read().bits() & OPTCR_BOR_LEV_MASK) >> OPTCR_BOR_LEV_SHIFT;
+    defmt::warn!("brown-out reset: BOR_LEV {=u32:#04b} -> {=u32:#04b} (level 3, written once)", level, now);
 }
