@@ -712,6 +712,14 @@ pub fn init(dp: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYS
     use stm32f4xx_hal::rcc::{self, RccExt};
     use stm32f4xx_hal::time::Hertz;
 
+    // Issue 11 3d: DE (PA8) low before anything else. `__pre_init` (below) has driven it low
+    // before RAM initialisation; the HAL's `split` resets GPIOA (PA8 floats for a few cycles,
+    // held low by the board's external pull-down) and the pin is an output at low again at
+    // once, before the clock tree is touched.
+    let mut rcc_regs = dp.RCC;
+    let gpioa = dp.GPIOA.split(&mut rcc_regs);
+    let de = gpioa.pa8.into_push_pull_output_in_state(PinState::Low).speed(Speed::VeryHigh);
+
     // Keep the debug clock running in WFI, so probe-rs / RTT keep working in idle; stop the
     // IWDG while the core is halted by a debugger.
     dp.DBGMCU.cr().modify(|_, w| w.dbg_sleep().set_bit());
@@ -722,14 +730,14 @@ pub fn init(dp: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYS
     // stm32f4xx-hal's `freeze` leaves it). RM0383 §5.4.1: VOS can be modified only while the
     // PLL is off and takes effect when it is switched on; PWR_CSR.VOSRDY then says the
     // regulator has reached the level.
-    scale1_before_pll(&dp.RCC, &dp.PWR);
+    scale1_before_pll(&rcc_regs, &dp.PWR);
     // Issue 11 3g: the crystal is started here with a timeout (the HAL's `freeze` waits for
     // HSERDY forever). Without it the card runs from HSI (same 96 MHz tree) but never drives
     // the bus: HSI's tolerance (±1 % at 25 °C, more over temperature, DS10314) is far outside
     // PROFIBUS's ±0.3 % — a defined fault, logged, with the DPM side still running.
-    let crystal = start_hse(&dp.RCC);
+    let crystal = start_hse(&rcc_regs);
     let config = if crystal { rcc::Config::hse(Hertz::from_raw(clocks::HSE_HZ)) } else { rcc::Config::hsi() };
-    let mut rcc = dp.RCC.freeze(
+    let mut rcc = rcc_regs.freeze(
         config
             .sysclk(Hertz::from_raw(clocks::SYSCLK_HZ))
             .pclk1(Hertz::from_raw(clocks::PCLK1_HZ))
@@ -770,8 +778,6 @@ pub fn init(dp: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYS
 
     let clock = super::clock::start(syst, sysclk);
 
-    let gpioa = dp.GPIOA.split(&mut rcc);
-    let de = gpioa.pa8.into_push_pull_output_in_state(PinState::Low).speed(Speed::VeryHigh);
     let tx = gpioa.pa9.into_alternate::<7>().speed(Speed::VeryHigh);
     // Pull-up: the transceiver's RO may float while its receiver is disabled.
     let rx = gpioa.pa10.into_alternate::<7>().internal_pull_up(true);
@@ -899,3 +905,36 @@ fn brown_out_level(flash: &stm32f4xx_hal::pac::FLASH) {
     let now = (flash.optcr().read().bits() & OPTCR_BOR_LEV_MASK) >> OPTCR_BOR_LEV_SHIFT;
     defmt::warn!("brown-out reset: BOR_LEV {=u32:#04b} -> {=u32:#04b} (level 3, written once)", level, now);
 }
+
+// Issue 11 3d: the RS485 driver enable low as the very first thing after reset, before the
+// RAM is initialised and long before the clocks (cortex-m-rt calls `__pre_init` from the
+// reset handler; written in assembly because no Rust may run before RAM initialisation,
+// cortex-m-rt's documentation of `pre_init`). RCC_AHB1ENR.GPIOAEN (0x4002_3830 bit 0), a
+// read-back for the clock-enable delay, GPIOA_BSRR.BR8 (0x4002_0018 bit 24: ODR8 = 0), then
+// GPIOA_MODER.MODER8 = 0b01 (0x4002_0000 bits 17:16: output; the other pins, SWD on PA13 /
+// PA14 included, keep their mode). Until then (reset, the first few cycles) the transceiver's
+// DE is held low by the external pull-down on PA8 (README "Hardware").
+core::arch::global_asm!(
+    ".section .text.__pre_init,\"ax\",%progbits",
+    ".global __pre_init",
+    ".type __pre_init,%function",
+    ".thumb_func",
+    "__pre_init:",
+    "    ldr r0, =0x40023830",
+    "    ldr r1, [r0]",
+    "    orr r1, r1, #1",
+    "    str r1, [r0]",
+    "    ldr r1, [r0]",
+    "    dsb",
+    "    ldr r0, =0x40020018",
+    "    mov r1, #0x01000000",
+    "    str r1, [r0]",
+    "    ldr r0, =0x40020000",
+    "    ldr r1, [r0]",
+    "    bic r1, r1, #0x00030000",
+    "    orr r1, r1, #0x00010000",
+    "    str r1, [r0]",
+    "    bx lr",
+    ".ltorg",
+    ".size __pre_init, . - __pre_init",
+);
