@@ -539,10 +539,11 @@ impl DmaLine {
 /// backs, which is fine only because nothing runs afterwards but a reset.
 pub unsafe fn line_safe_state() {
     let dp = stm32f4xx_hal::pac::Peripherals::steal();
+    // DE first: one store, whatever state the rest is in.
     dp.GPIOA.bsrr().write(|w| w.br8().set_bit());
     dp.USART1.cr3().modify(|_, w| w.dmat().disabled());
     dp.DMA2.st(TX_STREAM).cr().modify(|r, w| w.bits(r.bits() & !DMA_EN));
-    dp.USART1.cr1().modify(|_, w| w.te().disabled());
+    dp.USART1.cr1().modify(|_, w| w.te().disabled().tcie().disabled());
 }
 
 // ---------------------------------------------------------------------------------------------
