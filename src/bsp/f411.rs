@@ -17,9 +17,14 @@
 //!   dropped at its IDLE; the receiver then waits for T_SYN;
 //! * **TC** — the end of our response (below).
 //!
-//! After each IDLE the TIM5 compare 2 is armed at [`BitClock::tsyn_check_at`]: if the DMA
-//! position has not moved by then, the line has been idle for at least T_SYN (33 bit times)
-//! and the receiver accepts start delimiters again ([`Receiver::on_tsyn`]).
+//! At each IDLE the TIM5 compare 2 is armed **first** — before the segment is copied or cut —
+//! at [`LineTicks::tsyn_check_at`] (the per-rate tick table computed at [`DmaLine::set_baud`]:
+//! one addition, no division), with the ring position of the segment's end: if the DMA
+//! position has not moved from it by then, the line has been idle for at least T_SYN (33 bit
+//! times) and the receiver accepts start delimiters again ([`Receiver::on_tsyn`]). A compare
+//! that has already passed when it is armed ([`compare_passed`]) is fired at once by a
+//! software event (TIM5_EGR.CC2G), not 44.7 s later at the counter's wrap (issue 11 item 2).
+//! After our own response the proof runs from the last stop bit (TC): T_SYN + one character.
 //!
 //! **Transmit.** The decision task hands the pre-staged response to [`DmaLine::respond`]
 //! with min_TSDR. [`pbcard::phy::line::tx_plan`] decides: drop it (characters arrived since
@@ -44,6 +49,7 @@ use core::ptr::addr_of_mut;
 
 use pbcard::fdl::telegram::MAX_FRAME_LEN;
 use pbcard::phy::line::{self, BitClock, Receiver, RxStats, TxDrop, TxPlan};
+use pbcard::phy::timing::{compare_passed, LineTicks, RingReader};
 use pbcard::time::{Baudrate, BitTimes};
 use stm32f4xx_hal::gpio::{Output, PushPull, PA10, PA8, PA9, PB6, PB7, PB8};
 use stm32f4xx_hal::pac::{DMA2, IWDG, RCC, TIM5, USART1};
@@ -155,11 +161,13 @@ pub struct DmaLine {
     de: DePin,
     pclk_hz: u32,
     clock: BitClock,
+    /// The tick table of `rate` (computed at `set_baud`).
+    table: LineTicks,
     rate: Baudrate,
     ring: &'static mut [u8; RX_RING],
     tx_buf: &'static mut [u8; MAX_FRAME_LEN],
-    /// Ring index of the first byte not yet cut.
-    read: usize,
+    /// The ring's read side (the first byte not yet cut).
+    reader: RingReader<RX_RING>,
     seg_buf: [u8; MAX_FRAME_LEN],
     /// A character error since the last IDLE.
     corrupt: bool,
@@ -221,10 +229,11 @@ impl DmaLine {
             de,
             pclk_hz,
             clock: BitClock { hz: timclk_hz },
+            table: LineTicks::new(BitClock { hz: timclk_hz }, rate),
             rate,
             ring,
             tx_buf,
-            read: 0,
+            reader: RingReader::new(),
             seg_buf: [0; MAX_FRAME_LEN],
             corrupt: false,
             receiver: Receiver::new(),
@@ -317,7 +326,13 @@ impl DmaLine {
         let _ = self.usart.sr().read();
         let _ = self.usart.dr().read();
         self.rate = rate;
+        // The tick table of the new rate (the only divisions of the line, here and not per
+        // telegram).
+        self.table = LineTicks::new(self.clock, rate);
         self.start_rx_dma();
+        // Resynchronise: T_SYN + one character of quiet from now proves T_SYN.
+        let now = self.ticks();
+        self.arm_tsyn_check(self.table.tsyn_check_after_stop(now), 0);
         Ok(())
     }
 
@@ -336,7 +351,7 @@ impl DmaLine {
         st.fcr().write(|w| unsafe { w.bits(0) }); // direct mode
         st.cr().write(|w| unsafe { w.bits(DMA_CHSEL_USART1 | DMA_PL_VERY_HIGH | DMA_MINC | DMA_CIRC) });
         st.cr().modify(|r, w| unsafe { w.bits(r.bits() | DMA_EN) });
-        self.read = 0;
+        self.reader.restart();
         self.corrupt = false;
         self.queue.clear();
         self.tsyn_pos = None;
@@ -379,9 +394,12 @@ impl DmaLine {
             let _ = self.usart.dr().read();
         }
         if sr & SR_IDLE != 0 {
+            // First the timestamp and the T_SYN compare (from the tick table), then the copy.
             let idle_seen = self.ticks();
+            let write = self.ring_pos();
+            self.arm_tsyn_check(self.table.tsyn_check_at(idle_seen), write as u16);
             let _ = self.usart.dr().read(); // SR then DR clears IDLE
-            queued = self.on_idle(idle_seen);
+            queued = self.on_idle(idle_seen, write);
         }
         if sr & SR_TC != 0 && self.tx == Tx::Sending && self.dma.st(TX_STREAM).ndtr().read().bits() == 0 {
             // The last stop bit is out: release the bus and listen again.
@@ -389,20 +407,16 @@ impl DmaLine {
             self.usart.cr3().modify(|_, w| w.dmat().disabled());
             self.usart.cr1().modify(|_, w| w.tcie().disabled().re().enabled());
             self.tx = Tx::Idle;
-            // The master waits T_ID ≥ T_SYN after our response: prove it like after an IDLE.
-            self.arm_tsyn_check(self.ticks());
+            // The master waits T_ID ≥ T_SYN after our response: T_SYN + one character from our
+            // last stop bit (at or before now) proves it.
+            let now = self.ticks();
+            self.arm_tsyn_check(self.table.tsyn_check_after_stop(now), self.ring_pos() as u16);
         }
         queued
     }
 
-    fn on_idle(&mut self, idle_seen: u32) -> bool {
-        let write = self.ring_pos();
-        let n = (write + RX_RING - self.read) % RX_RING;
-        let take = n.min(self.seg_buf.len());
-        for i in 0..take {
-            self.seg_buf[i] = self.ring[(self.read + i) % RX_RING];
-        }
-        self.read = write;
+    fn on_idle(&mut self, idle_seen: u32, write: usize) -> bool {
+        let (n, take) = self.reader.take(self.ring, write, &mut self.seg_buf);
         // A segment longer than a telegram cannot be one: dropped like a corrupt one.
         let corrupt = core::mem::take(&mut self.corrupt) || n > take;
         self.segments = self.segments.wrapping_add(1);
@@ -422,16 +436,21 @@ impl DmaLine {
                 m.last_of_segment = true;
             }
         }
-        self.arm_tsyn_check(idle_seen);
         queued > 0
     }
 
-    fn arm_tsyn_check(&mut self, from: u32) {
-        let at = self.clock.tsyn_check_at(self.rate, from);
-        self.tsyn_pos = Some(self.ring_pos() as u16);
+    /// Arm TIM5 compare 2 for the T_SYN proof at `at`, against the ring position `pos` (the
+    /// end of the last segment, or of our response): the proof holds if the DMA has not moved
+    /// from it when the compare fires. Already passed → the event is generated at once
+    /// (TIM5_EGR.CC2G sets CC2IF; the TIM5 interrupt runs right after this one).
+    fn arm_tsyn_check(&mut self, at: u32, pos: u16) {
+        self.tsyn_pos = Some(pos);
         self.tim.ccr(1).write(|w| unsafe { w.bits(at) });
         self.tim.sr().write(|w| unsafe { w.bits(!TIM_CC2) });
         self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() | TIM_CC2) });
+        if compare_passed(self.ticks(), at) {
+            self.tim.egr().write(|w| unsafe { w.bits(TIM_CC2) });
+        }
     }
 
     /// The TIM5 interrupt: the T_SYN check (compare 2) and the delayed response start
@@ -469,8 +488,9 @@ impl DmaLine {
             self.stats.dropped_bad_length = self.stats.dropped_bad_length.wrapping_add(1);
             return TxPlan::Drop(TxDrop::Busy);
         }
-        let not_before = self.clock.response_not_before(self.rate, request.idle_seen, min_tsdr);
-        let latest = self.clock.response_latest(self.rate, request.idle_seen, max_tsdr);
+        // From the tick table: additions and one multiply, no division.
+        let not_before = self.table.response_not_before(request.idle_seen, min_tsdr);
+        let latest = self.table.response_latest(request.idle_seen, max_tsdr);
         let plan = line::tx_plan(self.ticks(), not_before, latest, self.quiet_since(request), self.tx != Tx::Idle);
         match plan {
             TxPlan::Drop(TxDrop::LineActive) => {
@@ -488,7 +508,7 @@ impl DmaLine {
                     self.tim.sr().write(|w| unsafe { w.bits(!TIM_CC1) });
                     self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() | TIM_CC1) });
                     // The compare may have passed while it was being armed.
-                    if line::reached(self.ticks(), t) {
+                    if compare_passed(self.ticks(), t) {
                         self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() & !TIM_CC1) });
                         self.start_now();
                     }
