@@ -8,6 +8,8 @@
 //! **Receive.** DMA2 stream 2 channel 4 copies every character into a circular
 //! [`RX_RING`]-byte buffer and never stops, whatever the CPU does (a masked interrupt, a flash
 //! operation stalling instruction fetch). The USART interrupt comes only for
+//! * **RXNE of the first character of a segment** — one interrupt, then RXNEIE is off again
+//!   and IDLEIE / PEIE / EIE are on ([`RxIrqGate`], below);
 //! * **IDLE** — one idle character after a stop bit: the bytes since the last IDLE (one
 //!   *segment*) go through [`pbcard::phy::line::Receiver`], which cuts them into telegrams by
 //!   their header length ([`pbcard::phy::line::expected_len`]) and hands every telegram on —
@@ -16,6 +18,15 @@
 //! * **PE / FE / NF / ORE** (PEIE, EIE) — the segment in progress is marked corrupt and
 //!   dropped at its IDLE; the receiver then waits for T_SYN;
 //! * **TC** — the end of our response (below).
+//!
+//! **The CPU never reads USART_DR while the DMA owns the receiver** (issue 11 item 3f). IDLE
+//! and the error flags clear only by "a read of USART_SR followed by a read of USART_DR"
+//! (RM0383 §19.6.1); a CPU read of DR could take a character from under the DMA. The
+//! interrupt reads SR only; the DMA's own read of DR for the next character completes the
+//! sequence. Until then the flag stays set, so its interrupt is switched off and the next
+//! segment's first RXNE switches it on again ([`RxIrqGate`], host-tested in
+//! `pbcard::phy::timing`). DR is read by the CPU only in [`DmaLine::set_baud`], with the
+//! receive DMA stopped. Cost: one more (short) interrupt per segment.
 //!
 //! At each IDLE the TIM5 compare 2 is armed **first** — before the segment is copied or cut —
 //! at [`LineTicks::tsyn_check_at`] (the per-rate tick table computed at [`DmaLine::set_baud`]:
@@ -49,7 +60,7 @@ use core::ptr::addr_of_mut;
 
 use pbcard::fdl::telegram::MAX_FRAME_LEN;
 use pbcard::phy::line::{self, BitClock, Receiver, RxStats, TxDrop, TxPlan};
-use pbcard::phy::timing::{compare_passed, LineTicks, RingReader};
+use pbcard::phy::timing::{compare_passed, LineTicks, RingReader, RxEnables, RxFlags, RxIrqGate};
 use pbcard::time::{Baudrate, BitTimes};
 use stm32f4xx_hal::gpio::{Output, PushPull, PA10, PA8, PA9, PB6, PB7, PB8};
 use stm32f4xx_hal::pac::{DMA2, IWDG, RCC, TIM5, USART1};
@@ -171,6 +182,10 @@ pub struct DmaLine {
     seg_buf: [u8; MAX_FRAME_LEN],
     /// A character error since the last IDLE.
     corrupt: bool,
+    /// Which receive interrupts are on ([`RxIrqGate`]).
+    gate: RxIrqGate,
+    /// The enables last programmed (written only when they change).
+    enabled: Option<RxEnables>,
     receiver: Receiver,
     queue: FrameQueue<FrameMeta>,
     segments: u32,
@@ -236,6 +251,8 @@ impl DmaLine {
             reader: RingReader::new(),
             seg_buf: [0; MAX_FRAME_LEN],
             corrupt: false,
+            gate: RxIrqGate::new(),
+            enabled: None,
             receiver: Receiver::new(),
             queue: FrameQueue::new(),
             segments: 0,
@@ -312,17 +329,18 @@ impl DmaLine {
         self.usart.cr1().write(|w| w.ue().clear_bit());
         self.usart.cr3().reset();
         self.usart.brr().write(|w| w.div_mantissa().set(brr >> 4).div_fraction().set((brr & 0xF) as u8));
+        // The receive interrupts (RXNEIE, IDLEIE, PEIE, EIE) are the gate's ([`RxIrqGate`]).
         self.usart.cr1().write(|w| {
             w.over8().bit(over8);
             w.m().m9(); // 9-bit word: 8 data bits + the parity bit
             w.pce().enabled().ps().even();
-            w.peie().enabled(); // parity errors
-            w.idleie().enabled(); // telegram boundaries
             w.te().enabled().re().enabled();
             w.ue().enabled()
         });
-        // Errors (FE, NF, ORE) interrupt with DMA reception (EIE); receive by DMA.
-        self.usart.cr3().write(|w| w.eie().enabled().dmar().enabled());
+        // Receive by DMA.
+        self.usart.cr3().write(|w| w.dmar().enabled());
+        // The receive DMA is stopped: the CPU owns the receiver, so this DR read (clearing
+        // stale IDLE / error flags) takes nothing from the DMA.
         let _ = self.usart.sr().read();
         let _ = self.usart.dr().read();
         self.rate = rate;
@@ -353,6 +371,9 @@ impl DmaLine {
         st.cr().modify(|r, w| unsafe { w.bits(r.bits() | DMA_EN) });
         self.reader.restart();
         self.corrupt = false;
+        self.gate.restart();
+        self.enabled = None;
+        self.apply_gate();
         self.queue.clear();
         self.tsyn_pos = None;
         self.receiver.reset();
@@ -380,26 +401,28 @@ impl DmaLine {
     /// The USART1 interrupt: errors, IDLE, TC. Returns `true` when telegrams were queued for
     /// the decision task.
     pub fn on_usart(&mut self) -> bool {
+        // SR only, never DR (module documentation): the DMA's next DR read clears the flags.
         let sr = self.usart.sr().read().bits();
         let mut queued = false;
-        if sr & (SR_PE | SR_FE | SR_NF | SR_ORE) != 0 {
+        let irq = self.gate.on_interrupt(rx_flags(sr));
+        if irq.error {
             let inc = |c: &mut u32, bit: u16| *c = c.wrapping_add(u32::from(sr & bit != 0));
             inc(&mut self.stats.parity, SR_PE);
             inc(&mut self.stats.framing, SR_FE);
             inc(&mut self.stats.noise, SR_NF);
             inc(&mut self.stats.overrun, SR_ORE);
             self.corrupt = true;
-            // SR then DR clears the flags (this DR read may take a character from the DMA: the
-            // segment is dropped anyway).
-            let _ = self.usart.dr().read();
         }
-        if sr & SR_IDLE != 0 {
+        if irq.segment_end {
             // First the timestamp and the T_SYN compare (from the tick table), then the copy.
             let idle_seen = self.ticks();
             let write = self.ring_pos();
             self.arm_tsyn_check(self.table.tsyn_check_at(idle_seen), write as u16);
-            let _ = self.usart.dr().read(); // SR then DR clears IDLE
             queued = self.on_idle(idle_seen, write);
+            // The next segment may have begun during the cut (its RXNE already passed).
+            let moved = self.ring_pos() != write;
+            let sr_now = self.usart.sr().read().bits();
+            self.gate.after_segment(moved, rx_flags(sr_now));
         }
         if sr & SR_TC != 0 && self.tx == Tx::Sending && self.dma.st(TX_STREAM).ndtr().read().bits() == 0 {
             // The last stop bit is out: release the bus and listen again.
@@ -407,12 +430,26 @@ impl DmaLine {
             self.usart.cr3().modify(|_, w| w.dmat().disabled());
             self.usart.cr1().modify(|_, w| w.tcie().disabled().re().enabled());
             self.tx = Tx::Idle;
+            // The receiver restarts: wait for the first character of the next segment.
+            self.gate.restart();
             // The master waits T_ID ≥ T_SYN after our response: T_SYN + one character from our
             // last stop bit (at or before now) proves it.
             let now = self.ticks();
             self.arm_tsyn_check(self.table.tsyn_check_after_stop(now), self.ring_pos() as u16);
         }
+        self.apply_gate();
         queued
+    }
+
+    /// Program RXNEIE, IDLEIE, PEIE (CR1) and EIE (CR3) as the gate says, when they changed.
+    fn apply_gate(&mut self) {
+        let e = self.gate.enables();
+        if self.enabled == Some(e) {
+            return;
+        }
+        self.usart.cr1().modify(|_, w| w.rxneie().bit(e.rxne).idleie().bit(e.idle).peie().bit(e.errors));
+        self.usart.cr3().modify(|_, w| w.eie().bit(e.errors));
+        self.enabled = Some(e);
     }
 
     fn on_idle(&mut self, idle_seen: u32, write: usize) -> bool {
@@ -549,6 +586,12 @@ impl DmaLine {
         self.de.disable();
         self.tx = Tx::Idle;
     }
+}
+
+/// The receive gate's view of USART_SR.
+#[inline(always)]
+fn rx_flags(sr: u16) -> RxFlags {
+    RxFlags { idle: sr & SR_IDLE != 0, error: sr & (SR_PE | SR_FE | SR_NF | SR_ORE) != 0 }
 }
 
 /// The safe state of the line from a panic or HardFault handler, without the `DmaLine`
