@@ -51,12 +51,22 @@
 //! task holding the `Node` delays a decision (the response may then be dropped as too late:
 //! the master repeats it) but never the DE release or the receiver.
 //!
-//! **Flash stalls.** Programming or erasing the address journal (low priority, only after a
-//! Set_Slave_Add) stalls instruction fetch from flash for the whole operation (up to ~0.5 s
-//! for a 16 KiB erase); the DMA keeps receiving meanwhile but the ring may be overrun, so the
-//! housekeeping task calls [`DmaLine::restart_rx`] afterwards.
+//! **Flash stalls** (issue 11 item 3b). Programming or erasing the address journal (low
+//! priority, only after a Set_Slave_Add) stalls instruction fetch from flash — every
+//! interrupt with it — for the whole operation (up to ≈ 0.5 s for a 16 KiB erase): a response
+//! in flight would keep DE on, the DMA ring would be overrun, and afterwards the pending IDLE
+//! would cut stale ring contents with a fresh timestamp and answer them. So the housekeeping
+//! task first **silences** the line ([`control::silence`]: the TIM5 interrupt, pended, aborts
+//! a response — DE low, transmit DMA off —, switches the receiver and its interrupts off and
+//! stops the receive DMA and both compares), writes the flash, and then **restarts** it
+//! ([`control::restart`]: USART reprogrammed, ring flushed — the DMA restarts at index 0 —,
+//! queue emptied, the receiver waits for T_SYN, proven by a compare armed from now). The
+//! commands go through an atomic mailbox executed at the line's own priority, so no lower task
+//! touches the line's registers or takes its lock. If the line cannot confirm the silence (its
+//! interrupt masked), the write is postponed to the next millisecond.
 
 use core::ptr::addr_of_mut;
+use core::sync::atomic::{AtomicU8, Ordering};
 
 use pbcard::fdl::telegram::MAX_FRAME_LEN;
 use pbcard::phy::line::{self, BitClock, Receiver, RxStats, TxDrop, TxPlan};
@@ -196,6 +206,9 @@ pub struct DmaLine {
     /// The bit rate is trustworthy (crystal running): responses may go out. `false` after a
     /// crystal failure: listen only, DE never set.
     transmit: bool,
+    /// Silenced for a flash operation ([`control::silence`]): receiver, transmitter and
+    /// compares off until [`control::restart`].
+    silent: bool,
 }
 
 static mut RX_RING_BUF: [u8; RX_RING] = [0; RX_RING];
@@ -260,6 +273,7 @@ impl DmaLine {
             tx: Tx::Idle,
             stats: LineStats::default(),
             transmit,
+            silent: false,
         };
         line.usart.cr2().write(|w| w.stop().stop1());
         line.set_baud(rate)?;
@@ -379,12 +393,35 @@ impl DmaLine {
         self.receiver.reset();
     }
 
-    /// Drop whatever the ring holds and wait for T_SYN again (after a flash operation that may
-    /// have stalled the CPU longer than the ring lasts).
+    /// Drop whatever the ring holds and wait for T_SYN again: the full restart of
+    /// [`control::restart`] (USART reprogrammed at the current rate, ring flushed, T_SYN
+    /// proof armed from now).
     pub fn restart_rx(&mut self) {
-        if self.tx == Tx::Idle {
-            self.stop_rx_dma();
-            self.start_rx_dma();
+        self.silent = false;
+        let _ = self.set_baud(self.rate);
+    }
+
+    /// The line silent for a flash operation: a response in flight aborted (DE low, transmit
+    /// DMA off), the receiver and its interrupts off, the receive DMA stopped, both compares
+    /// off. Only [`DmaLine::restart_rx`] (or `set_baud`) brings it back.
+    fn silence(&mut self) {
+        self.abort_tx();
+        self.usart.cr1().modify(|_, w| w.re().disabled().rxneie().disabled().idleie().disabled().peie().disabled());
+        self.usart.cr3().modify(|_, w| w.eie().disabled());
+        self.enabled = None;
+        self.stop_rx_dma();
+        self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() & !(TIM_CC1 | TIM_CC2)) });
+        self.tsyn_pos = None;
+        self.queue.clear();
+        self.silent = true;
+    }
+
+    /// A command from a lower task ([`control`]), executed in the TIM5 interrupt.
+    fn on_command(&mut self) {
+        match COMMAND.swap(control::NONE, Ordering::AcqRel) {
+            control::SILENCE => self.silence(),
+            control::RESTART => self.restart_rx(),
+            _ => {}
         }
     }
 
@@ -403,6 +440,10 @@ impl DmaLine {
     pub fn on_usart(&mut self) -> bool {
         // SR only, never DR (module documentation): the DMA's next DR read clears the flags.
         let sr = self.usart.sr().read().bits();
+        if self.silent {
+            // Pended before the silence: nothing is received, nothing to release.
+            return false;
+        }
         let mut queued = false;
         let irq = self.gate.on_interrupt(rx_flags(sr));
         if irq.error {
@@ -493,6 +534,10 @@ impl DmaLine {
     /// The TIM5 interrupt: the T_SYN check (compare 2) and the delayed response start
     /// (compare 1).
     pub fn on_timer(&mut self) {
+        self.on_command();
+        if self.silent {
+            return;
+        }
         let sr = self.tim.sr().read().bits();
         let dier = self.tim.dier().read().bits();
         if sr & dier & TIM_CC2 != 0 {
@@ -585,6 +630,48 @@ impl DmaLine {
         while st.cr().read().bits() & DMA_EN != 0 {}
         self.de.disable();
         self.tx = Tx::Idle;
+    }
+}
+
+/// The mailbox of [`control`]: one command at a time, taken by the TIM5 interrupt.
+static COMMAND: AtomicU8 = AtomicU8::new(control::NONE);
+
+/// Commands to the line from lower-priority tasks, without its lock (issue 11 item 3b/3c): the
+/// command goes into an atomic mailbox and the TIM5 interrupt — the line's own priority, above
+/// every caller — is pended and executes it before `command` returns.
+pub mod control {
+    use core::sync::atomic::Ordering;
+
+    use stm32f4xx_hal::pac::Interrupt;
+
+    use super::COMMAND;
+
+    pub(super) const NONE: u8 = 0;
+    pub(super) const SILENCE: u8 = 1;
+    pub(super) const RESTART: u8 = 2;
+
+    /// Hand `cmd` to the line; `true` when it was executed (the TIM5 interrupt ran). `false`
+    /// only if interrupts are masked here (called inside a critical section): the command is
+    /// withdrawn.
+    fn command(cmd: u8) -> bool {
+        COMMAND.store(cmd, Ordering::Release);
+        cortex_m::peripheral::NVIC::pend(Interrupt::TIM5);
+        cortex_m::asm::dsb();
+        cortex_m::asm::isb();
+        // The interrupt has preempted us between the pend and here, unless it is masked.
+        COMMAND.compare_exchange(cmd, NONE, Ordering::AcqRel, Ordering::Acquire).is_err()
+    }
+
+    /// Silence the line before a flash operation (module documentation "Flash stalls"):
+    /// `true` once DE is low and receiver, DMA and compares are off.
+    pub fn silence() -> bool {
+        command(SILENCE)
+    }
+
+    /// Restart the line fully after a flash operation: USART reprogrammed, ring flushed, the
+    /// receiver waits for T_SYN (proven from now).
+    pub fn restart() -> bool {
+        command(RESTART)
     }
 }
 
@@ -693,9 +780,11 @@ impl Supervisor {
     }
 
     /// Once per millisecond: show `leds`; store `address` (station address, No_Add_Chg) when
-    /// it differs from the stored pair (Set_Slave_Add; the flash stalls the CPU meanwhile —
-    /// returns `true`: restart the receiver); start the IWDG at the first call and feed it
-    /// only when `alive` (the line hardware runs and the protocol tasks make progress).
+    /// it differs from the stored pair (Set_Slave_Add; the flash stalls the CPU meanwhile, so
+    /// the line is silenced before and restarted after — module documentation "Flash stalls";
+    /// returns `false`: nothing left for the caller to restart); start the IWDG at the first
+    /// call and feed it only when `alive` (the line hardware runs and the protocol tasks make
+    /// progress).
     pub fn tick(
         &mut self,
         now: pbcard::time::Instant,
@@ -711,30 +800,32 @@ impl Supervisor {
                 self.iwdg = Some(Iwdg::start(p));
             }
         }
-        let mut restart = false;
         if address != self.stored {
             if let Some(w) = self.iwdg.as_mut() {
                 w.feed();
             }
-            match self.store.save_record(address.0, address.1) {
-                Ok(r) => {
-                    defmt::info!("station address {=u8} (No_Add_Chg {=bool}) stored: {}", address.0, address.1, r);
-                    self.stored = address;
+            // Silence first (DE low, receiver and DMA off); if the line cannot confirm it, the
+            // write waits for the next millisecond.
+            if control::silence() {
+                let result = self.store.save_record(address.0, address.1);
+                // Restart fully: ring flushed, T_SYN awaited (nothing stale is answered).
+                control::restart();
+                match result {
+                    Ok(r) => {
+                        defmt::info!("station address {=u8} (No_Add_Chg {=bool}) stored: {}", address.0, address.1, r)
+                    }
+                    Err(e) => defmt::error!("storing the station address failed: {}", e),
                 }
-                Err(e) => {
-                    defmt::error!("storing the station address failed: {}", e);
-                    // Retried at the next change only (no flash wear loop).
-                    self.stored = address;
-                }
+                // A failure is retried at the next change only (no flash wear loop).
+                self.stored = address;
             }
-            restart = true;
         }
         if alive {
             if let Some(w) = self.iwdg.as_mut() {
                 w.feed();
             }
         }
-        restart
+        false
     }
 }
 
