@@ -66,7 +66,7 @@
 //! interrupt masked), the write is postponed to the next millisecond.
 
 use core::ptr::addr_of_mut;
-use core::sync::atomic::{AtomicU8, Ordering};
+use core::sync::atomic::{AtomicU32, AtomicU8, Ordering};
 
 use pbcard::fdl::telegram::MAX_FRAME_LEN;
 use pbcard::phy::line::{self, BitClock, Receiver, RxStats, TxDrop, TxPlan};
@@ -202,7 +202,6 @@ pub struct DmaLine {
     /// Ring position the T_SYN check compares with.
     tsyn_pos: Option<u16>,
     tx: Tx,
-    stats: LineStats,
     /// The bit rate is trustworthy (crystal running): responses may go out. `false` after a
     /// crystal failure: listen only, DE never set.
     transmit: bool,
@@ -271,7 +270,6 @@ impl DmaLine {
             segments: 0,
             tsyn_pos: None,
             tx: Tx::Idle,
-            stats: LineStats::default(),
             transmit,
             silent: false,
         };
@@ -295,9 +293,9 @@ impl DmaLine {
         self.rate
     }
 
-    /// Counters.
+    /// Counters (the published atomics, [`monitor::stats`]).
     pub fn stats(&self) -> LineStats {
-        self.stats
+        monitor::stats().0
     }
 
     /// The telegram cutter's counters.
@@ -308,6 +306,15 @@ impl DmaLine {
     /// Telegrams lost on the line (STATUS.CORRUPT_FRAMES): [`RxStats::lost_frames`].
     pub fn corrupt_frames(&self) -> u32 {
         self.receiver.stats().lost_frames()
+    }
+
+    /// Publish the cutter's counters for the lower tasks ([`monitor`]).
+    #[inline(always)]
+    fn publish_rx(&self) {
+        let r = self.receiver.stats();
+        for (i, v) in [r.frames, r.corrupt, r.truncated, r.garbage, r.unsynced, r.tsyn].into_iter().enumerate() {
+            COUNTERS[RX_BASE + i].store(v, Ordering::Relaxed);
+        }
     }
 
     /// TIM5 now.
@@ -447,11 +454,10 @@ impl DmaLine {
         let mut queued = false;
         let irq = self.gate.on_interrupt(rx_flags(sr));
         if irq.error {
-            let inc = |c: &mut u32, bit: u16| *c = c.wrapping_add(u32::from(sr & bit != 0));
-            inc(&mut self.stats.parity, SR_PE);
-            inc(&mut self.stats.framing, SR_FE);
-            inc(&mut self.stats.noise, SR_NF);
-            inc(&mut self.stats.overrun, SR_ORE);
+            add(PARITY, u32::from(sr & SR_PE != 0));
+            add(FRAMING, u32::from(sr & SR_FE != 0));
+            add(NOISE, u32::from(sr & SR_NF != 0));
+            add(OVERRUN, u32::from(sr & SR_ORE != 0));
             self.corrupt = true;
         }
         if irq.segment_end {
@@ -500,12 +506,12 @@ impl DmaLine {
         self.segments = self.segments.wrapping_add(1);
         let seg = self.segments;
         let seg_end = write as u16;
-        let (queue, stats, seg_buf) = (&mut self.queue, &mut self.stats, &self.seg_buf);
+        let (queue, seg_buf) = (&mut self.queue, &self.seg_buf);
         let mut queued = 0usize;
         let meta = FrameMeta { last_of_segment: false, seg_end, seg, idle_seen };
         self.receiver.segment(&seg_buf[..take], corrupt, |f| {
             if !queue.push(f, meta) {
-                stats.queue_full = stats.queue_full.wrapping_add(1);
+                add(QUEUE_FULL, 1);
             }
             queued += 1;
         });
@@ -514,6 +520,7 @@ impl DmaLine {
                 m.last_of_segment = true;
             }
         }
+        self.publish_rx();
         queued > 0
     }
 
@@ -545,6 +552,7 @@ impl DmaLine {
             self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() & !TIM_CC2) });
             if self.tsyn_pos.take() == Some(self.ring_pos() as u16) && !self.corrupt {
                 self.receiver.on_tsyn();
+                self.publish_rx();
             }
         }
         if sr & dier & TIM_CC1 != 0 {
@@ -552,11 +560,11 @@ impl DmaLine {
             self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() & !TIM_CC1) });
             if let Tx::Armed { ring_pos } = self.tx {
                 if usize::from(ring_pos) == self.ring_pos() {
-                    self.stats.delayed_starts = self.stats.delayed_starts.wrapping_add(1);
+                    add(DELAYED_STARTS, 1);
                     self.start_now();
                 } else {
                     self.tx = Tx::Idle;
-                    self.stats.dropped_line_active = self.stats.dropped_line_active.wrapping_add(1);
+                    add(DROPPED_LINE_ACTIVE, 1);
                 }
             }
         }
@@ -567,7 +575,7 @@ impl DmaLine {
     /// ([`line::tx_plan`]). Returns what was done.
     pub fn respond(&mut self, request: &FrameMeta, bytes: &[u8], min_tsdr: BitTimes, max_tsdr: BitTimes) -> TxPlan {
         if !self.transmit || bytes.is_empty() || bytes.len() > self.tx_buf.len() {
-            self.stats.dropped_bad_length = self.stats.dropped_bad_length.wrapping_add(1);
+            add(DROPPED_BAD_LENGTH, 1);
             return TxPlan::Drop(TxDrop::Busy);
         }
         // From the tick table: additions and one multiply, no division.
@@ -575,11 +583,9 @@ impl DmaLine {
         let latest = self.table.response_latest(request.idle_seen, max_tsdr);
         let plan = line::tx_plan(self.ticks(), not_before, latest, self.quiet_since(request), self.tx != Tx::Idle);
         match plan {
-            TxPlan::Drop(TxDrop::LineActive) => {
-                self.stats.dropped_line_active = self.stats.dropped_line_active.wrapping_add(1)
-            }
-            TxPlan::Drop(TxDrop::TooLate) => self.stats.dropped_too_late = self.stats.dropped_too_late.wrapping_add(1),
-            TxPlan::Drop(TxDrop::Busy) => self.stats.dropped_busy = self.stats.dropped_busy.wrapping_add(1),
+            TxPlan::Drop(TxDrop::LineActive) => add(DROPPED_LINE_ACTIVE, 1),
+            TxPlan::Drop(TxDrop::TooLate) => add(DROPPED_TOO_LATE, 1),
+            TxPlan::Drop(TxDrop::Busy) => add(DROPPED_BUSY, 1),
             TxPlan::Now | TxPlan::At(_) => {
                 self.tx_buf[..bytes.len()].copy_from_slice(bytes);
                 let st = self.dma.st(TX_STREAM);
@@ -618,7 +624,7 @@ impl DmaLine {
         self.usart.cr3().modify(|_, w| w.dmat().enabled());
         self.usart.cr1().modify(|_, w| w.tcie().enabled());
         self.tx = Tx::Sending;
-        self.stats.responses = self.stats.responses.wrapping_add(1);
+        add(RESPONSES, 1);
     }
 
     fn abort_tx(&mut self) {
@@ -630,6 +636,91 @@ impl DmaLine {
         while st.cr().read().bits() & DMA_EN != 0 {}
         self.de.disable();
         self.tx = Tx::Idle;
+    }
+}
+
+// The line's counters (issue 11 item 3c): written only with the line's exclusive access (its
+// interrupts, or the decision task inside the line's lock) — one writer at a time, so a load
+// and a store, no read-modify-write race — and read by any task without a lock.
+const PARITY: usize = 0;
+const FRAMING: usize = 1;
+const NOISE: usize = 2;
+const OVERRUN: usize = 3;
+const QUEUE_FULL: usize = 4;
+const RESPONSES: usize = 5;
+const DELAYED_STARTS: usize = 6;
+const DROPPED_LINE_ACTIVE: usize = 7;
+const DROPPED_TOO_LATE: usize = 8;
+const DROPPED_BUSY: usize = 9;
+const DROPPED_BAD_LENGTH: usize = 10;
+/// [`RxStats`] in field order from here (published after each segment and T_SYN).
+const RX_BASE: usize = 11;
+const COUNTER_COUNT: usize = RX_BASE + 6;
+
+#[allow(clippy::declare_interior_mutable_const)]
+const ZERO: AtomicU32 = AtomicU32::new(0);
+static COUNTERS: [AtomicU32; COUNTER_COUNT] = [ZERO; COUNTER_COUNT];
+
+/// Count `n` more on counter `i` (with the line's exclusive access only).
+#[inline(always)]
+fn add(i: usize, n: u32) {
+    let c = &COUNTERS[i];
+    c.store(c.load(Ordering::Relaxed).wrapping_add(n), Ordering::Relaxed);
+}
+
+/// The line's counters and health for the lower tasks, lock-free: atomics the line interrupts
+/// publish, and read-only register reads (issue 11 item 3c).
+pub mod monitor {
+    use core::sync::atomic::Ordering;
+
+    use pbcard::phy::line::RxStats;
+    use stm32f4xx_hal::pac::{DMA2, TIM5, USART1};
+
+    use super::*;
+
+    fn get(i: usize) -> u32 {
+        COUNTERS[i].load(Ordering::Relaxed)
+    }
+
+    /// The line's counters and the telegram cutter's (each value consistent; the set may be
+    /// one event apart).
+    pub fn stats() -> (LineStats, RxStats) {
+        let line = LineStats {
+            parity: get(PARITY),
+            framing: get(FRAMING),
+            noise: get(NOISE),
+            overrun: get(OVERRUN),
+            queue_full: get(QUEUE_FULL),
+            responses: get(RESPONSES),
+            delayed_starts: get(DELAYED_STARTS),
+            dropped_line_active: get(DROPPED_LINE_ACTIVE),
+            dropped_too_late: get(DROPPED_TOO_LATE),
+            dropped_busy: get(DROPPED_BUSY),
+            dropped_bad_length: get(DROPPED_BAD_LENGTH),
+        };
+        let rx = RxStats {
+            frames: get(RX_BASE),
+            corrupt: get(RX_BASE + 1),
+            truncated: get(RX_BASE + 2),
+            garbage: get(RX_BASE + 3),
+            unsynced: get(RX_BASE + 4),
+            tsyn: get(RX_BASE + 5),
+        };
+        (line, rx)
+    }
+
+    /// Telegrams lost on the line (STATUS.CORRUPT_FRAMES): [`RxStats::lost_frames`].
+    pub fn corrupt_frames() -> u32 {
+        stats().1.lost_frames()
+    }
+
+    /// Whether the receive DMA, the USART and TIM5 run as programmed ([`super::DmaLine::is_healthy`]),
+    /// from read-only register reads.
+    pub fn is_healthy() -> bool {
+        // SAFETY: reads of control registers, no side effects; the line owns the writes.
+        let (dma, usart, tim) = unsafe { (&*DMA2::ptr(), &*USART1::ptr(), &*TIM5::ptr()) };
+        let rx_on = dma.st(RX_STREAM).cr().read().bits() & DMA_EN != 0;
+        rx_on && usart.cr1().read().ue().bit_is_set() && tim.cr1().read().bits() & 1 != 0
     }
 }
 
@@ -829,6 +920,10 @@ impl Supervisor {
     }
 }
 
+/// SysTick's hardware priority: RTIC logical priority 2 of 16 (`(16 − 2) << 4`), above the
+/// priority-1 tasks that await it, below everything else (the line is logical 16 = 0x00).
+pub const SYSTICK_PRIORITY_HW: u8 = (16 - 2) << 4;
+
 /// Crystal and clock tree of the reference board (ARCHITECTURE §2).
 pub mod clocks {
     /// The crystal.
@@ -932,6 +1027,14 @@ pub fn init(dp: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYS
     brown_out_level(&dp.FLASH);
 
     let clock = super::clock::start(syst, sysclk);
+    // Issue 11 3c: SysTick (the RTIC monotonic's tick; its reset priority 0 is the line's own)
+    // below every task but the priority-1 ones, so its handler never delays the line.
+    // SAFETY: `init` runs with interrupts disabled; only SysTick's priority changes.
+    unsafe {
+        cortex_m::Peripherals::steal()
+            .SCB
+            .set_priority(cortex_m::peripheral::scb::SystemHandler::SysTick, SYSTICK_PRIORITY_HW)
+    };
 
     let tx = gpioa.pa9.into_alternate::<7>().speed(Speed::VeryHigh);
     // Pull-up: the transceiver's RO may float while its receiver is disabled.
