@@ -182,8 +182,13 @@ pub struct DmaLine {
     de: DePin,
     pclk_hz: u32,
     clock: BitClock,
-    /// The tick table of `rate` (computed at `set_baud`).
+    /// The tick table of `rate` (taken from `tables` at `set_baud`).
     table: LineTicks,
+    /// The tick tables of every rate, computed once in `new` (the line's only divisions —
+    /// 64-bit ones — happen there, never in a line interrupt).
+    tables: [LineTicks; Baudrate::ALL.len()],
+    /// The USART divisor of every rate (OVER8, BRR), computed once in `new`.
+    divisors: [Option<(bool, u16)>; Baudrate::ALL.len()],
     rate: Baudrate,
     ring: &'static mut [u8; RX_RING],
     tx_buf: &'static mut [u8; MAX_FRAME_LEN],
@@ -257,6 +262,8 @@ impl DmaLine {
             pclk_hz,
             clock: BitClock { hz: timclk_hz },
             table: LineTicks::new(BitClock { hz: timclk_hz }, rate),
+            tables: Baudrate::ALL.map(|r| LineTicks::new(BitClock { hz: timclk_hz }, r)),
+            divisors: Baudrate::ALL.map(|r| usart_brr(pclk_hz, r.bits_per_second())),
             rate,
             ring,
             tx_buf,
@@ -343,7 +350,11 @@ impl DmaLine {
     /// Switch the line to `rate`: abort a response, reprogram the divisor, restart the
     /// receiver (whatever was received is dropped; T_SYN is awaited again).
     pub fn set_baud(&mut self, rate: Baudrate) -> Result<(), UnsupportedRate> {
-        let (over8, brr) = usart_brr(self.pclk_hz, rate.bits_per_second()).ok_or(UnsupportedRate(rate))?;
+        // Divisor and tick table from the tables computed in `new` (no division here, so no
+        // line interrupt ever reaches a 64-bit division, not even the restart after a flash
+        // write).
+        let i = Baudrate::ALL.iter().position(|&r| r == rate).ok_or(UnsupportedRate(rate))?;
+        let (over8, brr) = self.divisors[i].ok_or(UnsupportedRate(rate))?;
         self.abort_tx();
         self.stop_rx_dma();
         // OVER8 may only change while UE = 0 (RM0383 §19.6.4): disable, program, enable.
@@ -365,9 +376,7 @@ impl DmaLine {
         let _ = self.usart.sr().read();
         let _ = self.usart.dr().read();
         self.rate = rate;
-        // The tick table of the new rate (the only divisions of the line, here and not per
-        // telegram).
-        self.table = LineTicks::new(self.clock, rate);
+        self.table = self.tables[i];
         self.start_rx_dma();
         // Resynchronise: T_SYN + one character of quiet from now proves T_SYN.
         let now = self.ticks();
