@@ -51,6 +51,16 @@
 //! task holding the `Node` delays a decision (the response may then be dropped as too late:
 //! the master repeats it) but never the DE release or the receiver.
 //!
+//! **In RAM** (issue 11 item 2). [`DmaLine::on_usart`] and [`DmaLine::on_timer`] — the line
+//! interrupts' own code with what the compiler inlines into them (the receive gate, the ring
+//! reader, the T_SYN compare, the response start) — are linked into `.data.pbcard_line`:
+//! cortex-m-rt 0.7 puts every `.data.*` input section into `.data`, which its reset code copies
+//! from flash to RAM, so they run from SRAM without flash wait states or ART cache misses
+//! (≈ 2 KiB; lld inserts the long-branch thunks between the two regions). Still in flash: the
+//! RTIC vector stubs, `memcpy` (compiler_builtins) of the segment and queue copies, the panic
+//! paths, and `set_baud` (the restart command). A flash stall is not bridged by this — the
+//! vector table is in flash — which is why the line is silenced around flash writes.
+//!
 //! **Flash stalls** (issue 11 item 3b). Programming or erasing the address journal (low
 //! priority, only after a Set_Slave_Add) stalls instruction fetch from flash — every
 //! interrupt with it — for the whole operation (up to ≈ 0.5 s for a 16 KiB erase): a response
@@ -453,6 +463,9 @@ impl DmaLine {
 
     /// The USART1 interrupt: errors, IDLE, TC. Returns `true` when telegrams were queued for
     /// the decision task.
+    // In RAM (module documentation "In RAM").
+    #[inline(never)]
+    #[link_section = ".data.pbcard_line"]
     pub fn on_usart(&mut self) -> bool {
         // SR only, never DR (module documentation): the DMA's next DR read clears the flags.
         let sr = self.usart.sr().read().bits();
@@ -549,6 +562,9 @@ impl DmaLine {
 
     /// The TIM5 interrupt: the T_SYN check (compare 2) and the delayed response start
     /// (compare 1).
+    // In RAM (module documentation "In RAM").
+    #[inline(never)]
+    #[link_section = ".data.pbcard_line"]
     pub fn on_timer(&mut self) {
         self.on_command();
         if self.silent {
