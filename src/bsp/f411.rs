@@ -6,8 +6,8 @@
 //! for ([`DmaLine::set_baud`], divisors from `pbcard::phy::divisor`).
 //!
 //! **Receive.** DMA2 stream 2 channel 4 copies every character into a circular
-//! [`RX_RING`]-byte buffer and never stops, whatever the CPU does (a masked interrupt, a flash
-//! operation stalling instruction fetch). The USART interrupt comes only for
+//! [`RX_RING`]-byte buffer, independently of the CPU (it is stopped only for a rate switch
+//! and around a flash write, below). The USART interrupt comes only for
 //! * **RXNE of the first character of a segment** — one interrupt, then RXNEIE is off again
 //!   and IDLEIE / PEIE / EIE are on ([`RxIrqGate`], below);
 //! * **IDLE** — one idle character after a stop bit: the bytes since the last IDLE (one
@@ -29,8 +29,8 @@
 //! receive DMA stopped. Cost: one more (short) interrupt per segment.
 //!
 //! At each IDLE the TIM5 compare 2 is armed **first** — before the segment is copied or cut —
-//! at [`LineTicks::tsyn_check_at`] (the per-rate tick table computed at [`DmaLine::set_baud`]:
-//! one addition, no division), with the ring position of the segment's end: if the DMA
+//! at [`LineTicks::tsyn_check_at`] (the per-rate tick tables are computed once in
+//! [`DmaLine::new`] and picked at [`DmaLine::set_baud`]: one addition, no division), with the ring position of the segment's end: if the DMA
 //! position has not moved from it by then, the line has been idle for at least T_SYN (33 bit
 //! times) and the receiver accepts start delimiters again ([`Receiver::on_tsyn`]). A compare
 //! that has already passed when it is armed ([`compare_passed`]) is fired at once by a
@@ -47,7 +47,9 @@
 //! sent) releases DE and switches the receiver back on. Nothing here busy-waits.
 //!
 //! The line interrupts (USART1, TIM5) run at the highest priority and share nothing with the
-//! lower tasks but this [`DmaLine`]; the FDL/DP decision runs one priority below, so a lower
+//! lower tasks but this [`DmaLine`] (locked only by the decision task; the counters are
+//! atomics, [`monitor`], and commands go through a mailbox, [`control`]); the FDL/DP decision
+//! runs one priority below, so a lower
 //! task holding the `Node` delays a decision (the response may then be dropped as too late:
 //! the master repeats it) but never the DE release or the receiver.
 //!
