@@ -577,11 +577,32 @@ mod app {
     #[task(priority = 1, shared = [node, drive, line])]
     async fn app_step(cx: app_step::Context) {
         let app_step::SharedResources { mut node, mut drive, mut line, .. } = cx.shared;
-        let line_errors = line.lock(|l| l.corrupt_frames());
+        let line_errors = line_errors(&mut line);
         // Same priority as housekeeping: this lock costs nothing.
         drive.lock(|d| {
             d.step(&mut node, line_errors);
         });
+    }
+
+    /// The line's lost-telegram count (STATUS.CORRUPT_FRAMES). F411: the atomics the line
+    /// interrupts publish, no lock shared with them (issue 11 3c); QEMU: under the lock.
+    #[cfg(feature = "board-f411")]
+    fn line_errors(_line: &mut impl Mutex<T = board::Line>) -> u32 {
+        board::monitor::corrupt_frames()
+    }
+    #[cfg(not(feature = "board-f411"))]
+    fn line_errors(line: &mut impl Mutex<T = board::Line>) -> u32 {
+        line.lock(|l| l.corrupt_frames())
+    }
+
+    /// The line hardware runs (IWDG supervision). F411: read-only register reads, no lock.
+    #[cfg(feature = "board-f411")]
+    fn line_healthy(_line: &mut impl Mutex<T = board::Line>) -> bool {
+        board::monitor::is_healthy()
+    }
+    #[cfg(not(feature = "board-f411"))]
+    fn line_healthy(line: &mut impl Mutex<T = board::Line>) -> bool {
+        line.lock(|l| l.is_healthy())
     }
 
     const STATS_PERIOD_MS: u32 = 10_000;
@@ -606,7 +627,7 @@ mod app {
         loop {
             next += 1.millis();
             Mono::delay_until(next).await;
-            let line_errors = line.lock(|l| l.corrupt_frames());
+            let line_errors = line_errors(&mut line);
             let (v, now, leds) = drive.lock(|d| {
                 let v = d.step(&mut node, line_errors);
                 (v, d.clock.now(), d.leds)
@@ -642,13 +663,16 @@ mod app {
             };
             let acyclic_alive = acyclic_wait
                 .is_none_or(|(_, since)| now.saturating_since(since) < pbcard::time::Duration::from_millis(100));
-            let alive = acyclic_alive && line.lock(|l| l.is_healthy());
+            let alive = acyclic_alive && line_healthy(&mut line);
             if sup.tick(now, leds, (v.address, v.no_add_chg), alive) {
                 line.lock(|l| l.restart_rx());
             }
 
             ms = ms.wrapping_add(1);
             if ms.is_multiple_of(STATS_PERIOD_MS) {
+                #[cfg(feature = "board-f411")]
+                let (ls, rx) = board::monitor::stats();
+                #[cfg(not(feature = "board-f411"))]
                 let (ls, rx) = line.lock(|l| (l.stats(), l.rx_stats()));
                 let ab = baud.lock(|b| b.stats());
                 let (station, dp) = node.lock(|n| (n.station().stats(), n.slave().stats()));

@@ -6,8 +6,11 @@
 //! it to 64 bits, which only needs `now()` to be called at least once per wrap period (the
 //! 1 ms housekeeping task does).
 //!
-//! The SysTick exception keeps its reset priority 0, i.e. the same hardware priority as the
-//! highest RTIC task (the USART1 handler): neither preempts the other.
+//! QEMU: the SysTick exception keeps its reset priority 0, the same hardware priority as the
+//! highest RTIC task (the USART1 handler): neither preempts the other. F411: SysTick runs at
+//! logical priority 2 (`f411::SYSTICK_PRIORITY_HW`), below the line, and [`SysTickClock`]'s
+//! short critical section masks only the priorities up to 15 (BASEPRI), never the line's 16
+//! (no line interrupt reads this clock; issue 11 item 3c).
 //!
 //! On the F411 the line times itself with TIM5 (`bsp/f411.rs`); this clock serves the protocol timers;
 //! under QEMU the SysTick runs at 168 MHz whatever RCC says: pass that as `sysclk_hz`.
@@ -49,7 +52,7 @@ pub fn start(syst: SYST, sysclk_hz: u32) -> SysTickClock {
 impl SysTickClock {
     /// Milliseconds since start (64-bit) and core cycles into the current millisecond.
     fn sample(&self) -> (u64, u32) {
-        interrupt::free(|cs| {
+        below_line(|cs| {
             // `Mono::now()` notices a pending SysTick wrap itself (COUNTFLAG), so inside
             // this critical section the count and the down-counter are consistent once two
             // reads of the count agree around the read of the counter.
@@ -77,4 +80,31 @@ impl Clock for SysTickClock {
         let (ms, cycles) = self.sample();
         Instant::from_micros(ms * 1000 + u64::from(cycles / self.cycles_per_us))
     }
+}
+
+/// The clock's critical section. QEMU: every interrupt masked (its line interrupt reads the
+/// clock). F411: BASEPRI at logical priority 15 — every task that reads the clock is masked,
+/// the line interrupts (16, which never read it) are not.
+#[cfg(not(feature = "board-f411"))]
+fn below_line<R>(f: impl FnOnce(&interrupt::CriticalSection) -> R) -> R {
+    interrupt::free(f)
+}
+
+/// See the QEMU variant above.
+#[cfg(feature = "board-f411")]
+fn below_line<R>(f: impl FnOnce(&interrupt::CriticalSection) -> R) -> R {
+    use cortex_m::register::{basepri, basepri_max};
+    // Logical 15 of 16 → hardware (16 − 15) << 4.
+    const BELOW_LINE: u8 = 1 << 4;
+    let old = basepri::read();
+    // Raising BASEPRI only masks more (a safe call); it is restored below.
+    basepri_max::write(BELOW_LINE);
+    cortex_m::asm::isb();
+    // SAFETY: every user of `EXTEND` runs at logical priority ≤ 15, now masked: exclusive
+    // access among them, which is what the token stands for here.
+    let cs = unsafe { interrupt::CriticalSection::new() };
+    let r = f(&cs);
+    core::sync::atomic::compiler_fence(core::sync::atomic::Ordering::SeqCst);
+    unsafe { basepri::write(old) };
+    r
 }

@@ -6,8 +6,10 @@
 //! for ([`DmaLine::set_baud`], divisors from `pbcard::phy::divisor`).
 //!
 //! **Receive.** DMA2 stream 2 channel 4 copies every character into a circular
-//! [`RX_RING`]-byte buffer and never stops, whatever the CPU does (a masked interrupt, a flash
-//! operation stalling instruction fetch). The USART interrupt comes only for
+//! [`RX_RING`]-byte buffer, independently of the CPU (it is stopped only for a rate switch
+//! and around a flash write, below). The USART interrupt comes only for
+//! * **RXNE of the first character of a segment** — one interrupt, then RXNEIE is off again
+//!   and IDLEIE / PEIE / EIE are on ([`RxIrqGate`], below);
 //! * **IDLE** — one idle character after a stop bit: the bytes since the last IDLE (one
 //!   *segment*) go through [`pbcard::phy::line::Receiver`], which cuts them into telegrams by
 //!   their header length ([`pbcard::phy::line::expected_len`]) and hands every telegram on —
@@ -17,9 +19,23 @@
 //!   dropped at its IDLE; the receiver then waits for T_SYN;
 //! * **TC** — the end of our response (below).
 //!
-//! After each IDLE the TIM5 compare 2 is armed at [`BitClock::tsyn_check_at`]: if the DMA
-//! position has not moved by then, the line has been idle for at least T_SYN (33 bit times)
-//! and the receiver accepts start delimiters again ([`Receiver::on_tsyn`]).
+//! **The CPU never reads USART_DR while the DMA owns the receiver** (issue 11 item 3f). IDLE
+//! and the error flags clear only by "a read of USART_SR followed by a read of USART_DR"
+//! (RM0383 §19.6.1); a CPU read of DR could take a character from under the DMA. The
+//! interrupt reads SR only; the DMA's own read of DR for the next character completes the
+//! sequence. Until then the flag stays set, so its interrupt is switched off and the next
+//! segment's first RXNE switches it on again ([`RxIrqGate`], host-tested in
+//! `pbcard::phy::timing`). DR is read by the CPU only in [`DmaLine::set_baud`], with the
+//! receive DMA stopped. Cost: one more (short) interrupt per segment.
+//!
+//! At each IDLE the TIM5 compare 2 is armed **first** — before the segment is copied or cut —
+//! at [`LineTicks::tsyn_check_at`] (the per-rate tick tables are computed once in
+//! [`DmaLine::new`] and picked at [`DmaLine::set_baud`]: one addition, no division), with the ring position of the segment's end: if the DMA
+//! position has not moved from it by then, the line has been idle for at least T_SYN (33 bit
+//! times) and the receiver accepts start delimiters again ([`Receiver::on_tsyn`]). A compare
+//! that has already passed when it is armed ([`compare_passed`]) is fired at once by a
+//! software event (TIM5_EGR.CC2G), not 44.7 s later at the counter's wrap (issue 11 item 2).
+//! After our own response the proof runs from the last stop bit (TC): T_SYN + one character.
 //!
 //! **Transmit.** The decision task hands the pre-staged response to [`DmaLine::respond`]
 //! with min_TSDR. [`pbcard::phy::line::tx_plan`] decides: drop it (characters arrived since
@@ -31,19 +47,42 @@
 //! sent) releases DE and switches the receiver back on. Nothing here busy-waits.
 //!
 //! The line interrupts (USART1, TIM5) run at the highest priority and share nothing with the
-//! lower tasks but this [`DmaLine`]; the FDL/DP decision runs one priority below, so a lower
+//! lower tasks but this [`DmaLine`] (locked only by the decision task; the counters are
+//! atomics, [`monitor`], and commands go through a mailbox, [`control`]); the FDL/DP decision
+//! runs one priority below, so a lower
 //! task holding the `Node` delays a decision (the response may then be dropped as too late:
 //! the master repeats it) but never the DE release or the receiver.
 //!
-//! **Flash stalls.** Programming or erasing the address journal (low priority, only after a
-//! Set_Slave_Add) stalls instruction fetch from flash for the whole operation (up to ~0.5 s
-//! for a 16 KiB erase); the DMA keeps receiving meanwhile but the ring may be overrun, so the
-//! housekeeping task calls [`DmaLine::restart_rx`] afterwards.
+//! **In RAM** (issue 11 item 2). [`DmaLine::on_usart`] and [`DmaLine::on_timer`] — the line
+//! interrupts' own code with what the compiler inlines into them (the receive gate, the ring
+//! reader, the T_SYN compare, the response start) — are linked into `.data.pbcard_line`:
+//! cortex-m-rt 0.7 puts every `.data.*` input section into `.data`, which its reset code copies
+//! from flash to RAM, so they run from SRAM without flash wait states or ART cache misses
+//! (≈ 2 KiB; lld inserts the long-branch thunks between the two regions). Still in flash: the
+//! RTIC vector stubs, `memcpy` (compiler_builtins) of the segment and queue copies, the panic
+//! paths, and `set_baud` (the restart command). A flash stall is not bridged by this — the
+//! vector table is in flash — which is why the line is silenced around flash writes.
+//!
+//! **Flash stalls** (issue 11 item 3b). Programming or erasing the address journal (low
+//! priority, only after a Set_Slave_Add) stalls instruction fetch from flash — every
+//! interrupt with it — for the whole operation (up to ≈ 0.5 s for a 16 KiB erase): a response
+//! in flight would keep DE on, the DMA ring would be overrun, and afterwards the pending IDLE
+//! would cut stale ring contents with a fresh timestamp and answer them. So the housekeeping
+//! task first **silences** the line ([`control::silence`]: the TIM5 interrupt, pended, aborts
+//! a response — DE low, transmit DMA off —, switches the receiver and its interrupts off and
+//! stops the receive DMA and both compares), writes the flash, and then **restarts** it
+//! ([`control::restart`]: USART reprogrammed, ring flushed — the DMA restarts at index 0 —,
+//! queue emptied, the receiver waits for T_SYN, proven by a compare armed from now). The
+//! commands go through an atomic mailbox executed at the line's own priority, so no lower task
+//! touches the line's registers or takes its lock. If the line cannot confirm the silence (its
+//! interrupt masked), the write is postponed to the next millisecond.
 
 use core::ptr::addr_of_mut;
+use core::sync::atomic::{AtomicU32, AtomicU8, Ordering};
 
 use pbcard::fdl::telegram::MAX_FRAME_LEN;
 use pbcard::phy::line::{self, BitClock, Receiver, RxStats, TxDrop, TxPlan};
+use pbcard::phy::timing::{compare_passed, LineTicks, RingReader, RxEnables, RxFlags, RxIrqGate};
 use pbcard::time::{Baudrate, BitTimes};
 use stm32f4xx_hal::gpio::{Output, PushPull, PA10, PA8, PA9, PB6, PB7, PB8};
 use stm32f4xx_hal::pac::{DMA2, IWDG, RCC, TIM5, USART1};
@@ -155,21 +194,37 @@ pub struct DmaLine {
     de: DePin,
     pclk_hz: u32,
     clock: BitClock,
+    /// The tick table of `rate` (taken from `tables` at `set_baud`).
+    table: LineTicks,
+    /// The tick tables of every rate, computed once in `new` (the line's only divisions —
+    /// 64-bit ones — happen there, never in a line interrupt).
+    tables: [LineTicks; Baudrate::ALL.len()],
+    /// The USART divisor of every rate (OVER8, BRR), computed once in `new`.
+    divisors: [Option<(bool, u16)>; Baudrate::ALL.len()],
     rate: Baudrate,
     ring: &'static mut [u8; RX_RING],
     tx_buf: &'static mut [u8; MAX_FRAME_LEN],
-    /// Ring index of the first byte not yet cut.
-    read: usize,
+    /// The ring's read side (the first byte not yet cut).
+    reader: RingReader<RX_RING>,
     seg_buf: [u8; MAX_FRAME_LEN],
     /// A character error since the last IDLE.
     corrupt: bool,
+    /// Which receive interrupts are on ([`RxIrqGate`]).
+    gate: RxIrqGate,
+    /// The enables last programmed (written only when they change).
+    enabled: Option<RxEnables>,
     receiver: Receiver,
     queue: FrameQueue<FrameMeta>,
     segments: u32,
     /// Ring position the T_SYN check compares with.
     tsyn_pos: Option<u16>,
     tx: Tx,
-    stats: LineStats,
+    /// The bit rate is trustworthy (crystal running): responses may go out. `false` after a
+    /// crystal failure: listen only, DE never set.
+    transmit: bool,
+    /// Silenced for a flash operation ([`control::silence`]): receiver, transmitter and
+    /// compares off until [`control::restart`].
+    silent: bool,
 }
 
 static mut RX_RING_BUF: [u8; RX_RING] = [0; RX_RING];
@@ -178,7 +233,8 @@ static mut TX_BUF: [u8; MAX_FRAME_LEN] = [0; MAX_FRAME_LEN];
 impl DmaLine {
     /// Take USART1, DMA2 and TIM5 (clocks enabled and reset here), start TIM5 free-running at
     /// `timclk_hz`, program 11-bit characters at `rate` and start the receive DMA. Call once
-    /// (it owns the static DMA buffers). The NVIC lines are unmasked by RTIC.
+    /// (it owns the static DMA buffers). The NVIC lines are unmasked by RTIC. `transmit`:
+    /// the bit rate comes from the crystal; `false` = listen only (no response, DE never on).
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         usart: USART1,
@@ -189,6 +245,7 @@ impl DmaLine {
         pclk_hz: u32,
         timclk_hz: u32,
         rate: Baudrate,
+        transmit: bool,
         rcc: &mut RCC,
     ) -> Result<Self, UnsupportedRate> {
         de.disable();
@@ -216,18 +273,24 @@ impl DmaLine {
             de,
             pclk_hz,
             clock: BitClock { hz: timclk_hz },
+            table: LineTicks::new(BitClock { hz: timclk_hz }, rate),
+            tables: Baudrate::ALL.map(|r| LineTicks::new(BitClock { hz: timclk_hz }, r)),
+            divisors: Baudrate::ALL.map(|r| usart_brr(pclk_hz, r.bits_per_second())),
             rate,
             ring,
             tx_buf,
-            read: 0,
+            reader: RingReader::new(),
             seg_buf: [0; MAX_FRAME_LEN],
             corrupt: false,
+            gate: RxIrqGate::new(),
+            enabled: None,
             receiver: Receiver::new(),
             queue: FrameQueue::new(),
             segments: 0,
             tsyn_pos: None,
             tx: Tx::Idle,
-            stats: LineStats::default(),
+            transmit,
+            silent: false,
         };
         line.usart.cr2().write(|w| w.stop().stop1());
         line.set_baud(rate)?;
@@ -249,9 +312,9 @@ impl DmaLine {
         self.rate
     }
 
-    /// Counters.
+    /// Counters (the published atomics, [`monitor::stats`]).
     pub fn stats(&self) -> LineStats {
-        self.stats
+        monitor::stats().0
     }
 
     /// The telegram cutter's counters.
@@ -262,6 +325,15 @@ impl DmaLine {
     /// Telegrams lost on the line (STATUS.CORRUPT_FRAMES): [`RxStats::lost_frames`].
     pub fn corrupt_frames(&self) -> u32 {
         self.receiver.stats().lost_frames()
+    }
+
+    /// Publish the cutter's counters for the lower tasks ([`monitor`]).
+    #[inline(always)]
+    fn publish_rx(&self) {
+        let r = self.receiver.stats();
+        for (i, v) in [r.frames, r.corrupt, r.truncated, r.garbage, r.unsynced, r.tsyn].into_iter().enumerate() {
+            COUNTERS[RX_BASE + i].store(v, Ordering::Relaxed);
+        }
     }
 
     /// TIM5 now.
@@ -290,28 +362,37 @@ impl DmaLine {
     /// Switch the line to `rate`: abort a response, reprogram the divisor, restart the
     /// receiver (whatever was received is dropped; T_SYN is awaited again).
     pub fn set_baud(&mut self, rate: Baudrate) -> Result<(), UnsupportedRate> {
-        let (over8, brr) = usart_brr(self.pclk_hz, rate.bits_per_second()).ok_or(UnsupportedRate(rate))?;
+        // Divisor and tick table from the tables computed in `new` (no division here, so no
+        // line interrupt ever reaches a 64-bit division, not even the restart after a flash
+        // write).
+        let i = Baudrate::ALL.iter().position(|&r| r == rate).ok_or(UnsupportedRate(rate))?;
+        let (over8, brr) = self.divisors[i].ok_or(UnsupportedRate(rate))?;
         self.abort_tx();
         self.stop_rx_dma();
         // OVER8 may only change while UE = 0 (RM0383 §19.6.4): disable, program, enable.
         self.usart.cr1().write(|w| w.ue().clear_bit());
         self.usart.cr3().reset();
         self.usart.brr().write(|w| w.div_mantissa().set(brr >> 4).div_fraction().set((brr & 0xF) as u8));
+        // The receive interrupts (RXNEIE, IDLEIE, PEIE, EIE) are the gate's ([`RxIrqGate`]).
         self.usart.cr1().write(|w| {
             w.over8().bit(over8);
             w.m().m9(); // 9-bit word: 8 data bits + the parity bit
             w.pce().enabled().ps().even();
-            w.peie().enabled(); // parity errors
-            w.idleie().enabled(); // telegram boundaries
             w.te().enabled().re().enabled();
             w.ue().enabled()
         });
-        // Errors (FE, NF, ORE) interrupt with DMA reception (EIE); receive by DMA.
-        self.usart.cr3().write(|w| w.eie().enabled().dmar().enabled());
+        // Receive by DMA.
+        self.usart.cr3().write(|w| w.dmar().enabled());
+        // The receive DMA is stopped: the CPU owns the receiver, so this DR read (clearing
+        // stale IDLE / error flags) takes nothing from the DMA.
         let _ = self.usart.sr().read();
         let _ = self.usart.dr().read();
         self.rate = rate;
+        self.table = self.tables[i];
         self.start_rx_dma();
+        // Resynchronise: T_SYN + one character of quiet from now proves T_SYN.
+        let now = self.ticks();
+        self.arm_tsyn_check(self.table.tsyn_check_after_stop(now), 0);
         Ok(())
     }
 
@@ -330,19 +411,45 @@ impl DmaLine {
         st.fcr().write(|w| unsafe { w.bits(0) }); // direct mode
         st.cr().write(|w| unsafe { w.bits(DMA_CHSEL_USART1 | DMA_PL_VERY_HIGH | DMA_MINC | DMA_CIRC) });
         st.cr().modify(|r, w| unsafe { w.bits(r.bits() | DMA_EN) });
-        self.read = 0;
+        self.reader.restart();
         self.corrupt = false;
+        self.gate.restart();
+        self.enabled = None;
+        self.apply_gate();
         self.queue.clear();
         self.tsyn_pos = None;
         self.receiver.reset();
     }
 
-    /// Drop whatever the ring holds and wait for T_SYN again (after a flash operation that may
-    /// have stalled the CPU longer than the ring lasts).
+    /// Drop whatever the ring holds and wait for T_SYN again: the full restart of
+    /// [`control::restart`] (USART reprogrammed at the current rate, ring flushed, T_SYN
+    /// proof armed from now).
     pub fn restart_rx(&mut self) {
-        if self.tx == Tx::Idle {
-            self.stop_rx_dma();
-            self.start_rx_dma();
+        self.silent = false;
+        let _ = self.set_baud(self.rate);
+    }
+
+    /// The line silent for a flash operation: a response in flight aborted (DE low, transmit
+    /// DMA off), the receiver and its interrupts off, the receive DMA stopped, both compares
+    /// off. Only [`DmaLine::restart_rx`] (or `set_baud`) brings it back.
+    fn silence(&mut self) {
+        self.abort_tx();
+        self.usart.cr1().modify(|_, w| w.re().disabled().rxneie().disabled().idleie().disabled().peie().disabled());
+        self.usart.cr3().modify(|_, w| w.eie().disabled());
+        self.enabled = None;
+        self.stop_rx_dma();
+        self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() & !(TIM_CC1 | TIM_CC2)) });
+        self.tsyn_pos = None;
+        self.queue.clear();
+        self.silent = true;
+    }
+
+    /// A command from a lower task ([`control`]), executed in the TIM5 interrupt.
+    fn on_command(&mut self) {
+        match COMMAND.swap(control::NONE, Ordering::AcqRel) {
+            control::SILENCE => self.silence(),
+            control::RESTART => self.restart_rx(),
+            _ => {}
         }
     }
 
@@ -358,24 +465,35 @@ impl DmaLine {
 
     /// The USART1 interrupt: errors, IDLE, TC. Returns `true` when telegrams were queued for
     /// the decision task.
+    // In RAM (module documentation "In RAM").
+    #[inline(never)]
+    #[link_section = ".data.pbcard_line"]
     pub fn on_usart(&mut self) -> bool {
+        // SR only, never DR (module documentation): the DMA's next DR read clears the flags.
         let sr = self.usart.sr().read().bits();
-        let mut queued = false;
-        if sr & (SR_PE | SR_FE | SR_NF | SR_ORE) != 0 {
-            let inc = |c: &mut u32, bit: u16| *c = c.wrapping_add(u32::from(sr & bit != 0));
-            inc(&mut self.stats.parity, SR_PE);
-            inc(&mut self.stats.framing, SR_FE);
-            inc(&mut self.stats.noise, SR_NF);
-            inc(&mut self.stats.overrun, SR_ORE);
-            self.corrupt = true;
-            // SR then DR clears the flags (this DR read may take a character from the DMA: the
-            // segment is dropped anyway).
-            let _ = self.usart.dr().read();
+        if self.silent {
+            // Pended before the silence: nothing is received, nothing to release.
+            return false;
         }
-        if sr & SR_IDLE != 0 {
+        let mut queued = false;
+        let irq = self.gate.on_interrupt(rx_flags(sr));
+        if irq.error {
+            add(PARITY, u32::from(sr & SR_PE != 0));
+            add(FRAMING, u32::from(sr & SR_FE != 0));
+            add(NOISE, u32::from(sr & SR_NF != 0));
+            add(OVERRUN, u32::from(sr & SR_ORE != 0));
+            self.corrupt = true;
+        }
+        if irq.segment_end {
+            // First the timestamp and the T_SYN compare (from the tick table), then the copy.
             let idle_seen = self.ticks();
-            let _ = self.usart.dr().read(); // SR then DR clears IDLE
-            queued = self.on_idle(idle_seen);
+            let write = self.ring_pos();
+            self.arm_tsyn_check(self.table.tsyn_check_at(idle_seen), write as u16);
+            queued = self.on_idle(idle_seen, write);
+            // The next segment may have begun during the cut (its RXNE already passed).
+            let moved = self.ring_pos() != write;
+            let sr_now = self.usart.sr().read().bits();
+            self.gate.after_segment(moved, rx_flags(sr_now));
         }
         if sr & SR_TC != 0 && self.tx == Tx::Sending && self.dma.st(TX_STREAM).ndtr().read().bits() == 0 {
             // The last stop bit is out: release the bus and listen again.
@@ -383,31 +501,41 @@ impl DmaLine {
             self.usart.cr3().modify(|_, w| w.dmat().disabled());
             self.usart.cr1().modify(|_, w| w.tcie().disabled().re().enabled());
             self.tx = Tx::Idle;
-            // The master waits T_ID ≥ T_SYN after our response: prove it like after an IDLE.
-            self.arm_tsyn_check(self.ticks());
+            // The receiver restarts: wait for the first character of the next segment.
+            self.gate.restart();
+            // The master waits T_ID ≥ T_SYN after our response: T_SYN + one character from our
+            // last stop bit (at or before now) proves it.
+            let now = self.ticks();
+            self.arm_tsyn_check(self.table.tsyn_check_after_stop(now), self.ring_pos() as u16);
         }
+        self.apply_gate();
         queued
     }
 
-    fn on_idle(&mut self, idle_seen: u32) -> bool {
-        let write = self.ring_pos();
-        let n = (write + RX_RING - self.read) % RX_RING;
-        let take = n.min(self.seg_buf.len());
-        for i in 0..take {
-            self.seg_buf[i] = self.ring[(self.read + i) % RX_RING];
+    /// Program RXNEIE, IDLEIE, PEIE (CR1) and EIE (CR3) as the gate says, when they changed.
+    fn apply_gate(&mut self) {
+        let e = self.gate.enables();
+        if self.enabled == Some(e) {
+            return;
         }
-        self.read = write;
+        self.usart.cr1().modify(|_, w| w.rxneie().bit(e.rxne).idleie().bit(e.idle).peie().bit(e.errors));
+        self.usart.cr3().modify(|_, w| w.eie().bit(e.errors));
+        self.enabled = Some(e);
+    }
+
+    fn on_idle(&mut self, idle_seen: u32, write: usize) -> bool {
+        let (n, take) = self.reader.take(self.ring, write, &mut self.seg_buf);
         // A segment longer than a telegram cannot be one: dropped like a corrupt one.
         let corrupt = core::mem::take(&mut self.corrupt) || n > take;
         self.segments = self.segments.wrapping_add(1);
         let seg = self.segments;
         let seg_end = write as u16;
-        let (queue, stats, seg_buf) = (&mut self.queue, &mut self.stats, &self.seg_buf);
+        let (queue, seg_buf) = (&mut self.queue, &self.seg_buf);
         let mut queued = 0usize;
         let meta = FrameMeta { last_of_segment: false, seg_end, seg, idle_seen };
         self.receiver.segment(&seg_buf[..take], corrupt, |f| {
             if !queue.push(f, meta) {
-                stats.queue_full = stats.queue_full.wrapping_add(1);
+                add(QUEUE_FULL, 1);
             }
             queued += 1;
         });
@@ -416,21 +544,34 @@ impl DmaLine {
                 m.last_of_segment = true;
             }
         }
-        self.arm_tsyn_check(idle_seen);
+        self.publish_rx();
         queued > 0
     }
 
-    fn arm_tsyn_check(&mut self, from: u32) {
-        let at = self.clock.tsyn_check_at(self.rate, from);
-        self.tsyn_pos = Some(self.ring_pos() as u16);
+    /// Arm TIM5 compare 2 for the T_SYN proof at `at`, against the ring position `pos` (the
+    /// end of the last segment, or of our response): the proof holds if the DMA has not moved
+    /// from it when the compare fires. Already passed → the event is generated at once
+    /// (TIM5_EGR.CC2G sets CC2IF; the TIM5 interrupt runs right after this one).
+    fn arm_tsyn_check(&mut self, at: u32, pos: u16) {
+        self.tsyn_pos = Some(pos);
         self.tim.ccr(1).write(|w| unsafe { w.bits(at) });
         self.tim.sr().write(|w| unsafe { w.bits(!TIM_CC2) });
         self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() | TIM_CC2) });
+        if compare_passed(self.ticks(), at) {
+            self.tim.egr().write(|w| unsafe { w.bits(TIM_CC2) });
+        }
     }
 
     /// The TIM5 interrupt: the T_SYN check (compare 2) and the delayed response start
     /// (compare 1).
+    // In RAM (module documentation "In RAM").
+    #[inline(never)]
+    #[link_section = ".data.pbcard_line"]
     pub fn on_timer(&mut self) {
+        self.on_command();
+        if self.silent {
+            return;
+        }
         let sr = self.tim.sr().read().bits();
         let dier = self.tim.dier().read().bits();
         if sr & dier & TIM_CC2 != 0 {
@@ -438,6 +579,7 @@ impl DmaLine {
             self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() & !TIM_CC2) });
             if self.tsyn_pos.take() == Some(self.ring_pos() as u16) && !self.corrupt {
                 self.receiver.on_tsyn();
+                self.publish_rx();
             }
         }
         if sr & dier & TIM_CC1 != 0 {
@@ -445,11 +587,11 @@ impl DmaLine {
             self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() & !TIM_CC1) });
             if let Tx::Armed { ring_pos } = self.tx {
                 if usize::from(ring_pos) == self.ring_pos() {
-                    self.stats.delayed_starts = self.stats.delayed_starts.wrapping_add(1);
+                    add(DELAYED_STARTS, 1);
                     self.start_now();
                 } else {
                     self.tx = Tx::Idle;
-                    self.stats.dropped_line_active = self.stats.dropped_line_active.wrapping_add(1);
+                    add(DROPPED_LINE_ACTIVE, 1);
                 }
             }
         }
@@ -459,19 +601,18 @@ impl DmaLine {
     /// than `min_tsdr` after its last stop bit and no later than `max_tsdr` — or not at all
     /// ([`line::tx_plan`]). Returns what was done.
     pub fn respond(&mut self, request: &FrameMeta, bytes: &[u8], min_tsdr: BitTimes, max_tsdr: BitTimes) -> TxPlan {
-        if bytes.is_empty() || bytes.len() > self.tx_buf.len() {
-            self.stats.dropped_bad_length = self.stats.dropped_bad_length.wrapping_add(1);
+        if !self.transmit || bytes.is_empty() || bytes.len() > self.tx_buf.len() {
+            add(DROPPED_BAD_LENGTH, 1);
             return TxPlan::Drop(TxDrop::Busy);
         }
-        let not_before = self.clock.response_not_before(self.rate, request.idle_seen, min_tsdr);
-        let latest = self.clock.response_latest(self.rate, request.idle_seen, max_tsdr);
+        // From the tick table: additions and one multiply, no division.
+        let not_before = self.table.response_not_before(request.idle_seen, min_tsdr);
+        let latest = self.table.response_latest(request.idle_seen, max_tsdr);
         let plan = line::tx_plan(self.ticks(), not_before, latest, self.quiet_since(request), self.tx != Tx::Idle);
         match plan {
-            TxPlan::Drop(TxDrop::LineActive) => {
-                self.stats.dropped_line_active = self.stats.dropped_line_active.wrapping_add(1)
-            }
-            TxPlan::Drop(TxDrop::TooLate) => self.stats.dropped_too_late = self.stats.dropped_too_late.wrapping_add(1),
-            TxPlan::Drop(TxDrop::Busy) => self.stats.dropped_busy = self.stats.dropped_busy.wrapping_add(1),
+            TxPlan::Drop(TxDrop::LineActive) => add(DROPPED_LINE_ACTIVE, 1),
+            TxPlan::Drop(TxDrop::TooLate) => add(DROPPED_TOO_LATE, 1),
+            TxPlan::Drop(TxDrop::Busy) => add(DROPPED_BUSY, 1),
             TxPlan::Now | TxPlan::At(_) => {
                 self.tx_buf[..bytes.len()].copy_from_slice(bytes);
                 let st = self.dma.st(TX_STREAM);
@@ -482,7 +623,7 @@ impl DmaLine {
                     self.tim.sr().write(|w| unsafe { w.bits(!TIM_CC1) });
                     self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() | TIM_CC1) });
                     // The compare may have passed while it was being armed.
-                    if line::reached(self.ticks(), t) {
+                    if compare_passed(self.ticks(), t) {
                         self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() & !TIM_CC1) });
                         self.start_now();
                     }
@@ -510,7 +651,7 @@ impl DmaLine {
         self.usart.cr3().modify(|_, w| w.dmat().enabled());
         self.usart.cr1().modify(|_, w| w.tcie().enabled());
         self.tx = Tx::Sending;
-        self.stats.responses = self.stats.responses.wrapping_add(1);
+        add(RESPONSES, 1);
     }
 
     fn abort_tx(&mut self) {
@@ -525,6 +666,139 @@ impl DmaLine {
     }
 }
 
+// The line's counters (issue 11 item 3c): written only with the line's exclusive access (its
+// interrupts, or the decision task inside the line's lock) — one writer at a time, so a load
+// and a store, no read-modify-write race — and read by any task without a lock.
+const PARITY: usize = 0;
+const FRAMING: usize = 1;
+const NOISE: usize = 2;
+const OVERRUN: usize = 3;
+const QUEUE_FULL: usize = 4;
+const RESPONSES: usize = 5;
+const DELAYED_STARTS: usize = 6;
+const DROPPED_LINE_ACTIVE: usize = 7;
+const DROPPED_TOO_LATE: usize = 8;
+const DROPPED_BUSY: usize = 9;
+const DROPPED_BAD_LENGTH: usize = 10;
+/// [`RxStats`] in field order from here (published after each segment and T_SYN).
+const RX_BASE: usize = 11;
+const COUNTER_COUNT: usize = RX_BASE + 6;
+
+#[allow(clippy::declare_interior_mutable_const)]
+const ZERO: AtomicU32 = AtomicU32::new(0);
+static COUNTERS: [AtomicU32; COUNTER_COUNT] = [ZERO; COUNTER_COUNT];
+
+/// Count `n` more on counter `i` (with the line's exclusive access only).
+#[inline(always)]
+fn add(i: usize, n: u32) {
+    let c = &COUNTERS[i];
+    c.store(c.load(Ordering::Relaxed).wrapping_add(n), Ordering::Relaxed);
+}
+
+/// The line's counters and health for the lower tasks, lock-free: atomics the line interrupts
+/// publish, and read-only register reads (issue 11 item 3c).
+pub mod monitor {
+    use core::sync::atomic::Ordering;
+
+    use pbcard::phy::line::RxStats;
+    use stm32f4xx_hal::pac::{DMA2, TIM5, USART1};
+
+    use super::*;
+
+    fn get(i: usize) -> u32 {
+        COUNTERS[i].load(Ordering::Relaxed)
+    }
+
+    /// The line's counters and the telegram cutter's (each value consistent; the set may be
+    /// one event apart).
+    pub fn stats() -> (LineStats, RxStats) {
+        let line = LineStats {
+            parity: get(PARITY),
+            framing: get(FRAMING),
+            noise: get(NOISE),
+            overrun: get(OVERRUN),
+            queue_full: get(QUEUE_FULL),
+            responses: get(RESPONSES),
+            delayed_starts: get(DELAYED_STARTS),
+            dropped_line_active: get(DROPPED_LINE_ACTIVE),
+            dropped_too_late: get(DROPPED_TOO_LATE),
+            dropped_busy: get(DROPPED_BUSY),
+            dropped_bad_length: get(DROPPED_BAD_LENGTH),
+        };
+        let rx = RxStats {
+            frames: get(RX_BASE),
+            corrupt: get(RX_BASE + 1),
+            truncated: get(RX_BASE + 2),
+            garbage: get(RX_BASE + 3),
+            unsynced: get(RX_BASE + 4),
+            tsyn: get(RX_BASE + 5),
+        };
+        (line, rx)
+    }
+
+    /// Telegrams lost on the line (STATUS.CORRUPT_FRAMES): [`RxStats::lost_frames`].
+    pub fn corrupt_frames() -> u32 {
+        stats().1.lost_frames()
+    }
+
+    /// Whether the receive DMA, the USART and TIM5 run as programmed ([`super::DmaLine::is_healthy`]),
+    /// from read-only register reads.
+    pub fn is_healthy() -> bool {
+        // SAFETY: reads of control registers, no side effects; the line owns the writes.
+        let (dma, usart, tim) = unsafe { (&*DMA2::ptr(), &*USART1::ptr(), &*TIM5::ptr()) };
+        let rx_on = dma.st(RX_STREAM).cr().read().bits() & DMA_EN != 0;
+        rx_on && usart.cr1().read().ue().bit_is_set() && tim.cr1().read().bits() & 1 != 0
+    }
+}
+
+/// The mailbox of [`control`]: one command at a time, taken by the TIM5 interrupt.
+static COMMAND: AtomicU8 = AtomicU8::new(control::NONE);
+
+/// Commands to the line from lower-priority tasks, without its lock (issue 11 item 3b/3c): the
+/// command goes into an atomic mailbox and the TIM5 interrupt — the line's own priority, above
+/// every caller — is pended and executes it before `command` returns.
+pub mod control {
+    use core::sync::atomic::Ordering;
+
+    use stm32f4xx_hal::pac::Interrupt;
+
+    use super::COMMAND;
+
+    pub(super) const NONE: u8 = 0;
+    pub(super) const SILENCE: u8 = 1;
+    pub(super) const RESTART: u8 = 2;
+
+    /// Hand `cmd` to the line; `true` when it was executed (the TIM5 interrupt ran). `false`
+    /// only if interrupts are masked here (called inside a critical section): the command is
+    /// withdrawn.
+    fn command(cmd: u8) -> bool {
+        COMMAND.store(cmd, Ordering::Release);
+        cortex_m::peripheral::NVIC::pend(Interrupt::TIM5);
+        cortex_m::asm::dsb();
+        cortex_m::asm::isb();
+        // The interrupt has preempted us between the pend and here, unless it is masked.
+        COMMAND.compare_exchange(cmd, NONE, Ordering::AcqRel, Ordering::Acquire).is_err()
+    }
+
+    /// Silence the line before a flash operation (module documentation "Flash stalls"):
+    /// `true` once DE is low and receiver, DMA and compares are off.
+    pub fn silence() -> bool {
+        command(SILENCE)
+    }
+
+    /// Restart the line fully after a flash operation: USART reprogrammed, ring flushed, the
+    /// receiver waits for T_SYN (proven from now).
+    pub fn restart() -> bool {
+        command(RESTART)
+    }
+}
+
+/// The receive gate's view of USART_SR.
+#[inline(always)]
+fn rx_flags(sr: u16) -> RxFlags {
+    RxFlags { idle: sr & SR_IDLE != 0, error: sr & (SR_PE | SR_FE | SR_NF | SR_ORE) != 0 }
+}
+
 /// The safe state of the line from a panic or HardFault handler, without the `DmaLine`
 /// (whose owner may be the one that failed): stop the transmit DMA, release DE (PA8).
 ///
@@ -533,10 +807,11 @@ impl DmaLine {
 /// backs, which is fine only because nothing runs afterwards but a reset.
 pub unsafe fn line_safe_state() {
     let dp = stm32f4xx_hal::pac::Peripherals::steal();
+    // DE first: one store, whatever state the rest is in.
     dp.GPIOA.bsrr().write(|w| w.br8().set_bit());
     dp.USART1.cr3().modify(|_, w| w.dmat().disabled());
     dp.DMA2.st(TX_STREAM).cr().modify(|r, w| w.bits(r.bits() & !DMA_EN));
-    dp.USART1.cr1().modify(|_, w| w.te().disabled());
+    dp.USART1.cr1().modify(|_, w| w.te().disabled().tcie().disabled());
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -623,9 +898,11 @@ impl Supervisor {
     }
 
     /// Once per millisecond: show `leds`; store `address` (station address, No_Add_Chg) when
-    /// it differs from the stored pair (Set_Slave_Add; the flash stalls the CPU meanwhile —
-    /// returns `true`: restart the receiver); start the IWDG at the first call and feed it
-    /// only when `alive` (the line hardware runs and the protocol tasks make progress).
+    /// it differs from the stored pair (Set_Slave_Add; the flash stalls the CPU meanwhile, so
+    /// the line is silenced before and restarted after — module documentation "Flash stalls";
+    /// returns `false`: nothing left for the caller to restart); start the IWDG at the first
+    /// call and feed it only when `alive` (the line hardware runs and the protocol tasks make
+    /// progress).
     pub fn tick(
         &mut self,
         now: pbcard::time::Instant,
@@ -641,32 +918,38 @@ impl Supervisor {
                 self.iwdg = Some(Iwdg::start(p));
             }
         }
-        let mut restart = false;
         if address != self.stored {
             if let Some(w) = self.iwdg.as_mut() {
                 w.feed();
             }
-            match self.store.save_record(address.0, address.1) {
-                Ok(r) => {
-                    defmt::info!("station address {=u8} (No_Add_Chg {=bool}) stored: {}", address.0, address.1, r);
-                    self.stored = address;
+            // Silence first (DE low, receiver and DMA off); if the line cannot confirm it, the
+            // write waits for the next millisecond.
+            if control::silence() {
+                let result = self.store.save_record(address.0, address.1);
+                // Restart fully: ring flushed, T_SYN awaited (nothing stale is answered).
+                control::restart();
+                match result {
+                    Ok(r) => {
+                        defmt::info!("station address {=u8} (No_Add_Chg {=bool}) stored: {}", address.0, address.1, r)
+                    }
+                    Err(e) => defmt::error!("storing the station address failed: {}", e),
                 }
-                Err(e) => {
-                    defmt::error!("storing the station address failed: {}", e);
-                    // Retried at the next change only (no flash wear loop).
-                    self.stored = address;
-                }
+                // A failure is retried at the next change only (no flash wear loop).
+                self.stored = address;
             }
-            restart = true;
         }
         if alive {
             if let Some(w) = self.iwdg.as_mut() {
                 w.feed();
             }
         }
-        restart
+        false
     }
 }
+
+/// SysTick's hardware priority: RTIC logical priority 2 of 16 (`(16 − 2) << 4`), above the
+/// priority-1 tasks that await it, below everything else (the line is logical 16 = 0x00).
+pub const SYSTICK_PRIORITY_HW: u8 = (16 - 2) << 4;
 
 /// Crystal and clock tree of the reference board (ARCHITECTURE §2).
 pub mod clocks {
@@ -706,17 +989,38 @@ pub fn init(dp: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYS
     use stm32f4xx_hal::rcc::{self, RccExt};
     use stm32f4xx_hal::time::Hertz;
 
+    // Issue 11 3d: DE (PA8) low before anything else. `__pre_init` (below) has driven it low
+    // before RAM initialisation; the HAL's `split` resets GPIOA (PA8 floats for a few cycles,
+    // held low by the board's external pull-down) and the pin is an output at low again at
+    // once, before the clock tree is touched.
+    let mut rcc_regs = dp.RCC;
+    let gpioa = dp.GPIOA.split(&mut rcc_regs);
+    let de = gpioa.pa8.into_push_pull_output_in_state(PinState::Low).speed(Speed::VeryHigh);
+
     // Keep the debug clock running in WFI, so probe-rs / RTT keep working in idle; stop the
     // IWDG while the core is halted by a debugger.
     dp.DBGMCU.cr().modify(|_, w| w.dbg_sleep().set_bit());
     dp.DBGMCU.apb1_fz().modify(|_, w| w.dbg_iwdg_stop().set_bit());
 
-    let mut rcc = dp.RCC.freeze(
-        rcc::Config::hse(Hertz::from_raw(clocks::HSE_HZ))
+    // Issue 11 3a: the regulator at scale 1 before the PLL runs at 96 MHz (PWR_CR.VOS = 0b11,
+    // "scale 1, HCLK ≤ 100 MHz"; the reset value 0b10 is scale 2, rated ≤ 84 MHz, and
+    // stm32f4xx-hal's `freeze` leaves it). RM0383 §5.4.1: VOS can be modified only while the
+    // PLL is off and takes effect when it is switched on; PWR_CSR.VOSRDY then says the
+    // regulator has reached the level.
+    scale1_before_pll(&rcc_regs, &dp.PWR);
+    // Issue 11 3g: the crystal is started here with a timeout (the HAL's `freeze` waits for
+    // HSERDY forever). Without it the card runs from HSI (same 96 MHz tree) but never drives
+    // the bus: HSI's tolerance (±1 % at 25 °C, more over temperature, DS10314) is far outside
+    // PROFIBUS's ±0.3 % — a defined fault, logged, with the DPM side still running.
+    let crystal = start_hse(&rcc_regs);
+    let config = if crystal { rcc::Config::hse(Hertz::from_raw(clocks::HSE_HZ)) } else { rcc::Config::hsi() };
+    let mut rcc = rcc_regs.freeze(
+        config
             .sysclk(Hertz::from_raw(clocks::SYSCLK_HZ))
             .pclk1(Hertz::from_raw(clocks::PCLK1_HZ))
             .pclk2(Hertz::from_raw(clocks::PCLK2_HZ)),
     );
+    let vos_ready = wait_vos_ready(&dp.PWR);
     let sysclk = rcc.clocks.sysclk().raw();
     let pclk2 = rcc.clocks.pclk2().raw();
     let timclk1 = rcc.clocks.timclk1().raw();
@@ -734,10 +1038,31 @@ pub fn init(dp: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYS
         acr.dcen().bit_is_set()
     );
 
-    let clock = super::clock::start(syst, sysclk);
+    defmt::info!(
+        "regulator: PWR_CR.VOS = {=u8:#04b} (scale 1), VOSRDY {=bool}",
+        dp.PWR.cr().read().vos().bits(),
+        vos_ready
+    );
 
-    let gpioa = dp.GPIOA.split(&mut rcc);
-    let de = gpioa.pa8.into_push_pull_output_in_state(PinState::Low).speed(Speed::VeryHigh);
+    if !crystal {
+        defmt::error!(
+            "HSE ({=u32} Hz crystal) did not start within {=u32} ms: running from HSI, the PROFIBUS line stays silent",
+            clocks::HSE_HZ,
+            HSE_TIMEOUT_MS
+        );
+    }
+    brown_out_level(&dp.FLASH);
+
+    let clock = super::clock::start(syst, sysclk);
+    // Issue 11 3c: SysTick (the RTIC monotonic's tick; its reset priority 0 is the line's own)
+    // below every task but the priority-1 ones, so its handler never delays the line.
+    // SAFETY: `init` runs with interrupts disabled; only SysTick's priority changes.
+    unsafe {
+        cortex_m::Peripherals::steal()
+            .SCB
+            .set_priority(cortex_m::peripheral::scb::SystemHandler::SysTick, SYSTICK_PRIORITY_HW)
+    };
+
     let tx = gpioa.pa9.into_alternate::<7>().speed(Speed::VeryHigh);
     // Pull-up: the transceiver's RO may float while its receiver is disabled.
     let rx = gpioa.pa10.into_alternate::<7>().internal_pull_up(true);
@@ -749,10 +1074,11 @@ pub fn init(dp: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYS
         fs: gpiob.pb8.into_push_pull_output_in_state(PinState::Low),
     };
 
-    let line = match DmaLine::new(dp.USART1, dp.DMA2, dp.TIM5, (tx, rx), DePin(de), pclk2, timclk1, rate, &mut rcc) {
-        Ok(l) => l,
-        Err(e) => defmt::panic!("line rate {} not reachable at PCLK2 {=u32} Hz", e.0, pclk2),
-    };
+    let line =
+        match DmaLine::new(dp.USART1, dp.DMA2, dp.TIM5, (tx, rx), DePin(de), pclk2, timclk1, rate, crystal, &mut rcc) {
+            Ok(l) => l,
+            Err(e) => defmt::panic!("line rate {} not reachable at PCLK2 {=u32} Hz", e.0, pclk2),
+        };
     let (over8, brr) = usart_brr(pclk2, rate.bits_per_second()).unwrap_or((false, 0));
     defmt::info!(
         "USART1 {} = {=u32} bit/s (OVER8 {=bool}, BRR {=u16:#x}), SYSCLK {=u32} Hz, TIM5 {=u32} Hz",
@@ -777,3 +1103,123 @@ pub fn init(dp: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYS
     };
     Board { line, clock, leds, flash: super::flash::JournalFlash::new(dp.FLASH), iwdg: dp.IWDG, spi }
 }
+
+/// PWR_CR.VOS = scale 1 (0b11) with the PLL off (RM0383 §5.4.1). After a reset the PLL is
+/// off; should anything have left it on (a debugger script), the system clock goes back to
+/// HSI and the PLL is stopped first, which `freeze` then programs and starts again.
+fn scale1_before_pll(rcc: &stm32f4xx_hal::pac::RCC, pwr: &stm32f4xx_hal::pac::PWR) {
+    if rcc.cr().read().pllon().bit_is_set() {
+        rcc.cfgr().modify(|_, w| w.sw().hsi());
+        while !rcc.cfgr().read().sws().is_hsi() {}
+        rcc.cr().modify(|_, w| w.pllon().clear_bit());
+        while rcc.cr().read().pllrdy().bit_is_set() {}
+    }
+    rcc.apb1enr().modify(|_, w| w.pwren().set_bit());
+    // A peripheral clock is on only a few AHB cycles after its enable bit (the F4 errata's
+    // "delay after an RCC peripheral clock enabling"): a read-back and a DSB before the access.
+    let _ = rcc.apb1enr().read();
+    cortex_m::asm::dsb();
+    pwr.cr().modify(|_, w| w.vos().scale1());
+}
+
+/// Wait (bounded: ≈ 1 ms at 96 MHz) until PWR_CSR.VOSRDY says the regulator is at the VOS
+/// level; `false` if it did not come (logged; the card runs on, as it did before this check).
+fn wait_vos_ready(pwr: &stm32f4xx_hal::pac::PWR) -> bool {
+    for _ in 0..1000 {
+        if pwr.csr().read().vosrdy().bit_is_set() {
+            return true;
+        }
+        cortex_m::asm::delay(96);
+    }
+    false
+}
+
+/// How long the crystal may take to start (HSE_STARTUP_TIMEOUT of ST's own drivers: 100 ms;
+/// a 25 MHz crystal typically needs 2 ms, DS10314 t_SU(HSE)).
+pub const HSE_TIMEOUT_MS: u32 = 100;
+
+/// Switch the crystal oscillator on and wait for RCC_CR.HSERDY at most [`HSE_TIMEOUT_MS`]
+/// (counted in HSI cycles: the core runs from the 16 MHz HSI after reset). `false`: HSEON
+/// is cleared again and the clock tree is built on HSI.
+fn start_hse(rcc: &stm32f4xx_hal::pac::RCC) -> bool {
+    rcc.cr().modify(|_, w| w.hseon().set_bit());
+    // Polled every 1 600 cycles = 100 µs at 16 MHz.
+    for _ in 0..HSE_TIMEOUT_MS * 10 {
+        if rcc.cr().read().hserdy().bit_is_set() {
+            return true;
+        }
+        cortex_m::asm::delay(1_600);
+    }
+    rcc.cr().modify(|_, w| w.hseon().clear_bit());
+    false
+}
+
+/// FLASH_OPTCR.BOR_LEV for brown-out level 3 (RM0383 §3.8.6: 00 = VBOR3 ≈ 2.7 V, 01 = VBOR2,
+/// 10 = VBOR1, 11 = off — the factory value; the stm32f4 PAC's enumeration of this field names
+/// 0 "off", so the raw bits are used here).
+const BOR_LEV_LEVEL3: u32 = 0b00;
+const OPTCR_BOR_LEV_SHIFT: u32 = 2;
+const OPTCR_BOR_LEV_MASK: u32 = 0b11 << OPTCR_BOR_LEV_SHIFT;
+const OPTCR_OPTLOCK: u32 = 1 << 0;
+const OPTCR_OPTSTRT: u32 = 1 << 1;
+const OPTKEY1: u32 = 0x0819_2A3B;
+const OPTKEY2: u32 = 0x4C5D_6E7F;
+const FLASH_SR_BSY: u32 = 1 << 16;
+
+/// Issue 11 3g: the brown-out reset at level 3 (≈ 2.7 V), the lowest supply at which 3 flash
+/// wait states are rated at 96 MHz (RM0383 Table 5: 2.7–3.6 V). The option byte is written
+/// **only when it differs** — once, at the first boot of a new card — never on every boot
+/// (option-byte programming wears the option sector and a power loss during it is the one
+/// risky moment): the read-modify-write keeps RDP, nWRP and the user bits as they are. The
+/// line is not running yet (DE low), so the stall of the write costs nothing.
+fn brown_out_level(flash: &stm32f4xx_hal::pac::FLASH) {
+    let optcr = flash.optcr().read().bits();
+    let level = (optcr & OPTCR_BOR_LEV_MASK) >> OPTCR_BOR_LEV_SHIFT;
+    if level == BOR_LEV_LEVEL3 {
+        defmt::info!("brown-out reset: level 3 (option byte BOR_LEV = 0b00)");
+        return;
+    }
+    while flash.sr().read().bits() & FLASH_SR_BSY != 0 {}
+    flash.optkeyr().write(|w| unsafe { w.bits(OPTKEY1) });
+    flash.optkeyr().write(|w| unsafe { w.bits(OPTKEY2) });
+    let new = (optcr & !(OPTCR_BOR_LEV_MASK | OPTCR_OPTLOCK | OPTCR_OPTSTRT)) | (BOR_LEV_LEVEL3 << OPTCR_BOR_LEV_SHIFT);
+    flash.optcr().write(|w| unsafe { w.bits(new) });
+    flash.optcr().write(|w| unsafe { w.bits(new | OPTCR_OPTSTRT) });
+    while flash.sr().read().bits() & FLASH_SR_BSY != 0 {}
+    flash.optcr().modify(|r, w| unsafe { w.bits(r.bits() | OPTCR_OPTLOCK) });
+    let now = (flash.optcr().read().bits() & OPTCR_BOR_LEV_MASK) >> OPTCR_BOR_LEV_SHIFT;
+    defmt::warn!("brown-out reset: BOR_LEV {=u32:#04b} -> {=u32:#04b} (level 3, written once)", level, now);
+}
+
+// Issue 11 3d: the RS485 driver enable low as the very first thing after reset, before the
+// RAM is initialised and long before the clocks (cortex-m-rt calls `__pre_init` from the
+// reset handler; written in assembly because no Rust may run before RAM initialisation,
+// cortex-m-rt's documentation of `pre_init`). RCC_AHB1ENR.GPIOAEN (0x4002_3830 bit 0), a
+// read-back for the clock-enable delay, GPIOA_BSRR.BR8 (0x4002_0018 bit 24: ODR8 = 0), then
+// GPIOA_MODER.MODER8 = 0b01 (0x4002_0000 bits 17:16: output; the other pins, SWD on PA13 /
+// PA14 included, keep their mode). Until then (reset, the first few cycles) the transceiver's
+// DE is held low by the external pull-down on PA8 (README "Hardware").
+core::arch::global_asm!(
+    ".section .text.__pre_init,\"ax\",%progbits",
+    ".global __pre_init",
+    ".type __pre_init,%function",
+    ".thumb_func",
+    "__pre_init:",
+    "    ldr r0, =0x40023830",
+    "    ldr r1, [r0]",
+    "    orr r1, r1, #1",
+    "    str r1, [r0]",
+    "    ldr r1, [r0]",
+    "    dsb",
+    "    ldr r0, =0x40020018",
+    "    mov r1, #0x01000000",
+    "    str r1, [r0]",
+    "    ldr r0, =0x40020000",
+    "    ldr r1, [r0]",
+    "    bic r1, r1, #0x00030000",
+    "    orr r1, r1, #0x00010000",
+    "    str r1, [r0]",
+    "    bx lr",
+    ".ltorg",
+    ".size __pre_init, . - __pre_init",
+);

@@ -1,5 +1,6 @@
 //! The board's panic and HardFault path (ARCHITECTURE §2 "supervision", issue 5 item 6): the
-//! line to the safe state (transmit DMA stopped, DE released), the DPM OUTPUTS block to the
+//! line to the safe state first (transmit DMA stopped, DE released — before any logging,
+//! issue 11 item 3e), then the log, the DPM OUTPUTS block to the
 //! safe state and the "card fault" event raised in `CARD.EVENTS`
 //! ([`pbcard::app::Application::fail_safe`]), a flag in RAM that survives the reset, then a
 //! system reset. After the reset [`take_recovered_fault`] tells the firmware to raise the
@@ -26,6 +27,8 @@ static mut FAULT_FLAG: MaybeUninit<u32> = MaybeUninit::uninit();
 
 static APP: AtomicPtr<Application> = AtomicPtr::new(null_mut());
 static IN_FAULT: AtomicBool = AtomicBool::new(false);
+/// The fault has been logged (a fault inside the logging — RTT, `defmt` — logs nothing more).
+static LOGGED: AtomicBool = AtomicBool::new(false);
 
 /// Remember where the application lives (call with the RTIC resource locked, once it is in
 /// its final place; calling it again with the same object is harmless).
@@ -43,11 +46,24 @@ pub fn take_recovered_fault() -> bool {
     }
 }
 
-fn fail() -> ! {
+/// Issue 11 3e: the line to the safe state **before** anything that may take time or fail —
+/// logging included (RTT may block or wait for a probe; a fault inside the logger must not
+/// leave DE on): interrupts off, DE (PA8) low, transmit DMA and transmitter off.
+fn line_safe_first() {
     cortex_m::interrupt::disable();
+    // SAFETY: interrupts are off and nothing but logging and the reset follows.
+    unsafe { super::f411::line_safe_state() };
+}
+
+/// Whether this is the first attempt to log the fault.
+fn first_log() -> bool {
+    !LOGGED.swap(true, Ordering::AcqRel)
+}
+
+fn fail() -> ! {
+    line_safe_first();
     // SAFETY: interrupts are off and nothing but the reset follows.
     unsafe {
-        super::f411::line_safe_state();
         if !IN_FAULT.swap(true, Ordering::AcqRel) {
             let app = APP.load(Ordering::Acquire);
             if !app.is_null() {
@@ -61,7 +77,8 @@ fn fail() -> ! {
 
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
-    if !IN_FAULT.load(Ordering::Acquire) {
+    line_safe_first();
+    if first_log() {
         defmt::error!("panic: {}", defmt::Display2Format(info));
     }
     fail()
@@ -69,12 +86,17 @@ fn panic(info: &core::panic::PanicInfo) -> ! {
 
 #[cortex_m_rt::exception]
 unsafe fn HardFault(ef: &cortex_m_rt::ExceptionFrame) -> ! {
-    defmt::error!("HardFault at pc {=u32:#010x}", ef.pc());
+    line_safe_first();
+    if first_log() {
+        defmt::error!("HardFault at pc {=u32:#010x}", ef.pc());
+    }
     fail()
 }
 
+/// `defmt::panic!` / `defmt::assert!` log *before* they call this (the macro's order, not
+/// ours): the board uses them only in `init`, before the line is started and while DE is
+/// held low (`f411::init`), so no response can be on the wire while they log.
 #[defmt::panic_handler]
 fn defmt_panic() -> ! {
-    // `defmt::panic!` / `defmt::assert!` have logged already.
     fail()
 }

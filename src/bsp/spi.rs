@@ -324,11 +324,15 @@ pub fn init(parts: SpiParts) -> SpiPort {
     DMA1::enable(&mut rcc);
     DMA1::reset(&mut rcc);
 
+    // Issue 11 3d: a card without a control board must not see transactions or EXTI12 edges
+    // from floating inputs: NSS pulled up (deselected), SCK pulled down (mode 0 idle), MOSI
+    // pulled up; IRQ is a push-pull output released (high) from here on (before this, during
+    // reset, the control board's pull-up holds it released, docs/SPI.md).
     let irq = irq.into_push_pull_output_in_state(PinState::High);
-    let mut nss = nss.into_alternate::<5>();
-    let sck = sck.into_alternate::<5>();
+    let mut nss = nss.into_alternate::<5>().internal_pull_up(true);
+    let sck = sck.into_alternate::<5>().internal_pull_down(true);
     let miso = miso.into_alternate::<5>().speed(Speed::VeryHigh);
-    let mosi = mosi.into_alternate::<5>();
+    let mosi = mosi.into_alternate::<5>().internal_pull_up(true);
 
     let mut syscfg = syscfg.constrain(&mut rcc);
     nss.make_interrupt_source(&mut syscfg);

@@ -6,10 +6,13 @@
 //! The board support code owns the USART; it asks [`autobaud::Autobaud`] for the rate,
 //! programs it with [`divisor::divisor_for`], feeds what the DMA received through
 //! [`line::Receiver`], starts responses as [`line::tx_plan`] says, and reports every frame,
-//! every receive error and the passing of time back.
+//! every receive error and the passing of time back. [`timing`] holds what the line interrupt
+//! computes: the per-rate tick table, the "already passed?" check of a compare, the ring
+//! reader and the receive-interrupt gate.
 
 pub mod autobaud;
 pub mod divisor;
 pub mod line;
 #[cfg(test)]
 mod tests_props;
+pub mod timing;
