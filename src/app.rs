@@ -238,6 +238,7 @@ impl Application {
         self.link.apply(node, update);
         let faults = self.runtime.faults();
         node.set_fault_buffer(faults.counter(), faults.numbers());
+        node.set_process_view(self.runtime.process_view());
     }
 
     /// The panic / hard-fault path (ARCHITECTURE §2 "supervision"): the DPM OUTPUTS block to

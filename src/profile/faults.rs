@@ -233,6 +233,7 @@ mod tests {
             baud_p963: 5,
             fault_counter: f.counter(),
             faults: *f.numbers(),
+            process: super::super::pnu::ProcessView::EMPTY,
         };
         let mut card = CardTable { info, drive: &mut drive };
         let [c0, c1] = PNU_FAULT_COUNTER.to_be_bytes();
