@@ -279,6 +279,10 @@ impl SimDrive {
     pub fn vacon_ids(&self) -> &params::VaconIdTable {
         &self.vacon_ids
     }
+    /// The VACON application parameters, mutable (the drive's commissioning).
+    pub fn vacon_ids_mut(&mut self) -> &mut params::VaconIdTable {
+        &mut self.vacon_ids
+    }
     /// The parameter table, mutable.
     pub fn params_mut(&mut self) -> &mut DriveTable {
         &mut self.table

@@ -3,10 +3,13 @@
 //!
 //! | PNU | name | type | range | default | unit | access | source |
 //! |---|---|---|---|---|---|---|---|
+//! | 3 | INVT P00.03 maximum output frequency Fmax | U16 | 1..60000 | 5000 | 0.01 Hz | rw | INVT Table 2-6 "0–Fmax" (`profile::references`) |
 //! | 100 | acceleration time | U16 | 0..9999 | 50 | 0.1 s | rw | WEG P0100 (CFW-11 §4.2.5 Exemplo 2: 8.5 s is sent as 85; CFW500 P0750: 5.0 s as 50) |
 //! | 101 | deceleration time | U16 | 0..9999 | 50 | 0.1 s | rw | WEG P0101 (CFW500 P0680 bit 5: the first ramp is P0100/P0101) |
 //! | 133 | minimum speed | U16 | 0..18000 | 90 | rpm | rw | WEG P0133 |
 //! | 134 | maximum speed | U16 | 0..18000 | 1800 | rpm | rw | WEG P0134 (CFW-11 §3: 0x4000 = P0134 in the PROFIdrive profile; the manual's example 1800 rpm) |
+//! | 403 | rated frequency | U16 | 1..400 | 50 | Hz | rw | WEG P0403 (CFW500 P0681: 8192 = P0403; `profile::references`) |
+//! | 514 | INVT P02.02 motor rated frequency | U16 | 1..60000 | 5000 | 0.01 Hz | rw | INVT motor parameters (P02.02; N2 0x4000, `profile::references`) |
 //! | 680 | status word | U16 | 0..FFFFh | 0 | bits | ro | WEG P0680 (CFW500 Table 4.2: "Range 0000h to FFFFh … Properties: RO") |
 //! | 681 | motor speed in 13 bits | I16 | −32768..32767 | 0 | 8192 = synchronous speed | ro | WEG P0681 (CFW500, CFW-11: 2000h = rated / synchronous speed, 1800 rpm for 4 poles at 60 Hz) |
 //! | 684 | control word | U16 | 0..FFFFh | 0 | bits | rw | WEG P0684 (CFW500 Table 4.3) |
@@ -40,6 +43,12 @@
 use crate::profile::table::{slots, ParamDef, Table, Type, CONV_BASE, CONV_PER_MINUTE, VAR_RATIO, VAR_SPEED, VAR_TIME};
 use crate::time::Duration;
 
+/// INVT P00.03 maximum output frequency Fmax, 0.01 Hz (group × 256 + code).
+pub const P_INVT_FMAX: u16 = 0x0003;
+/// WEG P0403 rated frequency, Hz.
+pub const P_RATED_FREQUENCY: u16 = 403;
+/// INVT P02.02 motor rated frequency, 0.01 Hz.
+pub const P_INVT_RATED_FREQUENCY: u16 = 0x0202;
 /// P0100 acceleration time, 0.1 s.
 pub const P_ACCELERATION_TIME: u16 = 100;
 /// P0101 deceleration time, 0.1 s.
@@ -80,6 +89,7 @@ const PERCENT_PER_13BIT: f32 = 100.0 / 8192.0;
 
 /// The simulated drive's parameters, ascending by PNU.
 pub const DRIVE_PARAMS: &[ParamDef] = &[
+    ParamDef::new(P_INVT_FMAX, "P00.03 Fmax", Type::U16).limits(1, 60000).with_default(5000),
     ParamDef::new(P_ACCELERATION_TIME, "Accel. Time", Type::U16)
         .limits(0, 9999)
         .with_default(50)
@@ -98,6 +108,8 @@ pub const DRIVE_PARAMS: &[ParamDef] = &[
         VAR_SPEED,
         CONV_PER_MINUTE,
     ),
+    ParamDef::new(P_RATED_FREQUENCY, "Rated Frequency", Type::U16).limits(1, 400).with_default(50),
+    ParamDef::new(P_INVT_RATED_FREQUENCY, "P02.02 Rated Frq", Type::U16).limits(1, 60000).with_default(5000),
     ParamDef::new(P_STATUS_WORD, "Status Word", Type::U16).read_only(),
     ParamDef::new(P_SPEED_13BIT, "Speed 13 bits", Type::I16)
         .read_only()
@@ -151,6 +163,9 @@ pub const ID_MAX_FREQUENCY: u16 = 102;
 pub const ID_ACCELERATION_TIME: u16 = 103;
 /// VACON ID 104 deceleration time 1, 0.1 s.
 pub const ID_DECELERATION_TIME: u16 = 104;
+/// VACON ID 111 motor nominal frequency, 0.01 Hz: the frequency of the nominal speed P10111,
+/// N2 0x4000 (`profile::references`).
+pub const ID_MOTOR_NOMINAL_FREQUENCY: u16 = 111;
 /// VACON ID 125 control place (OPTE3/E5 §6.6.3.2 writes 2): 1 I/O terminal, 2 keypad,
 /// 3 fieldbus.
 pub const ID_CONTROL_PLACE: u16 = 125;
@@ -169,6 +184,7 @@ pub const VACON_IDS: &[ParamDef] = &[
     ParamDef::new(ID_MAX_FREQUENCY, "Max Frequency", Type::U16).limits(0, 32000).with_default(5000),
     ParamDef::new(ID_ACCELERATION_TIME, "Accel Time 1", Type::U16).limits(1, 30000).with_default(30),
     ParamDef::new(ID_DECELERATION_TIME, "Decel Time 1", Type::U16).limits(1, 30000).with_default(30),
+    ParamDef::new(ID_MOTOR_NOMINAL_FREQUENCY, "Motor Nom Freq", Type::U16).limits(1, 32000).with_default(5000),
     ParamDef::new(ID_CONTROL_PLACE, "Control Place", Type::U16).limits(1, 3).with_default(3),
     ParamDef::new(ID_FIELDBUS_FAULT_RESPONSE, "FB Fault Resp", Type::U16).limits(0, 4).with_default(4),
 ];
@@ -225,7 +241,7 @@ mod tests {
     #[test]
     fn factory_settings() {
         let t = sim_drive_table();
-        assert_eq!(DRIVE_SLOTS, 10 + 22 + 8 + 16, "ten single values, P15.02–P15.23, 9901 [8], 10109 [16]");
+        assert_eq!(DRIVE_SLOTS, 13 + 22 + 8 + 16, "13 single values, P15.02–P15.23, 9901 [8], 10109 [16]");
         assert_eq!(acceleration_time(&t), Duration::from_millis(5000));
         assert_eq!(deceleration_time(&t), Duration::from_millis(5000));
         assert_eq!(reference_speed_rpm(&t), 1800);

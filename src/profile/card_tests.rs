@@ -453,8 +453,18 @@ fn weg_read_before_ready_is_c3() {
         b.bring_up_with(module(reference), 0x80);
         b.write47(&[1, 1, 1, 1, 0x10, 1, 0, 100, 0, 0]);
         assert_eq!(b.read47(), [0xDE, 0x80, code, 0x00], "{reference}");
-        b.step(1);
-        assert_eq!(b.read47(), [1, 1, 1, 1, 0x42, 1, 0, 50]);
+        // The first job after a Chk_Cfg of a WEG telegram may wait behind the speed-reference
+        // reads (item 10, one mailbox round trip each); meanwhile the same code.
+        let mut r = vec![];
+        for _ in 0..5 {
+            b.step(1);
+            r = b.read47();
+            if r[0] != 0xDE {
+                break;
+            }
+            assert_eq!(r, [0xDE, 0x80, code, 0x00], "{reference}");
+        }
+        assert_eq!(r, [1, 1, 1, 1, 0x42, 1, 0, 50]);
     }
 }
 
@@ -824,4 +834,51 @@ fn invt_heartbeat_is_supervised() {
     b.cycles(&invt(0x8001, 2500), 300);
     assert_eq!(b.app.runtime().stats().heartbeat_losses, 0);
     assert_eq!(b.app.drive().actual_speed(), 0x2000);
+}
+
+/// Item 10 — the speed references come from the drive's parameters (`profile::references`,
+/// read through the mailbox after the selection), not a fixed 50 Hz:
+/// * VACON PPO (OPTE3/E5 §6.3.5 Table 29: 0..10000 = minimum..maximum frequency): ID 102 =
+///   25.00 Hz with the motor's nominal frequency ID 111 = 50.00 Hz (N2 0x4000) → HSW 10000 is
+///   N2 0x2000;
+/// * WEG PROFIdrive (CFW500 P0741: 16384 = P0134): P0134 = 900 rpm of the synchronous 1800 rpm
+///   (P10111) at P0403 = 60 Hz → 16384 is 30 Hz = N2 0x2000; the 13-bit scale (8192 = P0403)
+///   stays N2 0x4000;
+/// * INVT (Table 2-6: 0..Fmax): P00.03 Fmax = 100.00 Hz, P02.02 rated 50.00 Hz → 75.00 Hz is
+///   N2 0x6000 (with the 50 Hz default it was cut to Fmax, 0x4000).
+#[test]
+fn speed_references_come_from_the_drive() {
+    use crate::drive::params;
+    let mut b = Bench::new();
+    b.app.drive_mut().vacon_ids_mut().set(params::ID_MAX_FREQUENCY, 0, 2500).unwrap();
+    b.bring_up(module(101));
+    let mut q = ppo1([0; 8]);
+    q[10..12].copy_from_slice(&10_000u16.to_be_bytes());
+    b.cycles(&q, 5);
+    assert_eq!(b.app.references().stats().applied, 1);
+    assert_eq!(b.app.runtime().scales().bypass_max, 2500);
+    q[9] = 0x7F;
+    b.cycles(&q, 5);
+    assert_eq!(b.app.drive().command().speed_setpoint, 0x2000, "VACON: HSW 10000 = 25 Hz");
+
+    let mut b = Bench::new();
+    b.app.drive_mut().params_mut().set(params::P_RATED_FREQUENCY, 0, 60).unwrap();
+    b.app.drive_mut().params_mut().set(params::P_MAX_SPEED, 0, 900).unwrap();
+    b.config(HostConfig { profile: 0, ..HostConfig::DEFAULT });
+    b.bring_up(module(2103));
+    b.cycles(&bytes(&[0x047E, 0x4000, 0]), 5);
+    b.cycles(&bytes(&[0x047F, 0x4000, 0]), 3);
+    assert_eq!(b.app.drive().command().speed_setpoint, 0x2000, "WEG PROFIdrive: 16384 = P0134 = 30 Hz");
+    let mut b = Bench::new();
+    b.app.drive_mut().params_mut().set(params::P_RATED_FREQUENCY, 0, 60).unwrap();
+    b.bring_up(module(2103));
+    b.cycles(&bytes(&[0x0017, 0x2000, 0]), 5);
+    assert_eq!(b.app.drive().command().speed_setpoint, 0x4000, "WEG 13 bits: 8192 = P0403 = N2 100 %");
+
+    let mut b = Bench::new();
+    b.app.drive_mut().params_mut().set(params::P_INVT_FMAX, 0, 10_000).unwrap();
+    b.bring_up(module(4001));
+    b.cycles(&invt(1, 7500), 5);
+    assert_eq!(b.app.drive().command().speed_setpoint, 0x6000, "INVT: 75 Hz of Fmax 100 Hz, N2 100 % = 50 Hz");
+    assert_eq!(b.app.references().stats().gave_up, 0);
 }

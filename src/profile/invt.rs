@@ -130,6 +130,16 @@ impl Invt {
         }
     }
 
+    /// The set-frequency scale in force.
+    pub fn speed_scale(&self) -> &SpeedScale {
+        &self.scale
+    }
+
+    /// A new set-frequency scale (the drive's Fmax read, `profile::references`).
+    pub fn set_scale(&mut self, scale: SpeedScale) {
+        self.scale = scale;
+    }
+
     /// The running command in force.
     pub fn run_command(&self) -> RunCommand {
         self.run

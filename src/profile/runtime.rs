@@ -144,6 +144,19 @@ impl AnyProfile {
     }
 }
 
+impl AnyProfile {
+    /// Take the speed scale of `fresh` (the same profile built with new [`Scales`]), keeping
+    /// this profile's state.
+    fn take_scale(&mut self, fresh: &AnyProfile) {
+        match (self, fresh) {
+            (AnyProfile::Profidrive(p), AnyProfile::Profidrive(f)) => p.set_scale(f.config().scale),
+            (AnyProfile::Weg(p), AnyProfile::Weg(f)) => p.set_scale(*f.scale()),
+            (AnyProfile::Invt(p), AnyProfile::Invt(f)) => p.set_scale(*f.speed_scale()),
+            _ => {}
+        }
+    }
+}
+
 impl ControlProfile for AnyProfile {
     fn command(&mut self, cw: u16, setpoint: u16, drive: &DriveStatus) -> DriveCommand {
         match self {
@@ -301,6 +314,24 @@ impl Runtime {
             heartbeat: Heartbeat::default(),
             stats: RuntimeStats::default(),
         }
+    }
+
+    /// The speed references of the profile scales (`profile::references`: read from the
+    /// drive after each selection; [`Scales::DEFAULT`] until then). A change applies to the
+    /// profile in force at once and keeps its state (no restart of the state machine).
+    pub fn set_scales(&mut self, scales: Scales) {
+        if scales == self.scales {
+            return;
+        }
+        self.scales = scales;
+        if let (Some(p), Some(e), Some(sel)) = (self.profile.as_mut(), self.engine.as_ref(), self.selection) {
+            p.take_scale(&AnyProfile::for_layout(e.layout(), sel.data, &scales));
+        }
+    }
+
+    /// The speed references in force.
+    pub fn scales(&self) -> Scales {
+        self.scales
     }
 
     /// The I/O update delay after going online (CFW-11 P0799-style, module docs): the drive's
