@@ -1,6 +1,13 @@
 //! The PROFIdrive parameters the card itself owns (reference §5.2; OPTE3/E5 §6.4.5 list of
-//! supported PNUs; CFW-11 §4.2: P0918, P0922, P0944, P0947, P0963, P0964, P0965). Every other
+//! supported PNUs; CFW-11 §4.2: P0918, P0922, P0944, P0947, P0963, P0964, P0965), and VACON's
+//! PNU 10100 … 10108, the cyclic words readable acyclically (OPTE3/E5 Table 108). Every other
 //! PNU belongs to the drive: [`CardTable`] passes it to the drive's table.
+//!
+//! **Per product (issue 15 item 12)**, chosen by the active telegram and the drive's data
+//! profile ([`ProcessView`]): P0922 in WEG's option coding under a WEG telegram
+//! ([`CardInfo::p0922`]), P0944 as WEG's 0/1 fault flag there and VACON's message counter
+//! elsewhere ([`CardInfo::p0944`]), PNU 964 with the product's manufacturer / drive unit type
+//! ([`CardInfo::device_id`]), PNU 915 / 916 with the words of the active data profile.
 
 use super::param::Attribute;
 use super::param::{ErrorValue, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
@@ -233,8 +240,8 @@ impl CardInfo {
     pub fn p0922(&self) -> u16 {
         match (self.product(), self.telegram) {
             (Product::Cfw500, Telegram::Standard(1)) => 2,
-            (Product::Cfw500, Telegram::Vendor(_, n)) => n - 100,
-            (Product::Cfw11, Telegram::Vendor(_, n)) => n - 98,
+            (Product::Cfw500, Telegram::Vendor(_, n)) => n.saturating_sub(100),
+            (Product::Cfw11, Telegram::Vendor(_, n)) => n.saturating_sub(98),
             _ => self.telegram.pnu922(),
         }
     }
