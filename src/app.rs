@@ -40,6 +40,7 @@ use crate::node::Node;
 use crate::profile::cyclic::OperateMode;
 use crate::profile::drive_if::CommandFlags;
 use crate::profile::profidrive::State;
+use crate::profile::references::References;
 use crate::profile::runtime::{AnyProfile, Runtime, Scales, Selection};
 use crate::profile::telegram::DataProfile;
 use crate::time::{Baudrate, Duration, Instant};
@@ -82,6 +83,9 @@ pub struct Application {
     link: Link,
     params: ParamCache,
     pkw_params: ParamCache,
+    /// The speed references read from the drive after each selection (issue 15 item 10;
+    /// through the record-47 answer cache `params`, so neither takes the other's answers).
+    refs: References,
     runtime: Runtime,
     drive: DriveSlot,
     /// Events of [`Self::step_publish`] for [`Self::step_collect`].
@@ -120,6 +124,7 @@ impl Application {
             link: Link::new(),
             params: ParamCache::new(),
             pkw_params: ParamCache::new(),
+            refs: References::new(),
             runtime: Runtime::new(Scales::DEFAULT),
             drive: DriveSlot { sim, runs },
             events: Events::empty(),
@@ -228,7 +233,28 @@ impl Application {
         let events = core::mem::replace(&mut self.events, Events::empty());
         self.run_profile(now, snap, events, &mut update);
         self.service_pkw(now);
+        self.service_references(now);
         update
+    }
+
+    /// Read the speed references of a new selection from the drive through the mailbox
+    /// (`profile::references`). They share the record-47 answer cache: one request at a time
+    /// for both, and an answer is never taken by the other (a record-47 job starting meanwhile
+    /// empties the cache; the reads are then asked again). After a waiting PKW job (its own
+    /// cache).
+    fn service_references(&mut self, now: Instant) {
+        if self.refs.is_busy() && !self.runtime.has_pkw_work() {
+            let dpm = self.host.transport_mut().dpm_mut();
+            let mut table = MailboxParams::new(now, &mut self.link, dpm, &mut self.params);
+            if let Some(scales) = self.refs.service(now, &mut table, self.runtime.scales()) {
+                self.runtime.set_scales(scales);
+            }
+        }
+    }
+
+    /// The speed-reference reader (`profile::references`).
+    pub fn references(&self) -> &References {
+        &self.refs
     }
 
     /// The node's last part (call it with the lock held; it only copies): the drive's
@@ -238,6 +264,7 @@ impl Application {
         self.link.apply(node, update);
         let faults = self.runtime.faults();
         node.set_fault_buffer(faults.counter(), faults.numbers());
+        node.set_process_view(self.runtime.process_view());
     }
 
     /// The panic / hard-fault path (ARCHITECTURE §2 "supervision"): the DPM OUTPUTS block to
@@ -283,12 +310,18 @@ impl Application {
                 0 => config.map_or(0, |c| c.comm_loss_reaction),
                 r => r,
             };
+            let selections = self.runtime.stats().selections;
             self.runtime.select(Selection {
                 telegram,
                 mode: Selection::mode_of(user[card::PRM_OPERATE_MODE.offset], local),
                 data,
                 comm_loss_reaction: reaction,
             });
+            if self.runtime.stats().selections != selections {
+                // A new selection: its speed references come from the drive (issue 15 item 10).
+                self.runtime.set_scales(Scales::DEFAULT);
+                self.refs.start(telegram, data);
+            }
         }
         let Some(sel) = self.runtime.selection() else { return };
         // Watchdog expired / master gone (left data exchange) or master in Clear.
@@ -696,9 +729,10 @@ pub(crate) mod tests {
         // frame transport of the drive's host (the host's MOSI and MISO buffers and the
         // loopback card's two reply buffers of its pipeline, one longest transaction of
         // 1034 B each, ≈ 4.1 KiB): a static in the firmware. The simulated drive's VACON
-        // application-ID table (PNU 10001, the PPO PKW) adds ≈ 0.1 KiB.
+        // application-ID table (PNU 10001, the PPO PKW) adds ≈ 0.1 KiB, the speed-reference
+        // reader (issue 15 item 10) ≈ 40 B.
         let n = core::mem::size_of::<Application>();
-        assert!(n <= 4608 + 4 * crate::dpm::spi::MAX_TRANSACTION + 384 + 256, "Application is {n} bytes");
+        assert!(n <= 4608 + 4 * crate::dpm::spi::MAX_TRANSACTION + 384 + 256 + 64, "Application is {n} bytes");
     }
 
     #[test]

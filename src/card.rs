@@ -269,9 +269,12 @@ pub const PRM_OPERATE_MODE: UserPrm =
     UserPrm { reference: 1, offset: 3, name: "Operate mode", default: 0, min: 0, max: 3 };
 /// Reaction to communication loss (watchdog, Clear, master loss) requested from the drive:
 /// 0 = as configured in the drive (P0313-style), 1 = ramp stop (OFF1), 2 = coast (OFF2),
-/// 3 = quick stop (OFF3), 4 = hold last setpoint.
+/// 3 = quick stop (OFF3), 4 = hold last setpoint, and WEG P0313's options 3 / 4 / 5 (CFW500
+/// Table 4.1): 5 = change to local, 6 = change to local keeping commands and reference,
+/// 7 = fault (also when the drive is not controlled via the network). The drive's
+/// `DriveCommand::comm_loss_reaction` carries the same codes.
 pub const PRM_COMM_LOSS_REACTION: UserPrm =
-    UserPrm { reference: 2, offset: 4, name: "Communication loss reaction", default: 0, min: 0, max: 4 };
+    UserPrm { reference: 2, offset: 4, name: "Communication loss reaction", default: 0, min: 0, max: 7 };
 
 /// All user parameters after the three DPV1 status bytes, in offset order.
 pub const USER_PRMS: &[UserPrm] = &[PRM_OPERATE_MODE, PRM_COMM_LOSS_REACTION];

@@ -22,7 +22,7 @@ use crate::fdl::framer::{Framer, Push};
 use crate::fdl::station::{FdlApplication, Reply, Station, Tx};
 use crate::fdl::telegram::{DataTelegram, RequestFunction, ResponseStatus};
 use crate::profile::param::ParameterAccess;
-use crate::profile::pnu::{CardInfo, CardTable, FAULT_BUFFER_LEN};
+use crate::profile::pnu::{CardInfo, CardTable, ProcessView, FAULT_BUFFER_LEN};
 use crate::profile::records::DriveRecords;
 use crate::time::{Baudrate, BitTimes, Instant};
 
@@ -42,6 +42,9 @@ pub struct Node {
     /// handed in by [`Node::set_fault_buffer`].
     fault_counter: u16,
     faults: [u16; FAULT_BUFFER_LEN],
+    /// The profile layer's data profile and cyclic words (PNU 915 / 916 / 922 / 944 / 964 per
+    /// product, PNU 10100 … 10108), handed in by [`Node::set_process_view`].
+    process: ProcessView,
 }
 
 /// Frame id of the MSAC_C1 response (the DP slave uses ids below it).
@@ -128,6 +131,7 @@ impl Node {
             baudrate: None,
             fault_counter: 0,
             faults: [0; FAULT_BUFFER_LEN],
+            process: ProcessView::EMPTY,
         }
     }
 
@@ -197,6 +201,12 @@ impl Node {
         self.faults = *numbers;
     }
 
+    /// The profile layer's view for the card's PNUs ([`ProcessView`]): the drive's data profile
+    /// and the cyclic words of the last cycle. The application hands it in with every step.
+    pub fn set_process_view(&mut self, view: ProcessView) {
+        self.process = view;
+    }
+
     /// Whether a DP-V1 request waits for [`process_acyclic`](Self::process_acyclic), or a
     /// record-47 job for the drive's values (call it again then).
     pub fn has_acyclic_work(&self) -> bool {
@@ -226,6 +236,7 @@ impl Node {
             baud_p963: self.baudrate.map_or(5, |b| u16::from(b.p0963_code())),
             fault_counter: self.fault_counter,
             faults: self.faults,
+            process: self.process,
         };
         self.records.set_errors(crate::profile::records::RecordErrors::for_telegram(info.telegram));
         let mut table = CardTable { info, drive: parameters };

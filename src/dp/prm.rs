@@ -303,7 +303,7 @@ mod tests {
             Err(PrmError::Dpv1Status { byte: 3, .. })
         ));
         assert_eq!(SetPrm::parse(&prm(0x88, &[0, 0, 0, 4, 0])), Err(PrmError::UserPrm { offset: 3, value: 4 }));
-        assert_eq!(SetPrm::parse(&prm(0x88, &[0, 0, 0, 0, 5])), Err(PrmError::UserPrm { offset: 4, value: 5 }));
+        assert_eq!(SetPrm::parse(&prm(0x88, &[0, 0, 0, 0, 8])), Err(PrmError::UserPrm { offset: 4, value: 8 }));
     }
 
     /// Issue 12 item 4g: every length but the GSD's is a Prm_Fault, none is padded.

@@ -34,6 +34,26 @@
 //! reports the alarm as its warning code ([`ALARM_CLEAR_MODE`],
 //! [`ALARM_OFFLINE`], [`ALARM_ACCESS_ERROR`]), which disappears with the alarm.
 //!
+//! The drive's own action ("the drive's setting", Set_Prm / CONFIG reaction 0) is the model's
+//! [`model::ModelConfig::comm_loss_action`]; writing **VACON ID 733** "response to fieldbus
+//! fault" (OPTE3/E5 Table 141, VACON 100 coding, through PNU 10001 or the PPO PKW) sets it:
+//! 0 / 1 none (the alarm as warning), 2 alarm + preset frequency, 3 fault with the stop
+//! function (ramp), 4 fault with coasting. WEG P0313's options 3 / 4 / 5 come from the card
+//! as reactions 5 / 6 / 7 (`DriveCommand::comm_loss_reaction`); only "fault" acts on a
+//! drive the fieldbus does not control (CFW500 §4 P0313).
+//!
+//! **Fault history (VACON PNU 10118 / 10119, OPTE3/E5 Table 108):** every trip enters an
+//! 8-bit VACON fault code ([`vacon_fault_code`]) at the head of a 40-entry history; PNU 10119
+//! reads it (OctetString, newest first), a write of PNU 10118 clears it. The card's PNU 947
+//! fault buffer is the card's own and is not cleared by it.
+//!
+//! **INVT (INVT §2.6 Tables 2-6 / 2-8, P15.02–P15.23 in [`params`]):** with the INVT frame the
+//! drive takes its frequency from the PZD word mapped "1: set frequency" (PZD2: the card's
+//! setpoint; PZD3..PZD12: the raw word, 0–Fmax in 0.01 Hz, Fmax [`INVT_FMAX`]); none mapped
+//! → no frequency from the bus (0). PZD3..PZD12 of the response follow P15.14–P15.23: 1
+//! running frequency, 2 set frequency, 6 torque, 7 power, 8 rotating speed (rpm), 11 fault
+//! code; 0 echoes the received word; other values send 0.
+//!
 //! **Parameters:** the read-only P0680 (status word), P0681 (speed, 13 bits) and P10109
 //! (process data in words) follow the drive's state in every step; a P0100 / P0101 (ramp
 //! times) written through the card takes effect at once (until one is written, the model's
@@ -51,7 +71,7 @@ pub mod params;
 
 use crate::dpm::host::{Host, Poll, Transport};
 use crate::dpm::layout::operate_mode;
-use crate::dpm::{CardEvent, CommState, DriveCommandImage, DriveStateImage, PzdWords};
+use crate::dpm::{CardEvent, CommState, DriveCommandImage, DriveStateImage, Family, PzdWords, Telegram};
 use crate::profile::drive_if::{CommandFlags, DriveCommand, DriveStatus, StatusFlags};
 use crate::time::Instant;
 use model::{CommLossAction, DriveModel, N2_100};
@@ -161,6 +181,37 @@ pub struct SimDrive {
     stats: SimStats,
     /// DPM DEVICE written (once after start).
     device_written: bool,
+    /// VACON ID 733 as last applied to the model (module docs, "communication errors").
+    id733_applied: i64,
+    /// VACON PNU 10119 fault history, 8-bit codes, newest first (module docs, "fault history").
+    history: [u8; FAULT_HISTORY_LEN],
+    /// The model's trip count when the history was last updated.
+    trips_seen: u32,
+}
+
+/// Entries of VACON PNU 10119 "read fault history" (OPTE3/E5 Table 108: BYTE\[40\]).
+pub const FAULT_HISTORY_LEN: usize = 40;
+/// VACON PNU 10118 "clear fault history" (OPTE3/E5 Table 108: writing clears it).
+pub const PNU_CLEAR_FAULT_HISTORY: u16 = 10118;
+/// VACON PNU 10119 "read fault history" (OPTE3/E5 Table 108).
+pub const PNU_READ_FAULT_HISTORY: u16 = 10119;
+
+/// The 8-bit VACON fault code of a drive fault code for PNU 10119 (VACON fault list: F1
+/// overcurrent, F2 overvoltage, F3 earth fault, F9 undervoltage, F14 unit overtemperature,
+/// F16 motor overtemperature, F53 fieldbus communication); a code up to 255 as it is, any
+/// other 255.
+pub fn vacon_fault_code(code: u16) -> u8 {
+    match code {
+        0x2310 => 1,
+        0x3210 => 2,
+        0x2330 => 3,
+        0x3220 => 9,
+        0x4210 => 14,
+        0x4310 => 16,
+        model::FAULT_FIELDBUS | model::FAULT_CLEAR_MODE | model::FAULT_OFFLINE | model::FAULT_ACCESS_ERROR => 53,
+        c if c <= 0xFF => c as u8,
+        _ => 0xFF,
+    }
 }
 
 /// What the simulated drive reports in DPM DEVICE (I&M0 SERIAL_NUMBER, HARDWARE_REVISION).
@@ -185,7 +236,15 @@ impl SimDrive {
             alarms: CommAlarms::empty(),
             stats: SimStats::default(),
             device_written: false,
+            id733_applied: params::VACON_ID_TABLE.get(params::ID_FIELDBUS_FAULT_RESPONSE, 0).unwrap_or(4),
+            history: [0; FAULT_HISTORY_LEN],
+            trips_seen: 0,
         }
+    }
+
+    /// VACON PNU 10119: the fault history, 8-bit codes, newest first, zeros after the last.
+    pub fn fault_history(&self) -> &[u8; FAULT_HISTORY_LEN] {
+        &self.history
     }
 
     /// The drive model.
@@ -219,6 +278,10 @@ impl SimDrive {
     /// The VACON application parameters (reached through PNU 10001 and the PPO's PKW).
     pub fn vacon_ids(&self) -> &params::VaconIdTable {
         &self.vacon_ids
+    }
+    /// The VACON application parameters, mutable (the drive's commissioning).
+    pub fn vacon_ids_mut(&mut self) -> &mut params::VaconIdTable {
+        &mut self.vacon_ids
     }
     /// The parameter table, mutable.
     pub fn params_mut(&mut self) -> &mut DriveTable {
@@ -257,7 +320,11 @@ impl SimDrive {
             Err(_) => self.stats.command_errors = self.stats.command_errors.wrapping_add(1),
         }
         let bypass = self.image.operate_mode == operate_mode::BYPASS;
+        let invt = !bypass && matches!(self.image.telegram, Telegram::Vendor(Family::Invt, _));
         self.command = if bypass { self.bypass_command() } else { self.image.command };
+        if invt {
+            self.command.speed_setpoint = self.invt_setpoint();
+        }
         if !self.alarms.is_empty() {
             // The communication error: the drive's P0313-style action, at once.
             self.command.flags |= CommandFlags::COMM_LOSS;
@@ -267,6 +334,7 @@ impl SimDrive {
             }
         }
         self.apply_ramps();
+        self.apply_fieldbus_fault_response();
         self.model.set_comm_fault_code(if self.alarms.contains(CommAlarms::ACCESS_ERROR) {
             model::FAULT_ACCESS_ERROR
         } else if self.alarms.contains(CommAlarms::OFFLINE) {
@@ -277,13 +345,20 @@ impl SimDrive {
             model::FAULT_FIELDBUS
         });
         self.status = self.model.step(now, &self.command);
+        self.track_history();
         let action = CommLossAction::from_reaction(self.command.comm_loss_reaction)
             .unwrap_or(self.model.config().comm_loss_action);
-        if !self.alarms.is_empty() && action != CommLossAction::Fault && self.status.warning_code == 0 {
+        if !self.alarms.is_empty() && !action.trips() && self.status.warning_code == 0 {
             self.status.warning_code = self.alarms.warning_code();
             self.status.flags |= StatusFlags::WARNING;
         }
-        let extra = if bypass { self.bypass_words() } else { self.image.extra };
+        let extra = if bypass {
+            self.bypass_words()
+        } else if invt {
+            self.invt_words()
+        } else {
+            self.image.extra
+        };
         self.update_parameters(&extra);
         let state = DriveStateImage { status: self.status, inputs_seq: 0, extra };
         if host.write_state(&state).is_err() {
@@ -306,8 +381,11 @@ impl SimDrive {
             // With its own number list (PNU 980, read by the card for its PNUs 980 … 989).
             let mut table = crate::profile::pnu::NumberList(&mut self.table);
             let ids = &mut self.vacon_ids;
+            let history = &mut self.history;
             let _ = host.serve_parameters(&mut |req: &crate::dpm::MailboxRequest| {
-                crate::dpm::host::Answer::Now(if req.pnu == params::VACON_DRIVE_PARAMETER {
+                crate::dpm::host::Answer::Now(if let Some(answer) = fault_history(req, history) {
+                    answer
+                } else if req.pnu == params::VACON_DRIVE_PARAMETER {
                     // OPTE3/E5 §6.4.4.7 / §6.6.1: PNU 10001, the application ID as subindex.
                     let mut r = *req;
                     r.pnu = req.subindex;
@@ -318,6 +396,75 @@ impl SimDrive {
                 })
             });
         }
+    }
+
+    /// VACON ID 733 written (PNU 10001 / the PPO PKW): its action becomes the model's own
+    /// communication-loss action (until then the model keeps the one it was built with).
+    fn apply_fieldbus_fault_response(&mut self) {
+        let v = self.vacon_ids.get(params::ID_FIELDBUS_FAULT_RESPONSE, 0).unwrap_or(self.id733_applied);
+        if v != self.id733_applied {
+            if let Some(a) = CommLossAction::from_vacon_733(v) {
+                self.model.config_mut().comm_loss_action = a;
+            }
+            self.id733_applied = v;
+        }
+    }
+
+    /// A new trip enters the fault history (PNU 10119), newest first.
+    fn track_history(&mut self) {
+        let trips = self.model.fault_count();
+        if trips != self.trips_seen {
+            self.trips_seen = trips;
+            if let Some((code, _)) = self.model.fault() {
+                self.history.copy_within(..FAULT_HISTORY_LEN - 1, 1);
+                self.history[0] = vacon_fault_code(code);
+            }
+        }
+    }
+
+    /// INVT: the set frequency from the PZD word P15.02–P15.12 map to "1: set frequency"
+    /// (INVT Table 2-6; the first such word): PZD2 is the card's setpoint (it scaled the word
+    /// with Fmax), PZD3..PZD12 are the raw words (0–Fmax in 0.01 Hz, Fmax = 50.00 Hz); none
+    /// (P15.02 = 0 "invalid", the manual's factory setting): the bus sets no frequency (0).
+    fn invt_setpoint(&self) -> i16 {
+        let source =
+            (2..=12u16).find(|k| self.table.get(params::P_INVT_RECEIVED + k - 2, 0) == Some(params::INVT_FREQUENCY));
+        match source {
+            Some(2) => self.image.command.speed_setpoint,
+            Some(k) => {
+                let w = self.image.extra.words().get(usize::from(k - 3)).copied().unwrap_or(0);
+                crate::profile::invt::Invt::scale(INVT_FMAX, INVT_FMAX).to_n2(i32::from(w))
+            }
+            None => 0,
+        }
+    }
+
+    /// INVT: the transmitted PZD3..PZD12 per P15.14–P15.23 (INVT Table 2-8): 1 running
+    /// frequency, 2 set frequency (0.01 Hz), 6 torque, 7 power (0.1 %), 8 rotating speed (rpm,
+    /// P10111 = 100 %), 11 fault code; 0 "invalid" echoes the received word (the simulated
+    /// drive's word-mapping check, as for every family); every other value sends 0.
+    fn invt_words(&self) -> PzdWords {
+        let s = &self.status;
+        let hz = |n2: i16| crate::profile::invt::Invt::scale(INVT_FMAX, INVT_FMAX).from_n2(n2.saturating_abs()) as u16;
+        let tenth_percent = |n2: i16| (i32::from(n2) * 1000 / N2_100) as i16 as u16;
+        let rpm = (i32::from(s.speed) * i32::from(params::reference_speed_rpm(&self.table)) / N2_100) as i16 as u16;
+        let received = self.image.extra.words();
+        let mut words = [0u16; crate::dpm::layout::EXTRA_WORDS];
+        let n = received.len();
+        for (k, w) in words.iter_mut().enumerate().take(n) {
+            let map = self.table.get(params::P_INVT_TRANSMITTED + 1 + k as u16, 0).unwrap_or(0);
+            *w = match map {
+                0 => received[k],
+                1 => hz(s.speed),
+                2 => hz(self.command.speed_setpoint),
+                6 => tenth_percent(s.torque),
+                7 => tenth_percent(s.power),
+                8 => rpm,
+                11 => s.fault_code,
+                _ => 0,
+            };
+        }
+        PzdWords::new(&words[..n]).unwrap_or(PzdWords::EMPTY)
     }
 
     /// P0100 / P0101 written (by the master, record 47 / 48 or the PKW): the model ramps with
@@ -424,6 +571,40 @@ impl SimDrive {
         }
         PzdWords::new(&words[..n]).unwrap_or(PzdWords::EMPTY)
     }
+}
+
+/// INVT Fmax of the simulated drive, 0.01 Hz (50.00 Hz, the card's default scale).
+pub const INVT_FMAX: u32 = 5000;
+
+/// PNU 10118 / 10119 (OPTE3/E5 Table 108) against the drive's fault history: a write of
+/// 10118 (any value) clears it, a read of 10119 gives the 40 codes as an OctetString (one
+/// value per element from the subindex on). `None` for every other request.
+fn fault_history(
+    req: &crate::dpm::MailboxRequest,
+    history: &mut [u8; FAULT_HISTORY_LEN],
+) -> Option<Result<crate::dpm::ParamValues, crate::profile::param::ParamError>> {
+    use crate::dpm::{ParamValues, RequestKind};
+    use crate::profile::param::{ErrorValue, Format};
+    Some(match (req.pnu, req.kind) {
+        (PNU_CLEAR_FAULT_HISTORY, RequestKind::Write) => {
+            *history = [0; FAULT_HISTORY_LEN];
+            Ok(ParamValues::NONE)
+        }
+        (PNU_CLEAR_FAULT_HISTORY, RequestKind::Read) if req.subindex == 0 && req.count <= 1 => {
+            ParamValues::new(Format::WORD, 1, &[0, 0]).ok_or(ErrorValue::NOT_EXECUTABLE.into())
+        }
+        (PNU_READ_FAULT_HISTORY, RequestKind::Read) => {
+            let first = usize::from(req.subindex);
+            let n = usize::from(req.count.max(1));
+            match history.get(first..first + n) {
+                Some(v) => ParamValues::new(Format::OCTET_STRING, n as u8, v).ok_or(ErrorValue::NOT_EXECUTABLE.into()),
+                None => Err(ErrorValue::INVALID_SUBINDEX.into()),
+            }
+        }
+        (PNU_READ_FAULT_HISTORY, RequestKind::Write) => Err(ErrorValue::VALUE_CANNOT_BE_CHANGED.into()),
+        (PNU_CLEAR_FAULT_HISTORY | PNU_READ_FAULT_HISTORY, _) => Err(ErrorValue::NO_DESCRIPTION.into()),
+        _ => return None,
+    })
 }
 
 #[cfg(test)]

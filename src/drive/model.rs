@@ -18,7 +18,10 @@
 //!   run command in the simulation, so the drive ramps to a stop.
 //! * **Communication loss:** while COMM_LOSS is set the drive applies the reaction asked in
 //!   [`DriveCommand::comm_loss_reaction`], or its own [`ModelConfig::comm_loss_action`] when it
-//!   is 0 (P0313-style: none, ramp stop, coast, quick stop, fault, keep the last setpoint).
+//!   is 0 (P0313-style: none, ramp stop, coast, quick stop, fault, keep the last setpoint;
+//!   WEG P0313's "change to local" / "change to local keeping commands and reference";
+//!   VACON ID 733's "alarm + preset frequency" / "fault: stop function"). Only "fault"
+//!   acts on a drive that the fieldbus does not control (CFW500 §4 P0313).
 //! * **Actual values:** current = magnetising share while modulating + a load share that
 //!   grows with speed² + an acceleration share; torque and power follow; all N2.
 //!
@@ -64,19 +67,57 @@ pub enum CommLossAction {
     Fault,
     /// Keep running with the last setpoint.
     KeepLast,
+    /// WEG P0313 = 3 "change to local" (CFW500 Table 4.1): the fieldbus command is dropped,
+    /// the local control place commands (the simulation's has no run command: a ramp stop);
+    /// the status shows the local place (no FIELDBUS_CONTROL).
+    Local,
+    /// WEG P0313 = 4 "change to local keeping commands and reference": local, with the
+    /// enable and the speed reference received via the network kept.
+    LocalKeep,
+    /// VACON ID 733 = 2 "alarm + preset frequency" (OPTE3/E5 Table 141, VACON 100 family):
+    /// run on at the preset frequency — the model's [`ModelConfig::jog_speed`].
+    PresetFrequency,
+    /// VACON ID 733 = 3 "fault: stop function": trip (the fault is shown at once) and stop
+    /// along the deceleration ramp, pulses off at standstill (VACON's default stop function
+    /// "ramping"); [`Self::Fault`] is ID 733 = 4 "fault: coast".
+    FaultStop,
 }
 
 impl CommLossAction {
-    /// The action for a [`DriveCommand::comm_loss_reaction`] code (1..=4); 0 or an unknown
-    /// code: `None` (the drive's own setting applies).
+    /// The action for a [`DriveCommand::comm_loss_reaction`] code (1..=7: ramp stop, coast,
+    /// quick stop, keep the last setpoint, and WEG P0313's options 3 / 4 / 5 — change to local,
+    /// change to local keeping commands and reference, fault); 0 or an unknown code: `None`
+    /// (the drive's own setting applies).
     pub const fn from_reaction(code: u8) -> Option<CommLossAction> {
         match code {
             1 => Some(CommLossAction::RampStop),
             2 => Some(CommLossAction::Coast),
             3 => Some(CommLossAction::QuickStop),
             4 => Some(CommLossAction::KeepLast),
+            5 => Some(CommLossAction::Local),
+            6 => Some(CommLossAction::LocalKeep),
+            7 => Some(CommLossAction::Fault),
             _ => None,
         }
+    }
+
+    /// The action of VACON ID 733 "response to fieldbus fault" in the VACON 100 family's coding
+    /// (OPTE3/E5 Table 141: 0 no action, 1 alarm, 2 alarm + preset frequency, 3 fault: stop
+    /// function, 4 fault: coast); `None` for another value. 0 and 1 both keep the drive going
+    /// (the simulated drive reports the communication alarm as its warning for both).
+    pub const fn from_vacon_733(value: i64) -> Option<CommLossAction> {
+        match value {
+            0 | 1 => Some(CommLossAction::None),
+            2 => Some(CommLossAction::PresetFrequency),
+            3 => Some(CommLossAction::FaultStop),
+            4 => Some(CommLossAction::Fault),
+            _ => None,
+        }
+    }
+
+    /// Whether the action trips the drive.
+    pub const fn trips(self) -> bool {
+        matches!(self, CommLossAction::Fault | CommLossAction::FaultStop)
     }
 }
 
@@ -145,6 +186,12 @@ pub struct DriveModel {
     /// Deceleration ramp (0 → 100 % time) when it differs from [`ModelConfig::ramp_time`]
     /// (WEG P0101 written, [`Self::set_deceleration_time`]).
     decel_time: Option<Duration>,
+    /// The communication-loss action in force changed the control place to local (WEG
+    /// P0313 = 3 / 4): the status shows no FIELDBUS_CONTROL.
+    local: bool,
+    /// The active fault came from "fault: stop function" (VACON ID 733 = 3): the motor ramps
+    /// to standstill before the pulses go off.
+    fault_ramp: bool,
 }
 
 impl DriveModel {
@@ -164,6 +211,8 @@ impl DriveModel {
             faults: 0,
             comm_fault_code: FAULT_FIELDBUS,
             decel_time: None,
+            local: false,
+            fault_ramp: false,
         }
     }
 
@@ -227,6 +276,7 @@ impl DriveModel {
         // Fault acknowledge: a new count (the first command seen only sets the reference).
         if self.resets_seen.is_some_and(|r| r != cmd.fault_resets) && self.fault.is_some() {
             self.fault = None;
+            self.fault_ramp = false;
         }
         self.resets_seen = Some(cmd.fault_resets);
         let cmd = self.effective(cmd);
@@ -242,30 +292,54 @@ impl DriveModel {
 
     /// The command in force: the card's, or the communication-loss reaction's.
     fn effective(&mut self, cmd: &DriveCommand) -> DriveCommand {
+        // LOCAL (WEG P0967 b10 = 0 / P0684 b4 = 0): the fieldbus does not command the drive;
+        // its local control place has no run command here (a ramp stop). The fault
+        // acknowledges still count (they are the card's, not a run command).
+        fn local(mut c: DriveCommand) -> DriveCommand {
+            c.flags.remove(CommandFlags::RUN | CommandFlags::JOG1 | CommandFlags::JOG2 | CommandFlags::PRE_EXCITE);
+            c.flags.remove(CommandFlags::FIELDBUS_CONTROL);
+            c
+        }
         if !cmd.flags.contains(CommandFlags::COMM_LOSS) {
             self.last = *cmd;
+            self.local = false;
             if !cmd.flags.contains(CommandFlags::FIELDBUS_CONTROL) {
-                // LOCAL (WEG P0967 b10 = 0 / P0684 b4 = 0): the fieldbus does not command the
-                // drive; its local control place has no run command here (a ramp stop). The
-                // fault acknowledges still count (they are the card's, not a run command).
-                let mut c = *cmd;
-                c.flags.remove(CommandFlags::RUN | CommandFlags::JOG1 | CommandFlags::JOG2 | CommandFlags::PRE_EXCITE);
-                return c;
+                return local(*cmd);
             }
             return *cmd;
         }
         let action = CommLossAction::from_reaction(cmd.comm_loss_reaction).unwrap_or(self.config.comm_loss_action);
         let mut c = self.last;
         c.fault_resets = cmd.fault_resets;
+        if !c.flags.contains(CommandFlags::FIELDBUS_CONTROL) && !action.trips() {
+            // WEG P0313 (CFW500 §4): the actions apply to a drive controlled via the network,
+            // "with exception of option 'Causes a Fault', which blocks the equipment even if it
+            // is not controlled by network".
+            return local(c);
+        }
         match action {
             CommLossAction::None | CommLossAction::KeepLast => {}
             CommLossAction::RampStop => c.flags.remove(CommandFlags::RUN),
             CommLossAction::Coast => c.flags.insert(CommandFlags::COAST),
             CommLossAction::QuickStop => c.flags.insert(CommandFlags::QUICK_STOP),
-            CommLossAction::Fault => {
+            CommLossAction::Local => {
+                self.local = true;
+                c = local(c);
+            }
+            CommLossAction::LocalKeep => self.local = true,
+            CommLossAction::PresetFrequency => {
+                c.speed_setpoint = self.config.jog_speed;
+                c.flags.remove(CommandFlags::REVERSE | CommandFlags::SETPOINT_ZERO | CommandFlags::RAMP_HOLD);
+            }
+            CommLossAction::Fault | CommLossAction::FaultStop => {
                 c.flags.remove(CommandFlags::FIELDBUS_FAULT);
                 if self.fault.is_none() {
+                    let modulating = self.modulating;
                     self.inject_fault(self.comm_fault_code, NAMUR_BUS);
+                    if action == CommLossAction::FaultStop {
+                        self.fault_ramp = true;
+                        self.modulating = modulating;
+                    }
                 }
             }
         }
@@ -277,6 +351,11 @@ impl DriveModel {
         let f = cmd.flags;
         let normal = self.config.ramp_time;
         let quick = self.config.quick_stop_time;
+        if self.fault.is_some() && self.fault_ramp && self.modulating && !f.contains(CommandFlags::COAST) {
+            // "Fault: stop function" (VACON ID 733 = 3): tripped, ramping to standstill.
+            self.stop_at_standstill();
+            return (0, self.decel_time.unwrap_or(normal));
+        }
         if self.fault.is_some() || f.contains(CommandFlags::COAST) {
             self.modulating = false;
             return (0, self.config.coast_time);
@@ -353,7 +432,7 @@ impl DriveModel {
         fl.set(StatusFlags::ZERO_SPEED, n == 0);
         let excite = cmd.flags.contains(CommandFlags::PRE_EXCITE) && self.fault.is_none();
         fl.set(StatusFlags::FLUX_READY, self.modulating || excite);
-        fl.set(StatusFlags::FIELDBUS_CONTROL, self.config.fieldbus_control_place);
+        fl.set(StatusFlags::FIELDBUS_CONTROL, self.config.fieldbus_control_place && !self.local);
         fl.set(StatusFlags::SPEED_REACHED, n.unsigned_abs() >= self.config.compare_speed as u32);
         fl.set(StatusFlags::JOGGING, self.modulating && cmd.flags.intersects(CommandFlags::JOG1 | CommandFlags::JOG2));
         fl.set(StatusFlags::RAMP_SET_2, cmd.flags.contains(CommandFlags::RAMP_SET_2));

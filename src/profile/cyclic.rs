@@ -105,6 +105,8 @@ pub struct Cycle {
     /// The control word of the output image the cycle evaluated (the first PZD word; INVT
     /// CW b8 "enable writing" gates the PKW writes).
     pub control_word: u16,
+    /// The main setpoint word of that image (the second PZD word; PNU 10101).
+    pub setpoint_word: u16,
 }
 
 impl Cycle {
@@ -273,6 +275,7 @@ impl Cyclic {
             word_count: 0,
             pkw_request: None,
             control_word: word(out, l.pkw),
+            setpoint_word: word(out, l.pkw + 1),
         };
         if self.mode == OperateMode::Echo {
             // Both lengths are equal: ST20 (the only asymmetric telegram) is refused in new().

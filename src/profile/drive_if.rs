@@ -124,7 +124,10 @@ pub struct DriveCommand {
     pub fault_resets: u8,
     /// Requested communication-loss reaction while [`CommandFlags::COMM_LOSS`] is set:
     /// 0 = the drive's own setting, 1 = ramp stop, 2 = coast, 3 = quick stop, 4 = keep the
-    /// last setpoint (the card's Set_Prm user parameter `PRM_COMM_LOSS_REACTION`).
+    /// last setpoint, and WEG P0313's options 3 / 4 / 5 (CFW500 Table 4.1): 5 = change to
+    /// local, 6 = change to local keeping commands and reference, 7 = fault, also when the
+    /// drive is not controlled via the network (the card's Set_Prm user parameter
+    /// `PRM_COMM_LOSS_REACTION`; the DPM CONFIG.COMM_LOSS_REACTION carries 0..4 only).
     pub comm_loss_reaction: u8,
 }
 

@@ -23,7 +23,9 @@
 //! message counter does not move either. The counter wraps from 65535 to 0.
 //!
 //! WEG's CFW-11 P0944 / P0947 (§ parameters) are a one-fault variant of the same idea: counter
-//! 0..1, one fault number, cleared by the drive's reset. This module follows VACON.
+//! 0..1, one fault number, cleared by the drive's reset. This module follows VACON; under a WEG
+//! telegram PNU 944 reads WEG's 0/1 ([`super::pnu::CardInfo::p0944`]) and P0947's value is
+//! element 0, the active fault.
 
 /// Fault situations in the buffer (PNU 950 index 0; OPTE3/E5 Table 112).
 pub const SITUATIONS: usize = 4;
@@ -233,6 +235,7 @@ mod tests {
             baud_p963: 5,
             fault_counter: f.counter(),
             faults: *f.numbers(),
+            process: super::super::pnu::ProcessView::EMPTY,
         };
         let mut card = CardTable { info, drive: &mut drive };
         let [c0, c1] = PNU_FAULT_COUNTER.to_be_bytes();

@@ -20,7 +20,9 @@
 //! running command as it was. b13 "pre-excitation" adds PRE_EXCITE. b8 (PKW write enable)
 //! belongs to the PKW channel; b9–b10 (motor group), b11 (torque/speed switching), b12
 //! (power consumption reset) and b14 (DC braking) have no neutral equivalent and are not
-//! passed on; b15 (heartbeat) is echoed in the status word's b15. The INVT words have no
+//! passed on; b15 (heartbeat) is echoed in the status word's b15 and supervised by the runtime
+//! (`profile::runtime`, "INVT heartbeat": a toggling b15 that stands still for 1 s is a
+//! communication loss). The INVT words have no
 //! "control by PLC" bit: every evaluated word carries [`CommandFlags::FIELDBUS_CONTROL`].
 //!
 //! **After a fault (our safety choice; the manual is silent):** a drive trip ends the latched
@@ -33,7 +35,11 @@
 //! The main setpoint is the set frequency (P15.02 = 1, Table 2-6: 0–Fmax in 0.01 Hz,
 //! unsigned; the direction comes from the command code); the main actual value is the
 //! running frequency (P15.13 = 1, Table 2-8: ×100 Hz), reported as a magnitude — the
-//! direction is in the status word (1 forward / 2 reverse running).
+//! direction is in the status word (1 forward / 2 reverse running). The word mapping
+//! P15.02–P15.23 is the drive's (Table 2-6 "settings on the HD2 series inverter side"): the
+//! card always scales PZD2 as a set frequency and passes PZD3..PZD12 raw; the drive decides
+//! which word is its frequency (P15.02 = 0 "invalid": not PZD2) and fills PZD3..PZD12 of the
+//! response (the simulated drive: `crate::drive`, "INVT").
 
 use super::drive_if::{CommandFlags, ControlProfile, DriveCommand, DriveStatus, StatusFlags};
 use super::profidrive::SpeedScale;
@@ -122,6 +128,16 @@ impl Invt {
             tripped: false,
             refused_runs: 0,
         }
+    }
+
+    /// The set-frequency scale in force.
+    pub fn speed_scale(&self) -> &SpeedScale {
+        &self.scale
+    }
+
+    /// A new set-frequency scale (the drive's Fmax read, `profile::references`).
+    pub fn set_scale(&mut self, scale: SpeedScale) {
+        self.scale = scale;
     }
 
     /// The running command in force.

@@ -29,6 +29,8 @@
 //!   of eight messages, fed by the drive's fault reports (OPTE3/E5 §6.4.6, Table 112).
 //! * [`pnu`] — the PROFIdrive parameters the card owns (918, 922, 930, 944, 947, 963, 964, 965,
 //!   975, 980) in front of the drive's table.
+//! * [`references`] — the speed references of the profile scales, read from the drive's
+//!   parameters (VACON ID 101 / 102 / 111, WEG P0403 / P0134, INVT Fmax).
 //! * [`table`] — a generic, allocation-free drive parameter table ([`table::ParamDef`],
 //!   [`table::Table`]) implementing [`param::ParameterAccess`]: values, arrays, limits,
 //!   read-only, and the 46-byte parameter description (VACON OPTE3/E5 §6.4.3.7–6.4.3.16).
@@ -50,6 +52,7 @@ pub mod pkw;
 pub mod pnu;
 pub mod profidrive;
 pub mod records;
+pub mod references;
 pub mod runtime;
 pub mod table;
 pub mod telegram;

@@ -1,13 +1,20 @@
 //! The PROFIdrive parameters the card itself owns (reference §5.2; OPTE3/E5 §6.4.5 list of
-//! supported PNUs; CFW-11 §4.2: P0918, P0922, P0944, P0947, P0963, P0964, P0965). Every other
+//! supported PNUs; CFW-11 §4.2: P0918, P0922, P0944, P0947, P0963, P0964, P0965), and VACON's
+//! PNU 10100 … 10108, the cyclic words readable acyclically (OPTE3/E5 Table 108). Every other
 //! PNU belongs to the drive: [`CardTable`] passes it to the drive's table.
+//!
+//! **Per product (issue 15 item 12)**, chosen by the active telegram and the drive's data
+//! profile ([`ProcessView`]): P0922 in WEG's option coding under a WEG telegram
+//! ([`CardInfo::p0922`]), P0944 as WEG's 0/1 fault flag there and VACON's message counter
+//! elsewhere ([`CardInfo::p0944`]), PNU 964 with the product's manufacturer / drive unit type
+//! ([`CardInfo::device_id`]), PNU 915 / 916 with the words of the active data profile.
 
 use super::param::Attribute;
 use super::param::{ErrorValue, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
 use super::table::{slots, ParamDef, Table, Type};
-use super::telegram::{Layout, PZD_SIGNALS};
+use super::telegram::{DataProfile, Layout, PZD_SIGNALS};
 use crate::card;
-use crate::dpm::Telegram;
+use crate::dpm::{Family, Telegram};
 
 /// PNU 915: PZD assignment of the setpoint telegram — the signal number of each output PZD
 /// (OPTE3/E5 Table 108 UINT[18], coding §6.3.9 Table 37; see [`super::telegram`]).
@@ -39,6 +46,12 @@ pub const PNU_DEVICE_ID: u16 = 964;
 pub const PNU_PROFILE_ID: u16 = 965;
 /// PNU 975: drive object identification, eight elements (PROFIdrive; [`CardInfo::DO_ID`]).
 pub const PNU_DO_ID: u16 = 975;
+/// PNU 10100 … 10108: the cyclic words readable acyclically (OPTE3/E5 Table 108): STW1,
+/// NSOLL_A, ZSW1, NIST_A, IAIST_GLATT, ITIST_GLATT, PIST_GLATT, NIST_A_GLATT, MELD_NAMUR —
+/// [`ProcessView`].
+pub const PNU_PROCESS_FIRST: u16 = 10100;
+/// The last of the cyclic-word PNUs (10108 MELD_NAMUR).
+pub const PNU_PROCESS_LAST: u16 = 10108;
 /// PNU 980: number list of defined parameters, continued in 981 … 989
 /// ([`PNU_PARAMETER_LIST_LAST`]): see [`CardTable`] "Number list".
 pub const PNU_PARAMETER_LIST: u16 = 980;
@@ -53,7 +66,7 @@ pub const LIST_LEN: usize = 64;
 pub const PROFILE_ID: [u8; 2] = [3, 41];
 
 /// Every PNU the card answers itself, ascending (the head of the number list 980 …).
-pub const CARD_PNUS: [u16; 22] = [
+pub const CARD_PNUS: [u16; 31] = [
     PNU_PZD_SETPOINTS,
     PNU_PZD_ACTUALS,
     PNU_STATION_ADDRESS,
@@ -76,6 +89,15 @@ pub const CARD_PNUS: [u16; 22] = [
     987,
     988,
     989,
+    10100,
+    10101,
+    10102,
+    10103,
+    10104,
+    10105,
+    10106,
+    10107,
+    10108,
 ];
 
 /// The card's PNUs as description entries (attribute 0x20): names, types, array sizes,
@@ -102,6 +124,15 @@ const CARD_DEFS: &[ParamDef] = &[
     ParamDef::new(987, "Parameter list 8", Type::U16).array(LIST_LEN as u16).read_only(),
     ParamDef::new(988, "Parameter list 9", Type::U16).array(LIST_LEN as u16).read_only(),
     ParamDef::new(989, "Param list 10", Type::U16).array(LIST_LEN as u16).read_only(),
+    ParamDef::new(10100, "STW1", Type::U16).read_only(),
+    ParamDef::new(10101, "NSOLL_A", Type::I16).read_only(),
+    ParamDef::new(10102, "ZSW1", Type::U16).read_only(),
+    ParamDef::new(10103, "NIST_A", Type::I16).read_only(),
+    ParamDef::new(10104, "IAIST_GLATT", Type::I16).read_only(),
+    ParamDef::new(10105, "ITIST_GLATT", Type::I16).read_only(),
+    ParamDef::new(10106, "PIST_GLATT", Type::I16).read_only(),
+    ParamDef::new(10107, "NIST_A_GLATT", Type::I16).read_only(),
+    ParamDef::new(10108, "MELD_NAMUR", Type::U16).read_only(),
 ];
 
 /// [`CARD_DEFS`] as a table, for its descriptions.
@@ -109,6 +140,62 @@ const CARD_DESCRIPTIONS: Table<{ slots(CARD_DEFS) }> = Table::new(CARD_DEFS);
 
 /// Elements of PNU 947 (4 fault situations × 8 messages).
 pub const FAULT_BUFFER_LEN: usize = 32;
+
+/// What the profile layer reports for the card's PNUs (handed to the node with every step,
+/// `node::Node::set_process_view`): the active data profile (PNU 915 / 916, P0922, P0944,
+/// P0964 per product) and the cyclic words of the last cycle (PNU 10100 … 10108).
+///
+/// PNU 10100 … 10108 (OPTE3/E5 Table 108) are the last evaluated output image's control word
+/// and main setpoint (raw, as on the wire), the status word and main actual value the card
+/// sent, and the drive's current, active current (torque), power and MELD_NAMUR in N2 (Table
+/// 20: 0x4000 = 100 %). The card does not filter: the "filtered" (GLATT) values are the
+/// drive's latest, and NIST_A_GLATT = NIST_A. Under a non-PROFIdrive profile (WEG
+/// manufacturer, INVT, Bypass) the same PNUs show that profile's words (P0684 / P0685 /
+/// P0680 / P0681, INVT CW / PZD2 / SW / PZD2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ProcessView {
+    /// The drive's data profile (WEG P0741; the DPM CONFIG.PROFILE).
+    pub data: DataProfile,
+    /// PNU 10100 … 10108, in order.
+    pub words: [u16; 9],
+}
+
+impl ProcessView {
+    /// No cycle yet: factory data profile, every word 0.
+    pub const EMPTY: ProcessView = ProcessView { data: DataProfile::Factory, words: [0; 9] };
+}
+
+impl Default for ProcessView {
+    fn default() -> Self {
+        Self::EMPTY
+    }
+}
+
+/// The product a PLC program was written for, as the active telegram and data profile show
+/// it (issue 15 item 12: the profile parameters per product).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Product {
+    /// VACON OPTE3/E5 (ST1 / ST20 with PROFIdrive, VACON telegrams, PPO types).
+    Vacon,
+    /// WEG CFW500 (telegrams 103..108; ST1 with the manufacturer data profile, P0922 = 2).
+    Cfw500,
+    /// WEG CFW-11 (telegrams 100..107).
+    Cfw11,
+    /// INVT, or no module.
+    Other,
+}
+
+impl Product {
+    fn of(telegram: Telegram, data: DataProfile) -> Product {
+        match telegram {
+            Telegram::Vendor(Family::WegCfw500, _) => Product::Cfw500,
+            Telegram::Vendor(Family::WegCfw11, _) => Product::Cfw11,
+            Telegram::Standard(1) if data == DataProfile::Manufacturer => Product::Cfw500,
+            Telegram::Standard(_) | Telegram::Ppo(_) | Telegram::Vendor(Family::Vacon, _) => Product::Vacon,
+            _ => Product::Other,
+        }
+    }
+}
 
 /// What the card knows about itself when a PNU is read.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -123,13 +210,61 @@ pub struct CardInfo {
     pub fault_counter: u16,
     /// Fault numbers (PNU 947).
     pub faults: [u16; FAULT_BUFFER_LEN],
+    /// The profile layer's data profile and cyclic words.
+    pub process: ProcessView,
 }
 
 impl CardInfo {
-    /// PNU 964 (OPTE3/E5 Table 110): manufacturer (PI vendor ID — 0, a placeholder until
-    /// registered), drive unit type, software version (major × 100 + minor), firmware year,
-    /// day/month as ddmm, number of drive objects.
+    /// PNU 964, the card's own identity (OPTE3/E5 Table 110 structure): manufacturer (PI
+    /// vendor ID — 0, a placeholder until registered), drive unit type, software version
+    /// (major × 100 + minor), firmware year, day/month as ddmm, number of drive objects.
+    /// Served under the INVT frame and WEG CFW500 (neither manual defines P0964).
     pub const DEVICE_ID: [u16; 6] = [0, card::IDENT_NUMBER, 1, 2026, 2211, 1];
+    /// PNU 964 under a VACON telegram (OPTE3/E5 Table 110): manufacturer 0x01BA (VACON), drive
+    /// unit type 0x0002 (VACON 100 family), then the card's own version, firmware date and
+    /// one DO — a PLC program that checks subindex 0 / 1 finds the board it was written for;
+    /// the version and date stay ours (as do PNU 975 and I&M0).
+    pub const DEVICE_ID_VACON: [u16; 6] = [0x01BA, 0x0002, 1, 2026, 2211, 1];
+    /// P0964 under a CFW-11 telegram (CFW-11 §4 P0964, five subindices): manufacturer 367
+    /// (WEG), drive unit type 4, then the card's own version and firmware date. Subindex 5
+    /// does not exist there (error 0x03).
+    pub const DEVICE_ID_CFW11: [u16; 5] = [367, 4, 1, 2026, 2211];
+
+    fn product(&self) -> Product {
+        Product::of(self.telegram, self.process.data)
+    }
+
+    /// PNU 922 (P0922): the telegram number (OPTE3/E5 Table 15), or WEG's option coding of
+    /// P0922 under a WEG product — CFW500 §4: 2 = Standard Telegram 1, 3..8 = telegrams
+    /// 103..108; CFW-11 §3: 1 = Standard Telegram 1, 2..9 = telegrams 100..107.
+    pub fn p0922(&self) -> u16 {
+        match (self.product(), self.telegram) {
+            (Product::Cfw500, Telegram::Standard(1)) => 2,
+            (Product::Cfw500, Telegram::Vendor(_, n)) => n.saturating_sub(100),
+            (Product::Cfw11, Telegram::Vendor(_, n)) => n.saturating_sub(98),
+            _ => self.telegram.pnu922(),
+        }
+    }
+
+    /// PNU 944: VACON's fault message counter (OPTE3/E5 §6.4.6), or under a WEG product P0944
+    /// as CFW-11 §4 defines it: "0 to 1", 1 while a fault is active, 0 after the reset (the
+    /// CFW500 manual lists no P0944; we use CFW-11's meaning for both WEG families).
+    pub fn p0944(&self) -> u16 {
+        match self.product() {
+            Product::Cfw500 | Product::Cfw11 => u16::from(self.faults[0] != 0),
+            _ => self.fault_counter,
+        }
+    }
+
+    /// PNU 964 for the product ([`Self::DEVICE_ID`], [`Self::DEVICE_ID_VACON`],
+    /// [`Self::DEVICE_ID_CFW11`]).
+    pub fn device_id(&self) -> &'static [u16] {
+        match self.product() {
+            Product::Vacon => &Self::DEVICE_ID_VACON,
+            Product::Cfw11 => &Self::DEVICE_ID_CFW11,
+            _ => &Self::DEVICE_ID,
+        }
+    }
     /// PNU 975, DO identification, the eight elements PROFIdrive defines: manufacturer, DO
     /// type, version, firmware year, ddmm, PROFIdrive DO type class (1 = axis), DO subclass 1,
     /// DO-ID (1, the drive's one axis). OPTE3/E5 Table 111 lists subindices 0–6 (UINT\[7\]);
@@ -214,14 +349,17 @@ impl<D: ParameterAccess> CardTable<'_, D> {
         let info = self.info;
         Some(match pnu {
             PNU_STATION_ADDRESS => Value::Word(u16::from(info.address)),
-            PNU_PZD_SETPOINTS => Value::Signals(pzd_signals(info.telegram, true)),
-            PNU_PZD_ACTUALS => Value::Signals(pzd_signals(info.telegram, false)),
-            PNU_TELEGRAM => Value::Word(info.telegram.pnu922()),
+            PNU_PZD_SETPOINTS => Value::Signals(pzd_signals(info.telegram, info.process.data, true)),
+            PNU_PZD_ACTUALS => Value::Signals(pzd_signals(info.telegram, info.process.data, false)),
+            PNU_TELEGRAM => Value::Word(info.p0922()),
             PNU_OPERATING_MODE => Value::Word(1),
-            PNU_FAULT_COUNTER => Value::Word(info.fault_counter),
+            PNU_FAULT_COUNTER => Value::Word(info.p0944()),
             PNU_FAULT_SCALING => Value::Words(&super::faults::SCALING),
             PNU_BAUD_RATE => Value::Word(info.baud_p963),
-            PNU_DEVICE_ID => Value::Words(&CardInfo::DEVICE_ID),
+            PNU_DEVICE_ID => Value::Words(info.device_id()),
+            PNU_PROCESS_FIRST..=PNU_PROCESS_LAST => {
+                Value::Word(info.process.words[usize::from(pnu - PNU_PROCESS_FIRST)])
+            }
             PNU_PROFILE_ID => Value::Octets(&PROFILE_ID),
             PNU_DO_ID => Value::Words(&CardInfo::DO_ID),
             PNU_PARAMETER_LIST..=PNU_PARAMETER_LIST_LAST => Value::List,
@@ -230,12 +368,14 @@ impl<D: ParameterAccess> CardTable<'_, D> {
     }
 }
 
-/// PNU 915 (`setpoints`) / 916: the signal numbers of the telegram's PZD with the drive
-/// family's factory data profile ([`Layout::default_profile`]); all 0 without a module.
-fn pzd_signals(telegram: Telegram, setpoints: bool) -> [u16; PZD_SIGNALS] {
+/// PNU 915 (`setpoints`) / 916: the signal numbers of the telegram's PZD with the drive's
+/// active data profile `data` (WEG P0741: PROFIdrive words 1 / 2 / 5 / 6, manufacturer words
+/// 118..121; without a CONFIG the factory profile, [`Layout::default_profile`]); all 0
+/// without a module.
+fn pzd_signals(telegram: Telegram, data: DataProfile, setpoints: bool) -> [u16; PZD_SIGNALS] {
     match Layout::of(telegram) {
-        Some(l) if setpoints => l.setpoint_signals(l.default_profile()),
-        Some(l) => l.actual_signals(l.default_profile()),
+        Some(l) if setpoints => l.setpoint_signals(l.profile(data)),
+        Some(l) => l.actual_signals(l.profile(data)),
         None => [0; PZD_SIGNALS],
     }
 }
@@ -397,7 +537,14 @@ mod telegram_pnu_tests {
     }
 
     fn info(telegram: Telegram) -> CardInfo {
-        CardInfo { address: 3, telegram, baud_p963: 5, fault_counter: 0, faults: [0; FAULT_BUFFER_LEN] }
+        CardInfo {
+            address: 3,
+            telegram,
+            baud_p963: 5,
+            fault_counter: 0,
+            faults: [0; FAULT_BUFFER_LEN],
+            process: ProcessView::EMPTY,
+        }
     }
 
     fn read(telegram: Telegram, pnu: u16, subindex: u16, elements: u8) -> Result<Vec<u16>, ParamError> {
@@ -416,8 +563,9 @@ mod telegram_pnu_tests {
             (Telegram::Standard(1), 1),
             (Telegram::Standard(20), 20),
             (Telegram::Vendor(Family::Vacon, 139), 139),
-            (Telegram::Vendor(Family::WegCfw500, 108), 108),
-            (Telegram::Vendor(Family::WegCfw11, 100), 100),
+            // WEG's P0922 option coding (CFW500 §4: 103..108 → 3..8; CFW-11 §3: 100..107 → 2..9).
+            (Telegram::Vendor(Family::WegCfw500, 108), 8),
+            (Telegram::Vendor(Family::WegCfw11, 100), 2),
             (Telegram::Ppo(5), 0),
             (Telegram::Vendor(Family::Invt, 1), 0),
             (Telegram::None, 0),

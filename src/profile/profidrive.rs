@@ -521,6 +521,12 @@ impl Profidrive {
         Self::new(ProfidriveConfig::ppo(scale))
     }
 
+    /// A new speed scale (the drive's references read, `profile::references`); the state
+    /// machine keeps its state.
+    pub fn set_scale(&mut self, scale: SpeedScale) {
+        self.config.scale = scale;
+    }
+
     /// The configuration.
     pub fn config(&self) -> &ProfidriveConfig {
         &self.config

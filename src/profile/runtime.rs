@@ -27,6 +27,16 @@
 //! ends. The DPM CONFIG block has no field for it: it is a card parameter
 //! ([`Runtime::set_io_update_delay`]), default 0 (no delay, as P0799's factory setting), and
 //! needs the time ([`Runtime::cycle_at`]; [`Runtime::cycle`] runs without it).
+//!
+//! **INVT heartbeat (INVT §2.6 Table 2-5 CW b15 "heartbeat reference: 1 enabling heartbeat",
+//! Table 2-7 SW b15 "heartbeat feedback"):** the status word echoes b15 (the feedback). The
+//! manual does not say how the drive supervises it; our reading: a PLC that *toggles* b15
+//! uses the heartbeat, and once the card has seen it change twice (a whole period; a PLC that
+//! holds b15 at 1 or 0 never arms it) a b15 standing still for [`INVT_HEARTBEAT_TIMEOUT`]
+//! is a communication loss — the drive gets the communication-loss command
+//! ([`CommandFlags`](super::drive_if::CommandFlags)`::COMM_LOSS`, its reaction as for a DP
+//! watchdog expiry), counted in [`RuntimeStats::heartbeat_losses`], until b15 changes again.
+//! The supervision starts afresh with every selection; it needs the time ([`Runtime::cycle_at`]).
 
 use super::cyclic::{Cycle, Cyclic, CyclicError, DriveSide, OperateMode};
 use super::drive_if::{ControlProfile, DriveCommand, DriveStatus};
@@ -34,6 +44,7 @@ use super::faults::FaultBuffer;
 use super::invt::Invt;
 use super::param::ParameterAccess;
 use super::pkw::{PkwDialect, PkwServer};
+use super::pnu::ProcessView;
 use super::profidrive::{Profidrive, SpeedScale};
 use super::telegram::{DataProfile, Layout, ProfileFamily};
 use super::weg::{weg_profidrive, WegManufacturer, WegModel};
@@ -42,6 +53,24 @@ use crate::time::{Duration, Instant};
 
 /// INVT CW b8 "enable writing" (INVT §2.6 Table 2-5): PKW writes run only with it set.
 pub const INVT_ENABLE_WRITING: u16 = 1 << 8;
+
+/// INVT CW b15 "heartbeat reference" / SW b15 "heartbeat feedback" (INVT Table 2-5, 2-7):
+/// how long the PLC's heartbeat may stand still once it has toggled (our choice; the manual
+/// names no time). See [`Runtime`] "INVT heartbeat".
+pub const INVT_HEARTBEAT_TIMEOUT: Duration = Duration::from_millis(1000);
+
+/// The INVT heartbeat supervision's state ([`Runtime`] "INVT heartbeat").
+#[derive(Debug, Clone, Copy, Default)]
+struct Heartbeat {
+    /// CW b15 of the last output image.
+    bit: Option<bool>,
+    /// Changes of b15 seen (saturating): supervision is armed from the second one on.
+    edges: u8,
+    /// When b15 changed last.
+    last_edge: Option<Instant>,
+    /// The heartbeat stands still longer than [`INVT_HEARTBEAT_TIMEOUT`].
+    expired: bool,
+}
 
 /// The physical references of the speed scales (one unit for all: 0.01 Hz by default).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -111,6 +140,19 @@ impl AnyProfile {
                 WegModel::scale_profidrive(s.weg_p0134, s.n2_reference),
             )),
             ProfileFamily::Invt => AnyProfile::Invt(Invt::new(Invt::scale(s.invt_fmax, s.n2_reference))),
+        }
+    }
+}
+
+impl AnyProfile {
+    /// Take the speed scale of `fresh` (the same profile built with new [`Scales`]), keeping
+    /// this profile's state.
+    fn take_scale(&mut self, fresh: &AnyProfile) {
+        match (self, fresh) {
+            (AnyProfile::Profidrive(p), AnyProfile::Profidrive(f)) => p.set_scale(f.config().scale),
+            (AnyProfile::Weg(p), AnyProfile::Weg(f)) => p.set_scale(*f.scale()),
+            (AnyProfile::Invt(p), AnyProfile::Invt(f)) => p.set_scale(*f.speed_scale()),
+            _ => {}
         }
     }
 }
@@ -200,6 +242,8 @@ pub struct RuntimeStats {
     pub held_outputs: u32,
     /// Lost cycles bridged by the communication-loss delay.
     pub bridged: u32,
+    /// INVT heartbeat losses (the PLC's CW b15 stood still, [`INVT_HEARTBEAT_TIMEOUT`]).
+    pub heartbeat_losses: u32,
 }
 
 /// The I/O update delay's bookkeeping (CFW-11 P0799, module docs).
@@ -225,6 +269,8 @@ pub struct Runtime {
     faults: FaultBuffer,
     drive_fault: u16,
     last: Option<Cycle>,
+    /// The drive's status of the last cycle (PNU 10104 … 10108).
+    last_status: DriveStatus,
     delay: UpdateDelay,
     /// The master is in Clear ([`Self::set_clear_mode`]).
     clear: bool,
@@ -235,6 +281,8 @@ pub struct Runtime {
     /// Fault acknowledges of the profiles before this one: a new profile counts from 0, the
     /// drive must see the counter continue (a restart would acknowledge its fault).
     resets_base: u8,
+    /// INVT heartbeat supervision.
+    heartbeat: Heartbeat,
     stats: RuntimeStats,
 }
 
@@ -257,13 +305,33 @@ impl Runtime {
             faults: FaultBuffer::new(),
             drive_fault: 0,
             last: None,
+            last_status: DriveStatus::default(),
             delay: UpdateDelay { delay: Duration::ZERO, online: false, until: None },
             clear: false,
             loss_delay: Duration::ZERO,
             lost_since: None,
             resets_base: 0,
+            heartbeat: Heartbeat::default(),
             stats: RuntimeStats::default(),
         }
+    }
+
+    /// The speed references of the profile scales (`profile::references`: read from the
+    /// drive after each selection; [`Scales::DEFAULT`] until then). A change applies to the
+    /// profile in force at once and keeps its state (no restart of the state machine).
+    pub fn set_scales(&mut self, scales: Scales) {
+        if scales == self.scales {
+            return;
+        }
+        self.scales = scales;
+        if let (Some(p), Some(e), Some(sel)) = (self.profile.as_mut(), self.engine.as_ref(), self.selection) {
+            p.take_scale(&AnyProfile::for_layout(e.layout(), sel.data, &scales));
+        }
+    }
+
+    /// The speed references in force.
+    pub fn scales(&self) -> Scales {
+        self.scales
     }
 
     /// The I/O update delay after going online (CFW-11 P0799-style, module docs): the drive's
@@ -314,6 +382,7 @@ impl Runtime {
         }
         self.delay.online = false;
         self.delay.until = None;
+        self.heartbeat = Heartbeat::default();
         // The PPO types are VACON's (OPTE3/E5 §6.5.4, §6.6): their PKW speaks VACON's coding
         // (application IDs, request types 1 / 2, fault codes of Table 122); INVT its own.
         let dialect = match sel.telegram {
@@ -406,6 +475,7 @@ impl Runtime {
         words: &[u16],
     ) -> Option<Exchange<'_>> {
         self.track_faults(drive);
+        let lost = self.heartbeat_lost(now, outputs) || lost;
         let grace = match (lost, now) {
             (true, Some(n)) if self.loss_delay > Duration::ZERO => {
                 let since = *self.lost_since.get_or_insert(n);
@@ -471,8 +541,62 @@ impl Runtime {
         if let Some(c) = cycle.command.as_mut().filter(|_| !continued) {
             c.fault_resets = c.fault_resets.wrapping_add(self.resets_base);
         }
+        self.last_status = *drive;
         let c = self.last.insert(cycle);
         Some(Exchange { inputs: c.inputs(), command: c.command, words: c.drive_words() })
+    }
+
+    /// What the card's PNUs show of the profile layer ([`ProcessView`]): the selection's data
+    /// profile and PNU 10100 … 10108 of the last cycle — the output image's control word and
+    /// main setpoint, the input image's status word and main actual value (after the PKW),
+    /// the drive's current, active current, power, the actual value again (no filter) and
+    /// MELD_NAMUR.
+    pub fn process_view(&self) -> ProcessView {
+        let data = self.selection.map_or(DataProfile::Factory, |s| s.data);
+        let Some(c) = self.last.as_ref() else {
+            return ProcessView { data, ..ProcessView::EMPTY };
+        };
+        let pkw = self.engine.as_ref().map_or(0, |e| e.layout().pkw);
+        let input = |k: usize| {
+            let i = c.inputs();
+            i.get(2 * (pkw + k)..2 * (pkw + k) + 2).map_or(0, |b| u16::from_be_bytes([b[0], b[1]]))
+        };
+        let s = &self.last_status;
+        ProcessView {
+            data,
+            words: [
+                c.control_word,
+                c.setpoint_word,
+                input(0),
+                input(1),
+                s.current as u16,
+                s.torque as u16,
+                s.power as u16,
+                input(1),
+                s.namur,
+            ],
+        }
+    }
+
+    /// The INVT heartbeat supervision ([`Runtime`] "INVT heartbeat"): whether the PLC's CW b15
+    /// stood still too long. Needs the time; only for the INVT frame.
+    fn heartbeat_lost(&mut self, now: Option<Instant>, outputs: Option<&[u8]>) -> bool {
+        let Some(now) = now.filter(|_| self.pkw.dialect() == PkwDialect::Invt) else { return false };
+        let h = &mut self.heartbeat;
+        if let Some(&[hi, lo]) = outputs.and_then(|o| o.get(8..10)) {
+            let bit = u16::from_be_bytes([hi, lo]) & super::invt::HEARTBEAT != 0;
+            if h.bit.is_some_and(|b| b != bit) {
+                h.edges = h.edges.saturating_add(1);
+                h.last_edge = Some(now);
+            }
+            h.bit = Some(bit);
+        }
+        let expired = h.edges >= 2 && h.last_edge.is_some_and(|t| now >= t + INVT_HEARTBEAT_TIMEOUT);
+        if expired && !h.expired {
+            self.stats.heartbeat_losses = self.stats.heartbeat_losses.wrapping_add(1);
+        }
+        h.expired = expired;
+        expired
     }
 
     /// Whether a PKW job waits for [`Self::service_pkw`].

@@ -192,6 +192,11 @@ impl WegManufacturer {
     pub fn scale(&self) -> &SpeedScale {
         &self.scale
     }
+
+    /// A new speed scale (the drive's references read, `profile::references`).
+    pub fn set_scale(&mut self, scale: SpeedScale) {
+        self.scale = scale;
+    }
 }
 
 impl ControlProfile for WegManufacturer {

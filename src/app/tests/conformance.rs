@@ -204,27 +204,29 @@ fn f_pnu_965_975_980_as_profidrive_defines_them() {
     let r = b.read47();
     assert_eq!(r[..6], [2, 1, 1, 1, 0x42, 8], "{r:02X?}");
     assert_eq!(words(&r[6..]), [0, 1, 1, 2026, 2211, 1, 1, 1]);
-    // PNU 980: the card's 22 PNUs, the drive's 12, the end mark, zeros.
+    // PNU 980 / 981: the card's PNUs, the drive's (its table, through the mailbox), the end
+    // mark, zeros.
+    let mut all = CARD_PNUS.to_vec();
+    all.extend(crate::drive::params::DRIVE_PARAMS.iter().map(|d| d.pnu));
+    all.push(0);
+    assert!(all.len() <= 2 * LIST_LEN);
+    all.resize(2 * LIST_LEN, 0);
     b.write47(&read_request(3, 980, 0, 40));
     assert_eq!(b.read47(), [0xDE, 0x80, 0xB5, 0x00], "the drive's part comes through the mailbox");
     b.step(1);
     let r = b.read47();
     assert_eq!(r[..6], [3, 1, 1, 1, 0x42, 40], "{r:02X?}");
-    let list = words(&r[6..]);
-    assert_eq!(list[..CARD_PNUS.len()], CARD_PNUS);
-    let drive = [100, 101, 133, 134, 680, 681, 684, 685, 9900, 9901, 10109, 10111];
-    assert_eq!(list[CARD_PNUS.len()..CARD_PNUS.len() + drive.len()], drive);
-    assert!(list[CARD_PNUS.len() + drive.len()..].iter().all(|&p| p == 0), "end of list: {list:?}");
-    // Subindex access and the continuation: 980 has 64 elements, 981 the next 64 (all zero:
-    // the list ended in 980); element 64 does not exist.
+    assert_eq!(words(&r[6..]), all[..40]);
+    // Subindex access and the continuation: 980 has 64 elements, 981 the next 64; element 64
+    // does not exist.
     b.write47(&read_request(4, 980, 20, 4));
     b.step(1);
-    assert_eq!(words(&b.read47()[6..]), [988, 989, 100, 101]);
+    assert_eq!(words(&b.read47()[6..]), all[20..24]);
     b.write47(&read_request(5, 981, 0, LIST_LEN as u8));
     b.step(1);
     let r = b.read47();
     assert_eq!(r[..6], [5, 1, 1, 1, 0x42, 64]);
-    assert!(words(&r[6..]).iter().all(|&p| p == 0));
+    assert_eq!(words(&r[6..]), all[LIST_LEN..]);
     b.write47(&read_request(6, 980, LIST_LEN as u16, 1));
     b.step(1);
     assert_eq!(b.read47(), [6, 0x81, 1, 1, 0x44, 1, 0, 0x03], "invalid subindex");
