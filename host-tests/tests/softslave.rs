@@ -421,7 +421,9 @@ fn watchdog_expiry_is_logged_and_faults_the_running_drive() {
 fn every_family_runs_the_drive_on_one_soft_slave() {
     use families::{FamilyDrive, Phase};
     let pty = Pty::open().expect("create a pseudo-terminal pair");
-    let slave = SoftSlave::start(pty.path().to_str().expect("a UTF-8 pty path"), 500);
+    // A 2 s ramp (0.5 s to the 25 % setpoint): enough master cycles for intermediate values
+    // even when a loaded machine stretches the cycle to ~100 ms (500 ms gave 2 samples there).
+    let slave = SoftSlave::start(pty.path().to_str().expect("a UTF-8 pty path"), 2000);
     let mut phy = GapResponder { inner: pty.into_phy(), slave: SLAVE, answer: Vec::new() };
     for reference in [20u16, 1139, 106, 2108, 3107, 4001] {
         let mut plc = FamilyDrive::new(reference, 25);
