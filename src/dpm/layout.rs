@@ -236,6 +236,10 @@ pub mod drive {
     pub const EXT_DIAG_LEN: usize = 0x0A;
     /// Extended diagnosis blocks as DP sends them (device / identifier / channel related).
     pub const EXT_DIAG: usize = 0x0C;
+    /// u16 the host's IRQ mask (issue 16 item 4, `docs/SPI.md` "Events and the IRQ line"):
+    /// bits of the pending-events bitmap that do not assert IRQ (set = masked; 0 = every
+    /// event asserts it).
+    pub const IRQ_MASK: usize = EXT_DIAG + super::EXT_DIAG_CAPACITY;
     /// u16 sequence counter: the tail.
     pub const SEQ_TAIL: usize = LEN - 2;
 }
@@ -462,6 +466,7 @@ const _: () = {
     assert!(EXTRA_WORDS <= u8::MAX as usize);
     assert!(card::BOOT_ID + 2 <= card::SEQ_TAIL);
     assert!(drive::EXT_DIAG + EXT_DIAG_CAPACITY <= drive::SEQ_TAIL);
+    assert!(drive::IRQ_MASK + 2 == drive::SEQ_TAIL);
     assert!(config::PZD_IN_MAP + 2 * PZD_MAP_WORDS <= config::IO_UPDATE_DELAY);
     assert!(config::IO_UPDATE_DELAY + 2 <= config::SEQ_TAIL);
     assert!(MBX_CAPACITY <= u8::MAX as usize && EXT_DIAG_CAPACITY <= crate::card::MAX_EXT_DIAG_LEN);
@@ -742,7 +747,7 @@ pub const FIELDS: &[Field] = &[
     f!("DRIVE.EXT_DIAG_LEN", drive::EXT_DIAG_LEN, 1, "u8", H, "consistent block: valid bytes of EXT_DIAG (<= 32)"),
     f!("DRIVE.reserved", @ drive::START + 0x0B, 1, "reserved", H, "0"),
     f!("DRIVE.EXT_DIAG", drive::EXT_DIAG, EXT_DIAG_CAPACITY, "u8[32]", H, "consistent block, first EXT_DIAG_LEN bytes: DP extended diagnosis blocks (refused if malformed)"),
-    f!("DRIVE.reserved", @ drive::START + drive::EXT_DIAG + EXT_DIAG_CAPACITY, drive::SEQ_TAIL - drive::EXT_DIAG - EXT_DIAG_CAPACITY, "reserved", H, "0"),
+    f!("DRIVE.IRQ_MASK", drive::IRQ_MASK, 2, "u16", H, "consistent block (SPI transport): bits of the pending-events bitmap that do not assert the IRQ line (bit set = masked; 0 = every event asserts it, as before this field); the bitmap itself and the block events are not masked"),
     f!("DRIVE.SEQ_TAIL", drive::SEQ_TAIL, 2, "u16", H, SEQ_VALID),
     f!("CONFIG.SEQ_HEAD", config::SEQ_HEAD, 2, "u16", H, SEQ_VALID),
     f!("CONFIG.STATION_ADDRESS", config::STATION_ADDRESS, 1, "u8", H, "consistent block, SEQ != 0: station address 0..=125, set outside data exchange like Set_Slave_Add (reported as a changed address and stored; refused with result 4 while No_Add_Chg froze it); 126 = keep the card's address"),

@@ -663,6 +663,13 @@ impl<T: Transport> Host<T> {
         Ok(())
     }
 
+    /// Set the IRQ mask (`DRIVE.IRQ_MASK`, `docs/SPI.md` "Events and the IRQ line"): bits of
+    /// the pending-events bitmap that do not assert the card's IRQ line (0 = none masked).
+    /// Written with the next [`Self::poll`] / [`Self::cycle`].
+    pub fn set_irq_mask(&mut self, mask: u16) {
+        self.report.irq_mask = mask;
+    }
+
     /// What the next [`Self::poll`] writes to DRIVE (heartbeat excepted).
     pub fn drive_report(&self) -> &DriveReport {
         &self.report
