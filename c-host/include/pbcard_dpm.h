@@ -108,7 +108,7 @@
 #define PBCARD_OUTPUTS_SEQ_TAIL                       0x46u    /* u16 */
 #define PBCARD_OUTPUTS_SEQ_TAIL_ADDR                  0x076u   /* absolute */
 
-/* INPUTS (writer host, sequenced, since v1): Process data drive → master. The card takes an image written for the active telegram. */
+/* INPUTS (writer host, sequenced, since v1): Process data drive → master (layout 1 / 2 hosts). The card serves an image written for the active telegram until the host first writes DRIVE_STATE; from then on the inputs are built from DRIVE_STATE and INPUTS is ignored. */
 #define PBCARD_INPUTS_START                           0x078u   /* block start */
 #define PBCARD_INPUTS_SIZE                            72u      /* block length */
 #define PBCARD_INPUTS_EVENT_BIT                       3u       /* its bit in the pending-events bitmap */

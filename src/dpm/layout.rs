@@ -552,7 +552,7 @@ pub const BLOCKS: &[Block] = &[
         writer: Writer::Host,
         sequenced: true,
         since: 1,
-        text: "Process data drive → master. The card takes an image written for the active telegram.",
+        text: "Process data drive → master (layout 1 / 2 hosts). The card serves an image written for the active telegram until the host first writes DRIVE_STATE; from then on the inputs are built from DRIVE_STATE and INPUTS is ignored.",
     },
     Block {
         name: "IDENT",
@@ -860,7 +860,9 @@ pub fn write_markdown(out: &mut impl core::fmt::Write) -> core::fmt::Result {
     writeln!(out, "**Command and state (v3).** The card writes OUTPUTS, then DRIVE_CMD with `OUTPUTS_SEQ` = the")?;
     writeln!(out, "OUTPUTS counter it was made from; the host accepts a DRIVE_CMD / OUTPUTS pair as one bus cycle")?;
     writeln!(out, "when `DRIVE_CMD.OUTPUTS_SEQ` equals `OUTPUTS.SEQ_HEAD` (or is 0), else reads both again. The")?;
-    writeln!(out, "host writes INPUTS, then DRIVE_STATE with `INPUTS_SEQ` = the INPUTS counter it just wrote.")?;
+    writeln!(out, "host writes INPUTS, then DRIVE_STATE with `INPUTS_SEQ` = the INPUTS counter it just wrote. The")?;
+    writeln!(out, "card serves INPUTS to the master only until DRIVE_STATE is first written (a layout 1 / 2 host);")?;
+    writeln!(out, "afterwards the card's profile layer builds the inputs from DRIVE_STATE and ignores INPUTS.")?;
     writeln!(out)?;
     writeln!(
         out,
