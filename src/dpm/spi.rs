@@ -828,6 +828,8 @@ pub struct SpiHost<B: SpiBus> {
     /// The TAG of the CYCLIC request sent in the last transaction (its reply comes in the
     /// next one: the next cycle's CYCLIC request fetches it).
     cyclic_pending: Option<u8>,
+    /// MBX_REQ fragment bytes the pending CYCLIC request asked (its reply is that much longer).
+    cyclic_asked: usize,
     /// DATA bytes of the last CYCLIC reply (the next transaction is clocked that long).
     cyclic_reply_len: usize,
 }
@@ -846,6 +848,7 @@ impl<B: SpiBus> SpiHost<B> {
             transactions: 0,
             bytes: 0,
             cyclic_pending: None,
+            cyclic_asked: 0,
             cyclic_reply_len: cyclic::MAX_REPLY_DATA,
         }
     }
@@ -865,7 +868,8 @@ impl<B: SpiBus> SpiHost<B> {
         }
         let k = req.encode(&mut d);
         let frame = REQUEST_HEADER + k + CRC_LEN;
-        let n = frame.max(REPLY_HEADER + self.cyclic_reply_len + CRC_LEN).min(MAX_TRANSACTION);
+        let asked = core::mem::replace(&mut self.cyclic_asked, usize::from(req.req.1));
+        let n = frame.max(REPLY_HEADER + self.cyclic_reply_len + asked + CRC_LEN).min(MAX_TRANSACTION);
         let (tag, _) = self
             .codec
             .encode(Command::Cyclic, 0, k as u16, &d[..k], &mut self.mosi[..n])
@@ -915,7 +919,8 @@ impl<B: SpiBus> SpiHost<B> {
         if !ok {
             return None;
         }
-        self.cyclic_reply_len = r.data.len();
+        // Without its MBX_REQ fragment (the next request says how long that is).
+        self.cyclic_reply_len = r.data.len() - usize::from(r.data[cyclic::rep::REQ_LEN]);
         Some(r.data.len())
     }
 
