@@ -113,8 +113,14 @@
 //! rebuilt from the image after each of its steps while it was armed (so it carries the
 //! newest command). One transaction per drive cycle; when the MISO holds no reply to take
 //! (the first cycle, a block access came between, a late or damaged reply) the same request
-//! is sent once more, whose MISO is the reply to the first: two at most. The CYCLIC grammar
-//! follows at the end of this document.
+//! is sent once more, whose MISO is the reply to the first: two at most. The parameter
+//! mailbox rides along (the reference hosts): when the reply's events show MBX_REQ changed,
+//! the next request asks its fragment from offset 0 (32 bytes: every read, writes of up to
+//! 18 value bytes); an answer goes to MBX_RSP as two request fragments in ascending order —
+//! head and answer, then the tail — each sent until two exchanges in a row that carried it
+//! got their reply (so the tail, which makes the block consistent, is never applied before
+//! the rest). Longer requests and answers use READ / WRITE. The CYCLIC grammar follows at
+//! the end of this document.
 //!
 //! **A host access** (what [`SpiHost`] does): the request in one transaction, and in the
 //! next a STATUS request padded to the expected reply, whose MISO is the reply; anything
