@@ -33,6 +33,7 @@ cargo t -p pbcard --lib   # the `cargo t` alias (.cargo/config.toml): test on th
 
 echo "== host-tests: profirust master on a simulated bus, GSD cross-check, scripted services,"
 echo "   and end to end: the firmware in QEMU brought to data exchange by profirust over a socket"
+cc -std=c99 -pedantic -Wall -Wextra -Werror -Ic-host/include -fsyntax-only c-host/src/pbcard_host.c c-host/test/drive.c
 PBCARD_QEMU_REQUIRED=1 cargo test -p host-tests --target "$HOST"
 
 echo "== pyprofibus (PyPI) as a second independent master: soft slave #9 (PPO 4, PPO 2) and QEMU firmware #33 (ST1)"

@@ -45,6 +45,16 @@ use crate::profile::runtime::{AnyProfile, Runtime, Scales, Selection};
 use crate::profile::telegram::DataProfile;
 use crate::time::{Baudrate, Duration, Instant};
 
+/// Whether the master gets the drive's raw INPUTS (issue 16 item 4): a host of layout 1 / 2
+/// writes INPUTS (the telegram's input words) and no DRIVE_STATE; its INPUTS are served until
+/// it writes DRIVE_STATE once (`DRIVE_STATE.SEQ_HEAD` ≠ 0). From then on the profile layer
+/// builds the input image from DRIVE_STATE and INPUTS is ignored (docs/DPM.md, INPUTS).
+fn raw_inputs(dpm: &Dpm) -> bool {
+    let img = dpm.as_bytes();
+    let head = |at: usize| u16::from_be_bytes([img[at], img[at + 1]]);
+    head(crate::dpm::layout::drive_state::START) == 0 && head(crate::dpm::layout::inputs::START) != 0
+}
+
 /// The drive's side of the DPM as the application sees it: the host reference
 /// implementation over the SPI frames of [`crate::dpm::spi`], the card an in-process
 /// [`Loopback`] that owns the card's DPM image.
@@ -229,9 +239,10 @@ impl Application {
     /// PKW job. Returns what the node must learn, for [`apply`](Self::apply).
     pub fn collect(&mut self, now: Instant, snap: &NodeSnapshot) -> NodeUpdate {
         let dpm = self.host.transport().dpm();
-        let mut update = self.link.collect_host(now, snap.dp_state(), dpm, false);
+        let raw = raw_inputs(dpm);
+        let mut update = self.link.collect_host(now, snap.dp_state(), dpm, raw);
         let events = core::mem::replace(&mut self.events, Events::empty());
-        self.run_profile(now, snap, events, &mut update);
+        self.run_profile(now, snap, events, &mut update, raw);
         self.service_pkw(now);
         self.service_references(now);
         update
@@ -291,7 +302,7 @@ impl Application {
 
     /// The profile layer: select the engine for the active telegram, run one cycle with the
     /// drive's latest state, stage the input image in `update`, write DRIVE_CMD.
-    fn run_profile(&mut self, now: Instant, snap: &NodeSnapshot, events: Events, update: &mut NodeUpdate) {
+    fn run_profile(&mut self, now: Instant, snap: &NodeSnapshot, events: Events, update: &mut NodeUpdate, raw: bool) {
         let telegram = snap.telegram();
         let in_dx = snap.dp_state() == DpState::DataExch;
         if telegram != Telegram::None && in_dx {
@@ -342,7 +353,7 @@ impl Application {
             outputs_seq: 0,
             extra: PzdWords::new(x.words).unwrap_or(PzdWords::EMPTY),
         };
-        if in_dx && !drive_lost && sel.telegram == telegram && telegram == update.telegram() {
+        if in_dx && !drive_lost && !raw && sel.telegram == telegram && telegram == update.telegram() {
             update.set_inputs(x.inputs);
         }
         self.link.publish_command(&img, self.host.transport_mut().dpm_mut());
@@ -720,6 +731,28 @@ pub(crate) mod tests {
         assert_eq!(words(&i)[1], 0);
     }
 
+    /// Issue 16 item 4: a layout 1 / 2 host's raw INPUTS reach the master until the host
+    /// writes DRIVE_STATE once; from then on the profile layer's image is the only one.
+    #[test]
+    fn raw_inputs_are_served_until_drive_state_is_written() {
+        let mut b = Bench::new();
+        b.app = Application::card_only();
+        b.app.set_baudrate(Some(Baudrate::B1500k));
+        b.app.dpm_mut().host().write_config(&crate::dpm::HostConfig::DEFAULT);
+        b.step(1);
+        b.bring_up(&card::MODULES[0]);
+        let raw = ProcessData::new(Telegram::Standard(1), PdFlags::empty(), &[0x12, 0x34, 0x56, 0x78]);
+        b.app.dpm_mut().host().write_inputs(&raw);
+        b.cycle(&[0x04, 0x7E, 0x20, 0x00], 1);
+        let i = b.cycle(&[0x04, 0x7E, 0x20, 0x00], 1);
+        assert_eq!(i, [0x12, 0x34, 0x56, 0x78], "the raw INPUTS are served");
+        b.app.dpm_mut().host().write_drive_state(&crate::dpm::DriveStateImage::EMPTY);
+        b.app.dpm_mut().host().write_inputs(&raw);
+        b.cycle(&[0x04, 0x7E, 0x20, 0x00], 1);
+        let i = b.cycle(&[0x04, 0x7E, 0x20, 0x00], 1);
+        assert_ne!(i, [0x12, 0x34, 0x56, 0x78], "DRIVE_STATE written: INPUTS ignored");
+    }
+
     #[test]
     fn size_stays_small() {
         // DPM image 752 B (layout 4) with the host's state, last status, outputs, drive
@@ -730,9 +763,10 @@ pub(crate) mod tests {
         // loopback card's two reply buffers of its pipeline, one longest transaction of
         // 1034 B each, ≈ 4.1 KiB): a static in the firmware. The simulated drive's VACON
         // application-ID table (PNU 10001, the PPO PKW) adds ≈ 0.1 KiB, the speed-reference
-        // reader (issue 15 item 10) ≈ 40 B.
+        // reader (issue 15 item 10) ≈ 40 B; the host's mailbox fragments of the CYCLIC
+        // exchange (a request taken from a reply, a response on its way, issue 16) ≈ 0.3 KiB.
         let n = core::mem::size_of::<Application>();
-        assert!(n <= 4608 + 4 * crate::dpm::spi::MAX_TRANSACTION + 384 + 256 + 64, "Application is {n} bytes");
+        assert!(n <= 4608 + 4 * crate::dpm::spi::MAX_TRANSACTION + 384 + 256 + 64 + 320, "Application is {n} bytes");
     }
 
     #[test]

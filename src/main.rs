@@ -15,6 +15,7 @@
 //! | 16 (highest) | F411: `line_usart1` (USART1: IDLE, PE/FE/NF/ORE, TC), `line_tim5` (TIM5 compares: T_SYN proof, delayed response start) | the DMA line (`bsp/f411.rs`): cut telegrams into the queue, release DE on TC; never touches the `Node` |
 //! | 16 | QEMU: `usart1` (USART1 interrupt per character) | the per-byte line (`phy::line::answer` → `Node::on_frame`) → response; after a Data_Exchange spawns `app_step`, after a DP-V1 request `acyclic` |
 //! | 15 | F411: `decide` (bound to the unused SDIO interrupt, pended by `line_usart1`) | per telegram: `Node::on_frame` → `DmaLine::respond` (min_TSDR by TIM5 compare); autobaud frame accounting; spawns as above |
+//! | 11 | F411: `spi_frame` (software task, spawned by `spi_nss` at 12 on NSS rising) | one DPM SPI transaction against its own image (`dpm::spi::WireImage`), the reply armed for the next one |
 //! | 8 | `acyclic` (software task) | `Node::process_acyclic`: DP-V1 records at slot 0, PROFIdrive parameter access (card PNUs, then the drive's through the DPM parameter mailbox, `Application::parameters`; a job waiting for the drive is retried on the next spawn) |
 //! | 1 | `housekeeping` (QEMU) / `housekeeping_board` (F411) (async, every 1 ms) | the application step with two short Node locks (`Application::snapshot`: node timers + a copy; unlocked: DPM publish, drive, profile cycle, PKW, DRIVE_CMD; `Application::apply`: diagnosis + input image), STATUS.CORRUPT_FRAMES from the line, events, logs; F411: autobaud poll and rate switch, LEDs, IWDG, address journal |
 //! | 1 | `app_step` (software task) | one application step (as above) right after a Data_Exchange (the drive sees new outputs at once) |
@@ -91,8 +92,8 @@ const fn station_address(s: Option<&str>) -> u8 {
 }
 
 #[cfg(target_os = "none")]
-#[cfg_attr(feature = "board-f411", rtic::app(device = stm32f4xx_hal::pac, dispatchers = [SPI4, SPI5]))]
-#[cfg_attr(feature = "qemu", rtic::app(device = stm32f4xx_hal::pac, dispatchers = [SPI2, SPI3]))]
+#[cfg_attr(feature = "board-f411", rtic::app(device = stm32f4xx_hal::pac, dispatchers = [SPI4, SPI5, SPI3]))]
+#[cfg_attr(feature = "qemu", rtic::app(device = stm32f4xx_hal::pac, dispatchers = [SPI2, SPI3, SPI1]))]
 mod app {
     use crate::bsp::board;
     use crate::bsp::clock::{Mono, SysTickClock};
@@ -364,7 +365,9 @@ mod app {
         baud: board::Baud,
         // DPM SPI transport: see the block "DPM SPI transport" below.
         spi: DpmSpiPort,
-        spi_slave: pbcard::dpm::spi::SpiSlave,
+        /// The frame task's own image (`pbcard::dpm::spi::WireImage`), handed over with the
+        /// application's after each step.
+        spi_wire: pbcard::dpm::spi::WireImage,
     }
 
     #[local]
@@ -396,7 +399,7 @@ mod app {
                 baud: board::FixedRate(LINE_RATE),
                 drive: Drive::new(clock, Some(LINE_RATE)),
                 spi: start_dpm_spi(),
-                spi_slave: pbcard::dpm::spi::SpiSlave::new(),
+                spi_wire: pbcard::dpm::spi::WireImage::new(),
             },
             Local { acyclic_clock: clock, decide_clock: clock, decide_buf: [0; 255], supervisor: board::Supervisor },
         )
@@ -454,7 +457,7 @@ mod app {
                 line: b.line,
                 baud,
                 spi: start_dpm_spi(b.spi),
-                spi_slave: pbcard::dpm::spi::SpiSlave::new(),
+                spi_wire: pbcard::dpm::spi::WireImage::new(),
             },
             Local {
                 acyclic_clock: b.clock,
@@ -698,9 +701,11 @@ mod app {
     // DPM SPI transport (issue 7 item 4; board-f411 only). The drive's control board is SPI
     // master; `bsp/spi.rs` moves the bytes, `pbcard::dpm::spi::SpiSlave` decides. NSS rising
     // (EXTI15_10, short, priority 12 — below USART1) re-arms the DMA and hands the received
-    // frame to `spi_frame` (priority 1), which applies it to the application's image under
-    // the `drive` lock and stages the reply for the next transaction. `spi_irq` keeps the IRQ
-    // line in step with the card's writes. The F411 build runs `Application::card_only()`:
+    // frame to `spi_frame` (priority 11, above the step and the DP-V1 task), which applies it
+    // to its own image (`WireImage`) and stages the reply for the next transaction.
+    // `spi_irq` hands the images over after each step (`bsp::spi::after_step`: a short copy
+    // under the frame task's lock), refreshes an armed CYCLIC reply and keeps the IRQ line in
+    // step with the card's writes. The F411 build runs `Application::card_only()`:
     // the housekeeping step publishes and collects, its drive part does nothing, so the host
     // blocks are written by the control board's frames alone. With the `sim-drive` feature
     // (a bench card without a drive) the simulated drive writes them through its in-process
@@ -749,19 +754,15 @@ mod app {
     /// One received SPI frame against the DPM image; the reply goes out in the next
     /// transaction.
     #[cfg(feature = "board-f411")]
-    #[task(priority = 1, shared = [spi, spi_slave, drive])]
+    #[task(priority = 11, shared = [spi, spi_wire])]
     async fn spi_frame(cx: spi_frame::Context, frame: DpmSpiFrame) {
-        let spi_frame::SharedResources { mut spi, mut spi_slave, mut drive, .. } = cx.shared;
+        let spi_frame::SharedResources { mut spi, mut spi_wire, .. } = cx.shared;
         let Some(reply) = spi.lock(|p| p.reply_buffer()) else {
             spi.lock(|p| p.drop_frame(frame));
             return;
         };
-        // The image is locked for one `handle` (masks the DP-V1 task, not USART1).
-        let (len, irq) = (&mut spi_slave, &mut drive).lock(|slave, d| {
-            let dpm = d.app.dpm_mut();
-            let len = slave.handle(frame.bytes(), dpm, reply);
-            (len, slave.irq(dpm))
-        });
+        // Its own image: never behind the application step (issue 16 item 3).
+        let (len, irq) = spi_wire.lock(|w| (w.handle(frame.bytes(), reply), w.irq()));
         spi.lock(|p| {
             p.reply_ready(reply, len);
             p.give_back(frame);
@@ -772,17 +773,18 @@ mod app {
     /// The IRQ line to the drive every millisecond (the card writes its blocks in the
     /// housekeeping step), and the transport's counters in the log when they change.
     #[cfg(feature = "board-f411")]
-    #[task(priority = 1, shared = [spi, spi_slave, drive])]
+    #[task(priority = 1, shared = [spi, spi_wire, drive])]
     async fn spi_irq(cx: spi_irq::Context) {
-        let spi_irq::SharedResources { mut spi, mut spi_slave, mut drive, .. } = cx.shared;
+        let spi_irq::SharedResources { mut spi, mut spi_wire, mut drive, .. } = cx.shared;
         let mut ms: u32 = 0;
         let mut shown = None;
         loop {
             Mono::delay(1.millis()).await;
-            let (irq, proto) = (&mut spi_slave, &mut drive).lock(|s, d| (s.irq(d.app.dpm()), s.stats()));
-            let port = spi.lock(|p| {
-                p.set_irq(irq);
-                p.stats()
+            // Between two steps (same priority as housekeeping): the hand-over, the armed
+            // CYCLIC reply refreshed, the IRQ line.
+            let (port, proto) = drive.lock(|d| {
+                let card = if d.app.simulates_drive() { None } else { Some(d.app.dpm_mut()) };
+                crate::bsp::spi::after_step(&mut spi, &mut spi_wire, card)
             });
             ms = ms.wrapping_add(1);
             if ms.is_multiple_of(10_000) && shown != Some((port, proto)) {

@@ -136,6 +136,7 @@ fn every_field_crosses_the_transport_both_ways() {
     host.set_warning(0x1234);
     host.set_ext_diag(&bytes(32, 0x60)).unwrap();
     assert_eq!(host.set_ext_diag(&[1; 33]), Err(Error::TooLong));
+    host.set_irq_mask(0x0426);
     host.poll(Instant::from_millis(1));
     let cfg_seq = host.write_config(&cfg).unwrap();
     let (iseq, sseq) = host.write_process_data(&ins, &state()).unwrap();

@@ -48,6 +48,7 @@ use profirust::phy::{ProfibusPhy, SimulatorPhy};
 pub use pbcard;
 pub use profirust;
 
+pub mod c_host;
 pub mod qemu;
 pub mod scripted;
 pub mod serial;

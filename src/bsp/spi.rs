@@ -51,7 +51,9 @@
 
 use core::sync::atomic::{compiler_fence, Ordering};
 
-use pbcard::dpm::spi::{PipelineStats, ReplyPipeline, MAX_REPLY, MAX_TRANSACTION};
+use pbcard::dpm::spi::{PipelineStats, ReplyPipeline, SpiStats, WireImage, MAX_REPLY, MAX_TRANSACTION};
+use pbcard::dpm::Dpm;
+use rtic::Mutex;
 use stm32f4xx_hal::gpio::{Alternate, Edge, ExtiPin, Output, PinState, PushPull, Speed, PB0, PB12, PB13, PB14, PB15};
 use stm32f4xx_hal::pac::{DMA1, EXTI, SPI2, SYSCFG};
 use stm32f4xx_hal::rcc::{Enable, Rcc, Reset};
@@ -184,6 +186,17 @@ impl SpiPort {
         self.tx.armed().map(|b| &**b)
     }
 
+    /// A reply buffer taken with [`Self::reply_buffer`] and not used.
+    pub fn release(&mut self, buf: &'static mut TxBuf) {
+        self.tx.release(buf);
+    }
+
+    /// Transactions ended so far (every NSS rise): unchanged = the armed reply still answers
+    /// the request the frame task handled last.
+    fn generation(&self) -> u32 {
+        self.stats.transactions.wrapping_add(self.stats.empty)
+    }
+
     /// The frame task is done with a received frame.
     pub fn give_back(&mut self, frame: Frame) {
         self.rx_spare = Some(frame.buf);
@@ -313,6 +326,44 @@ pub struct SpiParts {
     pub miso: PB14,
     /// SPI2_MOSI.
     pub mosi: PB15,
+}
+
+/// Between two application steps (the 1 ms IRQ task, at the step's priority), with the
+/// frame task's image (`WireImage`, issue 16 item 3): the hand-over with the application's
+/// image `card` (`None`: a bench card whose simulated drive writes the host blocks in process:
+/// nothing is handed over), then the armed CYCLIC reply rebuilt from the new image
+/// (`docs/SPI.md` "One drive cycle": the drive gets the newest command) — armed only if no
+/// transaction ended meanwhile, so a reply still goes out in *k + 1* or never — and the IRQ
+/// line. The frame task waits only for the short copies under `wire`, never for the step.
+/// Returns the port's and the protocol's counters.
+pub fn after_step(
+    port: &mut impl Mutex<T = SpiPort>,
+    wire: &mut impl Mutex<T = WireImage>,
+    card: Option<&mut Dpm>,
+) -> (PortStats, SpiStats) {
+    let (generation, buf) = port.lock(|p| (p.generation(), if p.armed().is_some() { p.reply_buffer() } else { None }));
+    let (irq, proto, rebuilt) = wire.lock(|w| {
+        if let Some(card) = card {
+            w.hand_over(card);
+        }
+        let rebuilt = buf.map(|b| {
+            let n = w.refresh(b);
+            (b, n)
+        });
+        (w.irq(), w.stats(), rebuilt)
+    });
+    port.lock(|p| {
+        if let Some((b, n)) = rebuilt {
+            match n {
+                Some(n) if p.generation() == generation && p.armed().is_some() => {
+                    p.refresh_ready(b, n);
+                }
+                _ => p.release(b),
+            }
+        }
+        p.set_irq(irq);
+        (p.stats(), proto)
+    })
 }
 
 /// Bring up SPI2 slave, DMA1, the NSS interrupt and the IRQ pin (released) on the

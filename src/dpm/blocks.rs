@@ -236,6 +236,8 @@ pub struct DriveReport {
     pub fault_count: u8,
     /// Warning reports.
     pub warning_count: u8,
+    /// The IRQ mask (`DRIVE.IRQ_MASK`): pending-event bits that do not assert the IRQ line.
+    pub irq_mask: u16,
     pub(super) ext_diag_len: u8,
     pub(super) ext_diag: [u8; EXT_DIAG_CAPACITY],
 }
@@ -248,6 +250,7 @@ impl DriveReport {
         warning_code: 0,
         fault_count: 0,
         warning_count: 0,
+        irq_mask: 0,
         ext_diag_len: 0,
         ext_diag: [0; EXT_DIAG_CAPACITY],
     };
@@ -273,6 +276,7 @@ impl DriveReport {
         b[drive::WARNING_COUNT] = self.warning_count;
         b[drive::EXT_DIAG_LEN] = self.ext_diag_len;
         b[drive::EXT_DIAG..drive::EXT_DIAG + EXT_DIAG_CAPACITY].copy_from_slice(&self.ext_diag);
+        put16(b, drive::IRQ_MASK, self.irq_mask);
     }
 
     pub(super) fn decode(b: &[u8]) -> DriveReport {
@@ -282,6 +286,7 @@ impl DriveReport {
             warning_code: get16(b, drive::WARNING_CODE),
             fault_count: b[drive::FAULT_COUNT],
             warning_count: b[drive::WARNING_COUNT],
+            irq_mask: get16(b, drive::IRQ_MASK),
             ..DriveReport::default()
         };
         let n = (b[drive::EXT_DIAG_LEN] as usize).min(EXT_DIAG_CAPACITY);

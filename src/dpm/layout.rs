@@ -236,6 +236,10 @@ pub mod drive {
     pub const EXT_DIAG_LEN: usize = 0x0A;
     /// Extended diagnosis blocks as DP sends them (device / identifier / channel related).
     pub const EXT_DIAG: usize = 0x0C;
+    /// u16 the host's IRQ mask (issue 16 item 4, `docs/SPI.md` "Events and the IRQ line"):
+    /// bits of the pending-events bitmap that do not assert IRQ (set = masked; 0 = every
+    /// event asserts it).
+    pub const IRQ_MASK: usize = EXT_DIAG + super::EXT_DIAG_CAPACITY;
     /// u16 sequence counter: the tail.
     pub const SEQ_TAIL: usize = LEN - 2;
 }
@@ -462,6 +466,7 @@ const _: () = {
     assert!(EXTRA_WORDS <= u8::MAX as usize);
     assert!(card::BOOT_ID + 2 <= card::SEQ_TAIL);
     assert!(drive::EXT_DIAG + EXT_DIAG_CAPACITY <= drive::SEQ_TAIL);
+    assert!(drive::IRQ_MASK + 2 == drive::SEQ_TAIL);
     assert!(config::PZD_IN_MAP + 2 * PZD_MAP_WORDS <= config::IO_UPDATE_DELAY);
     assert!(config::IO_UPDATE_DELAY + 2 <= config::SEQ_TAIL);
     assert!(MBX_CAPACITY <= u8::MAX as usize && EXT_DIAG_CAPACITY <= crate::card::MAX_EXT_DIAG_LEN);
@@ -547,7 +552,7 @@ pub const BLOCKS: &[Block] = &[
         writer: Writer::Host,
         sequenced: true,
         since: 1,
-        text: "Process data drive → master. The card takes an image written for the active telegram.",
+        text: "Process data drive → master (layout 1 / 2 hosts). The card serves an image written for the active telegram until the host first writes DRIVE_STATE; from then on the inputs are built from DRIVE_STATE and INPUTS is ignored.",
     },
     Block {
         name: "IDENT",
@@ -742,7 +747,7 @@ pub const FIELDS: &[Field] = &[
     f!("DRIVE.EXT_DIAG_LEN", drive::EXT_DIAG_LEN, 1, "u8", H, "consistent block: valid bytes of EXT_DIAG (<= 32)"),
     f!("DRIVE.reserved", @ drive::START + 0x0B, 1, "reserved", H, "0"),
     f!("DRIVE.EXT_DIAG", drive::EXT_DIAG, EXT_DIAG_CAPACITY, "u8[32]", H, "consistent block, first EXT_DIAG_LEN bytes: DP extended diagnosis blocks (refused if malformed)"),
-    f!("DRIVE.reserved", @ drive::START + drive::EXT_DIAG + EXT_DIAG_CAPACITY, drive::SEQ_TAIL - drive::EXT_DIAG - EXT_DIAG_CAPACITY, "reserved", H, "0"),
+    f!("DRIVE.IRQ_MASK", drive::IRQ_MASK, 2, "u16", H, "consistent block (SPI transport): bits of the pending-events bitmap that do not assert the IRQ line (bit set = masked; 0 = every event asserts it, as before this field); the bitmap itself and the block events are not masked"),
     f!("DRIVE.SEQ_TAIL", drive::SEQ_TAIL, 2, "u16", H, SEQ_VALID),
     f!("CONFIG.SEQ_HEAD", config::SEQ_HEAD, 2, "u16", H, SEQ_VALID),
     f!("CONFIG.STATION_ADDRESS", config::STATION_ADDRESS, 1, "u8", H, "consistent block, SEQ != 0: station address 0..=125, set outside data exchange like Set_Slave_Add (reported as a changed address and stored; refused with result 4 while No_Add_Chg froze it); 126 = keep the card's address"),
@@ -855,7 +860,9 @@ pub fn write_markdown(out: &mut impl core::fmt::Write) -> core::fmt::Result {
     writeln!(out, "**Command and state (v3).** The card writes OUTPUTS, then DRIVE_CMD with `OUTPUTS_SEQ` = the")?;
     writeln!(out, "OUTPUTS counter it was made from; the host accepts a DRIVE_CMD / OUTPUTS pair as one bus cycle")?;
     writeln!(out, "when `DRIVE_CMD.OUTPUTS_SEQ` equals `OUTPUTS.SEQ_HEAD` (or is 0), else reads both again. The")?;
-    writeln!(out, "host writes INPUTS, then DRIVE_STATE with `INPUTS_SEQ` = the INPUTS counter it just wrote.")?;
+    writeln!(out, "host writes INPUTS, then DRIVE_STATE with `INPUTS_SEQ` = the INPUTS counter it just wrote. The")?;
+    writeln!(out, "card serves INPUTS to the master only until DRIVE_STATE is first written (a layout 1 / 2 host);")?;
+    writeln!(out, "afterwards the card's profile layer builds the inputs from DRIVE_STATE and ignores INPUTS.")?;
     writeln!(out)?;
     writeln!(
         out,

@@ -58,6 +58,7 @@
 //!   a manufacturer's telegram tagged with its [`Family`].
 
 mod blocks;
+pub mod c_header;
 pub mod codec;
 pub mod host;
 pub mod layout;

@@ -91,12 +91,21 @@
 //! 16 bad address, 18 forbidden writes.
 //!
 //! **Events and the IRQ line.** Bit *i* of the pending-events bitmap stands for
-//! `layout::BLOCKS[i]` (bit 1 STATUS, 2 OUTPUTS, 5 CARD, 8 MBX_REQ — the sequenced blocks the
-//! card writes). It is set while the block's `SEQ_HEAD` differs from the value the host last
-//! read, and cleared by reading: an accepted READ whose range covers both bytes of a block's
-//! `SEQ_HEAD` records the value sent. No separate acknowledge exists, so an update that comes
-//! after the host's read is never lost. The card drives IRQ low while the bitmap is not 0
-//! (level, not edge); reply FLAGS bit 0 mirrors it.
+//! `layout::BLOCKS[i]` (bit 1 STATUS, 2 OUTPUTS, 5 CARD, 8 MBX_REQ, 10 DRIVE_CMD — the
+//! sequenced blocks the card writes). It is set while the block's `SEQ_HEAD` differs from the
+//! value the host last read, and cleared by reading: an accepted READ whose range covers both
+//! bytes of a block's `SEQ_HEAD` records the value sent; a CYCLIC reply counts as a read of
+//! CARD, OUTPUTS and DRIVE_CMD (it carries their news), and of MBX_REQ when its MBX_REQ
+//! fragment starts at offset 0 (at least 2 bytes, sent only while the block is consistent).
+//! No separate acknowledge exists, so an update that comes after the host's read is never
+//! lost. The card drives IRQ low while a pending bit is set that the host has not masked
+//! (level, not edge); reply FLAGS bit 0 mirrors the line. **The mask** is `DRIVE.IRQ_MASK`
+//! (bit set = that event does not assert IRQ; 0, the value of a host that never writes it,
+//! masks nothing; taken while DRIVE is consistent). CARD changes on every card cycle (its
+//! heartbeat) and STATUS with every bus event, so a host that runs the CYCLIC exchange every
+//! cycle typically masks bits 1, 2, 5 and 10 (`0x0426`) and keeps IRQ for MBX_REQ: the line
+//! then means "a parameter request is waiting". The IRQ pin floats during reset and start-up
+//! (the host's pull-up reads "no events"), then is driven push-pull.
 //!
 //! **One drive cycle** (what [`SpiHost::cyclic`] does, under `dpm::host::Host::cycle`): a
 //! CYCLIC request every drive cycle, clocked as long as the longer of it and the expected
@@ -104,8 +113,14 @@
 //! rebuilt from the image after each of its steps while it was armed (so it carries the
 //! newest command). One transaction per drive cycle; when the MISO holds no reply to take
 //! (the first cycle, a block access came between, a late or damaged reply) the same request
-//! is sent once more, whose MISO is the reply to the first: two at most. The CYCLIC grammar
-//! follows at the end of this document.
+//! is sent once more, whose MISO is the reply to the first: two at most. The parameter
+//! mailbox rides along (the reference hosts): when the reply's events show MBX_REQ changed,
+//! the next request asks its fragment from offset 0 (32 bytes: every read, writes of up to
+//! 18 value bytes); an answer goes to MBX_RSP as two request fragments in ascending order —
+//! head and answer, then the tail — each sent until two exchanges in a row that carried it
+//! got their reply (so the tail, which makes the block consistent, is never applied before
+//! the rest). Longer requests and answers use READ / WRITE. The CYCLIC grammar follows at
+//! the end of this document.
 //!
 //! **A host access** (what [`SpiHost`] does): the request in one transaction, and in the
 //! next a STATUS request padded to the expected reply, whose MISO is the reply; anything
@@ -115,6 +130,7 @@ use super::host::{Transport, TransportError};
 use super::layout::{self, Writer, BLOCKS};
 use super::{Dpm, IMAGE_SIZE};
 pub use pipeline::{PipelineStats, ReplyPipeline};
+pub use wire::WireImage;
 
 /// Protocol version, first byte of the STATUS data.
 pub const PROTOCOL_VERSION: u8 = 2;
@@ -134,6 +150,20 @@ pub const MAX_REPLY: usize = REPLY_HEADER + MAX_DATA + CRC_LEN;
 pub const MAX_TRANSACTION: usize = if MAX_REPLY > MAX_REQUEST { MAX_REPLY } else { MAX_REQUEST };
 /// Bytes of STATUS data.
 pub const STATUS_LEN: usize = 20;
+/// Offsets in the STATUS data (the module docs, "STATUS data").
+pub mod status_data {
+    /// u8 [`super::PROTOCOL_VERSION`].
+    pub const VERSION: usize = 0;
+    /// u16 [`super::MAX_DATA`].
+    pub const MAX_DATA: usize = 2;
+    /// u16 the image size.
+    pub const IMAGE_SIZE: usize = 4;
+    /// u16 the pending-events bitmap.
+    pub const EVENTS: usize = 6;
+    /// u16 × 6 counters: frames accepted, CRC errors, bad command, bad length, bad address,
+    /// forbidden writes.
+    pub const COUNTERS: usize = 8;
+}
 /// Time the master leaves the card between two transactions (typical; see the module docs).
 pub const T_READY_US: u32 = 200;
 /// Reply byte 0 when the card had no reply ready for this transaction.
@@ -419,6 +449,18 @@ pub fn host_writable(start: usize, len: usize) -> bool {
     true
 }
 
+/// The host's IRQ mask, `DRIVE.IRQ_MASK` (0 while DRIVE is not consistent).
+pub fn irq_mask(dpm: &Dpm) -> u16 {
+    let img = dpm.as_bytes();
+    let (start, len) = (layout::drive::START, layout::drive::LEN);
+    let head = get16(img, start);
+    if head != 0 && head == get16(img, start + len - 2) {
+        get16(img, start + layout::drive::IRQ_MASK)
+    } else {
+        0
+    }
+}
+
 /// Bits of the events bitmap that can be set: the sequenced blocks the card writes.
 pub const EVENT_BLOCKS: u16 = {
     let mut m = 0u16;
@@ -486,9 +528,10 @@ impl SpiSlave {
         m
     }
 
-    /// The IRQ line: asserted while any event is pending.
+    /// The IRQ line: asserted while any event is pending that the host's `DRIVE.IRQ_MASK`
+    /// does not mask.
     pub fn irq(&self, dpm: &Dpm) -> bool {
-        self.events(dpm) != 0
+        self.events(dpm) & !irq_mask(dpm) != 0
     }
 
     /// Handle one transaction: `rx` is every MOSI byte between NSS falling and rising. An
@@ -558,6 +601,14 @@ impl SpiSlave {
         for b in [&layout::BLOCKS[CARD_BLOCK], &layout::BLOCKS[OUTPUTS_BLOCK], &layout::BLOCKS[DRIVE_CMD_BLOCK]] {
             self.note_read(dpm, b.start, 2);
         }
+        // An MBX_REQ fragment from offset 0 carries its SEQ_HEAD (sent only while the block
+        // is consistent): it counts as a read of the block.
+        let img = dpm.as_bytes();
+        let (start, len) = (layout::mbx_req::START, layout::mbx_req::LEN);
+        let head = get16(img, start);
+        if req.0 == 0 && req.1 >= 2 && head != 0 && head == get16(img, start + len - 2) {
+            self.note_read(dpm, start, 2);
+        }
         let events = self.events(dpm);
         cyclic::build_reply(dpm, events, req, &mut reply[REPLY_HEADER..])
     }
@@ -583,16 +634,16 @@ impl SpiSlave {
 
     fn status_data(&self, dpm: &Dpm, d: &mut [u8]) {
         let s = &self.stats;
-        d[0] = PROTOCOL_VERSION;
-        d[1] = 0;
-        put16(d, 2, MAX_DATA as u16);
-        put16(d, 4, IMAGE_SIZE as u16);
-        put16(d, 6, self.events(dpm));
+        d[status_data::VERSION] = PROTOCOL_VERSION;
+        d[status_data::VERSION + 1] = 0;
+        put16(d, status_data::MAX_DATA, MAX_DATA as u16);
+        put16(d, status_data::IMAGE_SIZE, IMAGE_SIZE as u16);
+        put16(d, status_data::EVENTS, self.events(dpm));
         for (i, c) in [s.frames_ok, s.crc_errors, s.bad_command, s.bad_length, s.bad_address, s.forbidden_writes]
             .into_iter()
             .enumerate()
         {
-            put16(d, 8 + 2 * i, c as u16);
+            put16(d, status_data::COUNTERS + 2 * i, c as u16);
         }
     }
 }
@@ -656,9 +707,15 @@ impl StatusData {
         }
         let mut stats = [0u16; 6];
         for (i, s) in stats.iter_mut().enumerate() {
-            *s = get16(d, 8 + 2 * i);
+            *s = get16(d, status_data::COUNTERS + 2 * i);
         }
-        Some(StatusData { version: d[0], max_data: get16(d, 2), image_size: get16(d, 4), events: get16(d, 6), stats })
+        Some(StatusData {
+            version: d[status_data::VERSION],
+            max_data: get16(d, status_data::MAX_DATA),
+            image_size: get16(d, status_data::IMAGE_SIZE),
+            events: get16(d, status_data::EVENTS),
+            stats,
+        })
     }
 }
 
@@ -777,6 +834,8 @@ pub struct SpiHost<B: SpiBus> {
     /// The TAG of the CYCLIC request sent in the last transaction (its reply comes in the
     /// next one: the next cycle's CYCLIC request fetches it).
     cyclic_pending: Option<u8>,
+    /// MBX_REQ fragment bytes the pending CYCLIC request asked (its reply is that much longer).
+    cyclic_asked: usize,
     /// DATA bytes of the last CYCLIC reply (the next transaction is clocked that long).
     cyclic_reply_len: usize,
 }
@@ -795,6 +854,7 @@ impl<B: SpiBus> SpiHost<B> {
             transactions: 0,
             bytes: 0,
             cyclic_pending: None,
+            cyclic_asked: 0,
             cyclic_reply_len: cyclic::MAX_REPLY_DATA,
         }
     }
@@ -814,7 +874,8 @@ impl<B: SpiBus> SpiHost<B> {
         }
         let k = req.encode(&mut d);
         let frame = REQUEST_HEADER + k + CRC_LEN;
-        let n = frame.max(REPLY_HEADER + self.cyclic_reply_len + CRC_LEN).min(MAX_TRANSACTION);
+        let asked = core::mem::replace(&mut self.cyclic_asked, usize::from(req.req.1));
+        let n = frame.max(REPLY_HEADER + self.cyclic_reply_len + asked + CRC_LEN).min(MAX_TRANSACTION);
         let (tag, _) = self
             .codec
             .encode(Command::Cyclic, 0, k as u16, &d[..k], &mut self.mosi[..n])
@@ -864,7 +925,8 @@ impl<B: SpiBus> SpiHost<B> {
         if !ok {
             return None;
         }
-        self.cyclic_reply_len = r.data.len();
+        // Without its MBX_REQ fragment (the next request says how long that is).
+        self.cyclic_reply_len = r.data.len() - usize::from(r.data[cyclic::rep::REQ_LEN]);
         Some(r.data.len())
     }
 
@@ -1182,6 +1244,7 @@ impl SpiBus for Loopback {
 
 pub mod cyclic;
 pub mod pipeline;
+pub mod wire;
 
 #[cfg(test)]
 mod tests;

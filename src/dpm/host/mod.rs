@@ -304,6 +304,33 @@ pub struct ProcessImage {
     pub outputs: ProcessData,
 }
 
+/// MBX_RSP written through the CYCLIC exchange (issue 16 item 5): the block as encoded, sent
+/// as two fragments in ascending order — head and the answer, then the tail — each repeated
+/// until two exchanges in a row that carried it succeeded (the reply of either answers a
+/// request that carried it, so it was applied), so the tail, which makes the block consistent
+/// for the card, never goes before the rest.
+#[derive(Debug, Clone)]
+struct RspFragments {
+    block: [u8; layout::mbx_rsp::LEN],
+    /// Bytes of the first fragment (head, fields, values).
+    len: usize,
+    /// 0: the first fragment; 1: the tail.
+    phase: u8,
+    /// Successful exchanges in a row that carried the current fragment.
+    carried: u8,
+}
+
+impl RspFragments {
+    const TAIL: usize = layout::mbx_rsp::SEQ_TAIL;
+
+    fn fragment(&self) -> (u8, &[u8]) {
+        match self.phase {
+            0 => (0, &self.block[..self.len]),
+            _ => (Self::TAIL as u8, &self.block[Self::TAIL..]),
+        }
+    }
+}
+
 /// Counters of the [`Host`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct HostStats {
@@ -367,6 +394,12 @@ pub struct Host<T> {
     report_written: Option<DriveReport>,
     /// From the last CYCLIC reply: whether MBX_REQ changed (`None`: unknown, look).
     mailbox_hint: Option<bool>,
+    /// A whole MBX_REQ carried by a CYCLIC reply's fragment (its counter and request), for
+    /// [`Self::fetch_request`]; `Err(())`: the request is longer than one fragment (read the
+    /// block).
+    fragment: Option<Result<(u16, Option<MailboxRequest>), ()>>,
+    /// A response on its way through the CYCLIC exchange's MBX_RSP fragments.
+    rsp_out: Option<RspFragments>,
     request_seen: u16,
     /// `MBX_REQ.SEQ_HEAD` of the last consistent read of MBX_REQ (0 = none yet).
     request_block_seq: u16,
@@ -421,6 +454,8 @@ impl<T: Transport> Host<T> {
             boot_id: 0,
             report_written: None,
             mailbox_hint: None,
+            fragment: None,
+            rsp_out: None,
             request_seen: 0,
             request_block_seq: 0,
             request_open: None,
@@ -663,6 +698,13 @@ impl<T: Transport> Host<T> {
         Ok(())
     }
 
+    /// Set the IRQ mask (`DRIVE.IRQ_MASK`, `docs/SPI.md` "Events and the IRQ line"): bits of
+    /// the pending-events bitmap that do not assert the card's IRQ line (0 = none masked).
+    /// Written with the next [`Self::poll`] / [`Self::cycle`].
+    pub fn set_irq_mask(&mut self, mask: u16) {
+        self.report.irq_mask = mask;
+    }
+
     /// What the next [`Self::poll`] writes to DRIVE (heartbeat excepted).
     pub fn drive_report(&self) -> &DriveReport {
         &self.report
@@ -682,14 +724,7 @@ impl<T: Transport> Host<T> {
         let mut error = None;
         if self.has(cap::DRIVE_REPORTS) {
             self.heartbeat = next_seq(self.heartbeat);
-            let mut report = self.report;
-            report.heartbeat = self.heartbeat;
-            let mut seq = self.seq_drive;
-            match self.write(&codec::DRIVE, &report, &mut seq) {
-                Ok(_) => self.report_written = Some(self.report),
-                Err(e) => error = Some(e),
-            }
-            self.seq_drive = seq;
+            error = self.write_drive().err();
         }
         let report = if self.has(cap::CARD_EVENTS) {
             match self.read(&codec::CARD) {
@@ -704,6 +739,20 @@ impl<T: Transport> Host<T> {
         };
         let seen = report.map(|r| (r.heartbeat, r.events, r.boot_id));
         self.observe_card(now, seen, report, error)
+    }
+
+    /// Write DRIVE whole: the report with the heartbeat as it is now, the next counter (the
+    /// block path of [`Self::poll`] and a changed report in [`Self::cycle`]).
+    fn write_drive(&mut self) -> Result<u16, Error> {
+        let mut report = self.report;
+        report.heartbeat = self.heartbeat;
+        let mut seq = self.seq_drive;
+        let r = self.write(&codec::DRIVE, &report, &mut seq);
+        self.seq_drive = seq;
+        if r.is_ok() {
+            self.report_written = Some(self.report);
+        }
+        r
     }
 
     /// The card part of a poll or a cycle: the heartbeat judged (`card` = heartbeat, event
@@ -757,8 +806,11 @@ impl<T: Transport> Host<T> {
     /// boot id, communication state and the newest drive-neutral command (DRIVE_CMD, sized
     /// to the telegram) in. Over the SPI frames this is the CYCLIC exchange: one transaction
     /// per cycle in the steady state, two at most (`docs/SPI.md`); a changed fault / warning
-    /// report or extended diagnosis adds one DRIVE write, a new mailbox request is left to
-    /// [`Self::serve_parameters`] (the reply's events say when). A transport without CYCLIC
+    /// report or extended diagnosis adds one DRIVE write. The mailbox rides along: when the
+    /// reply's events say MBX_REQ changed, the next request asks its first fragment, which
+    /// [`Self::fetch_request`] / [`Self::serve_parameters`] take without a block access, and
+    /// an answer from [`Self::respond`] goes to MBX_RSP as two request fragments (a request
+    /// or answer longer than one fragment falls back to a block access). A transport without CYCLIC
     /// (a dual-port RAM) does the same with block accesses ([`Self::poll`],
     /// [`Self::status`], [`Self::read_command`], [`Self::write_state`]).
     pub fn cycle(&mut self, now: Instant, state: &DriveStateImage) -> Cycle {
@@ -776,6 +828,7 @@ impl<T: Transport> Host<T> {
             poll.error = poll.error.or(Some(e));
         }
         self.mailbox_hint = None;
+        self.fragment = None;
         Cycle { poll, command, comm, cyclic: false }
     }
 
@@ -786,14 +839,7 @@ impl<T: Transport> Host<T> {
         self.heartbeat = next_seq(self.heartbeat);
         if self.report_written != Some(self.report) {
             // The report changed: DRIVE whole this cycle (with the new heartbeat).
-            let mut report = self.report;
-            report.heartbeat = self.heartbeat;
-            let mut seq = self.seq_drive;
-            match self.write(&codec::DRIVE, &report, &mut seq) {
-                Ok(_) => self.report_written = Some(self.report),
-                Err(e) => error = Some(e),
-            }
-            self.seq_drive = seq;
+            error = self.write_drive().err();
             drive_seq = 0;
         }
         let state_seq = next_seq(self.seq_state);
@@ -813,8 +859,13 @@ impl<T: Transport> Host<T> {
             drive_seq,
             state_seq,
             state: &blk[flags..flags + n],
-            rsp: (0, &[]),
-            req: (0, 0),
+            rsp: self.rsp_out.as_ref().map_or((0, &[][..]), RspFragments::fragment),
+            // MBX_REQ changed (or not known yet): its first fragment comes with the reply.
+            req: if self.has(cap::MAILBOX) && self.mailbox_hint != Some(false) {
+                (0, cyclic::MAX_FRAGMENT as u8)
+            } else {
+                (0, 0)
+            },
         };
         let mut out = [0u8; cyclic::MAX_REPLY_DATA];
         let r = self.transport.cyclic(&req, &mut out)?;
@@ -831,12 +882,17 @@ impl<T: Transport> Host<T> {
             }
         };
         let Some(reply) = reply else {
+            self.rsp_progress(false);
             self.mailbox_hint = None;
             let poll = self.observe_card(now, None, None, error.or(Some(Error::Transport(TransportError::Corrupt))));
             return Some(Cycle { poll, command: None, comm: None, cyclic: true });
         };
         let mbx_bit = 1u16 << MBX_REQ_BLOCK;
         self.mailbox_hint = Some(reply.events & mbx_bit != 0);
+        self.rsp_progress(true);
+        if reply.request.len() == cyclic::MAX_FRAGMENT {
+            self.fragment = Some(Self::request_of_fragment(reply.request));
+        }
         let command = if reply.command_seq != 0 {
             let mut b = [0u8; layout::drive_cmd::LEN];
             let c = reply.command;
@@ -856,17 +912,41 @@ impl<T: Transport> Host<T> {
     // -----------------------------------------------------------------------------------
     // Parameter mailbox
 
+    /// MBX_REQ from a CYCLIC reply's fragment (offset 0, [`cyclic::MAX_FRAGMENT`] bytes of a
+    /// block the card sent while consistent): the whole request when its values fit the
+    /// fragment (every read, writes of up to 18 bytes), else `Err(())`.
+    fn request_of_fragment(f: &[u8]) -> Result<(u16, Option<MailboxRequest>), ()> {
+        use layout::mbx_req;
+        let values = usize::from(f[mbx_req::VALUES_LEN]).min(layout::MBX_CAPACITY);
+        if mbx_req::VALUES + values > f.len() {
+            return Err(());
+        }
+        let mut b = [0u8; mbx_req::LEN];
+        b[..f.len()].copy_from_slice(f);
+        b.copy_within(mbx_req::SEQ_HEAD..mbx_req::SEQ_HEAD + 2, mbx_req::SEQ_TAIL);
+        codec::MBX_REQ.decode(&b).map_err(|_| ())
+    }
+
     /// A new request in MBX_REQ, once (`None`: none, or already taken). The answer goes back
-    /// with [`Self::respond`].
+    /// with [`Self::respond`]. After a [`Self::cycle`] over the CYCLIC exchange the request
+    /// comes in a mailbox fragment of the exchange (issue 16 item 5): no block access; the
+    /// block is read only for a request whose values do not fit one fragment.
     pub fn fetch_request(&mut self) -> Result<Option<MailboxRequest>, Error> {
         self.require(cap::MAILBOX)?;
+        match self.fragment.take() {
+            Some(Ok((seq, req))) => {
+                self.request_block_seq = seq;
+                return Ok(self.take_request(req));
+            }
+            Some(Err(())) => {}
+            // The last CYCLIC reply said MBX_REQ is unchanged since the host read it, or
+            // changed: its fragment comes with the next reply.
+            None if self.mailbox_hint.is_some() => return Ok(None),
+            None => {}
+        }
         // The card starts every write of MBX_REQ with a new SEQ_HEAD: while it is the value
         // of the last consistent read, the block holds what was read then (no new request),
         // and two bytes answer instead of the whole block (the drive polls every cycle).
-        if self.request_block_seq != 0 && self.mailbox_hint == Some(false) {
-            // The last CYCLIC reply said MBX_REQ is unchanged since the host read it.
-            return Ok(None);
-        }
         if self.request_block_seq != 0 {
             match self.read_u16(codec::MBX_REQ.start()) {
                 Ok(head) if head == self.request_block_seq => return Ok(None),
@@ -876,14 +956,19 @@ impl<T: Transport> Host<T> {
         }
         let (seq, req) = self.read(&codec::MBX_REQ)?;
         self.request_block_seq = seq;
+        Ok(self.take_request(req))
+    }
+
+    /// `req` (MBX_REQ as read) if it is a new request.
+    fn take_request(&mut self, req: Option<MailboxRequest>) -> Option<MailboxRequest> {
         match req {
             Some(r) if r.id != self.request_seen => {
                 self.request_seen = r.id;
                 self.request_open = Some(r.id);
                 self.stats.requests = self.stats.requests.wrapping_add(1);
-                Ok(Some(r))
+                Some(r)
             }
-            _ => Ok(None),
+            _ => None,
         }
     }
 
@@ -898,8 +983,14 @@ impl<T: Transport> Host<T> {
     /// response only when its `REQ_ID` names the outstanding request.
     pub fn respond(&mut self, id: u16, outcome: Result<ParamValues, ParamError>) -> Result<(), Error> {
         self.require(cap::MAILBOX)?;
-        let (_, req) = self.read(&codec::MBX_REQ)?;
-        let current = req.map_or(0, |r| r.id);
+        // Over the CYCLIC exchange the last reply says whether MBX_REQ changed since the
+        // request was taken; else (or when it did) the block tells.
+        let current = if self.mailbox_hint == Some(false) && self.fragment.is_none() && self.request_seen == id {
+            id
+        } else {
+            let (_, req) = self.read(&codec::MBX_REQ)?;
+            req.map_or(0, |r| r.id)
+        };
         if current != id {
             self.stats.stale_responses = self.stats.stale_responses.wrapping_add(1);
             if self.request_open == Some(id) {
@@ -907,13 +998,48 @@ impl<T: Transport> Host<T> {
             }
             return Err(Error::StaleResponse { id, current });
         }
+        let rsp = MailboxResponse { id, outcome };
+        if self.mailbox_hint.is_some() {
+            // CYCLIC: through MBX_RSP fragments, if the answer fits one.
+            let mut block = [0u8; layout::mbx_rsp::LEN];
+            let seq = next_seq(self.seq_rsp);
+            let values = outcome.map_or(0, |v| v.bytes().len());
+            let len = layout::mbx_rsp::VALUES + values;
+            if len <= cyclic::MAX_FRAGMENT && codec::MBX_RSP.encode(&rsp, seq, &mut block).is_ok() {
+                self.seq_rsp = seq;
+                self.rsp_out = Some(RspFragments { block, len, phase: 0, carried: 0 });
+                self.request_open = None;
+                return Ok(());
+            }
+        }
+        self.rsp_out = None;
         let mut seq = self.seq_rsp;
-        let r = self.write(&codec::MBX_RSP, &MailboxResponse { id, outcome }, &mut seq);
+        let r = self.write(&codec::MBX_RSP, &rsp, &mut seq);
         self.seq_rsp = seq;
         r?;
         self.request_open = None;
         self.stats.responses = self.stats.responses.wrapping_add(1);
         Ok(())
+    }
+
+    /// A CYCLIC exchange that carried the pending MBX_RSP fragment ended (`ok`: its reply was
+    /// taken): two in a row move to the next fragment; after the tail the response is done.
+    fn rsp_progress(&mut self, ok: bool) {
+        let Some(r) = self.rsp_out.as_mut() else { return };
+        if !ok {
+            r.carried = 0;
+            return;
+        }
+        r.carried += 1;
+        if r.carried < 2 {
+            return;
+        }
+        r.carried = 0;
+        r.phase += 1;
+        if r.phase > 1 {
+            self.rsp_out = None;
+            self.stats.responses = self.stats.responses.wrapping_add(1);
+        }
     }
 
     /// Fetch a new request and hand it to `server`; an immediate answer is written at once.

@@ -47,10 +47,56 @@ use super::{get16, put16, REPLY_HEADER};
 use crate::dpm::layout::{card, drive, drive_cmd, drive_state, mbx_req, mbx_rsp, status};
 use crate::dpm::Dpm;
 
+/// Offsets in the request DATA (the table of the module docs).
+pub mod req {
+    /// u16 the drive's heartbeat.
+    pub const HEARTBEAT: usize = 0;
+    /// u16 new DRIVE counter (0 = DRIVE untouched).
+    pub const DRIVE_SEQ: usize = 2;
+    /// u16 new DRIVE_STATE counter (0 = DRIVE_STATE untouched).
+    pub const STATE_SEQ: usize = 4;
+    /// u8 bytes of DRIVE_STATE from its FLAGS field.
+    pub const STATE_LEN: usize = 6;
+    /// u8 MBX_RSP fragment: offset.
+    pub const RSP_OFF: usize = 7;
+    /// u8 MBX_RSP fragment: bytes.
+    pub const RSP_LEN: usize = 8;
+    /// u8 MBX_REQ fragment wanted: offset.
+    pub const REQ_OFF: usize = 9;
+    /// u8 MBX_REQ fragment wanted: bytes.
+    pub const REQ_LEN: usize = 10;
+    /// DRIVE_STATE bytes, then the MBX_RSP fragment.
+    pub const STATE: usize = 11;
+}
+
+/// Offsets in the reply DATA (the table of the module docs).
+pub mod rep {
+    /// u16 the pending-events bitmap.
+    pub const EVENTS: usize = 0;
+    /// u16 `CARD.HEARTBEAT`.
+    pub const CARD_HEARTBEAT: usize = 2;
+    /// u8 `CARD.FLAGS`.
+    pub const CARD_FLAGS: usize = 4;
+    /// u8 `STATUS.COMM_STATE`.
+    pub const COMM_STATE: usize = 5;
+    /// u16 `CARD.BOOT_ID`.
+    pub const BOOT_ID: usize = 6;
+    /// u8 × 8 `CARD.EVENTS`.
+    pub const CARD_EVENTS: usize = 8;
+    /// u16 `DRIVE_CMD.SEQ_HEAD` (0 = no consistent command).
+    pub const CMD_SEQ: usize = 16;
+    /// u8 bytes of DRIVE_CMD from FLAGS.
+    pub const CMD_LEN: usize = 18;
+    /// u8 bytes of the MBX_REQ fragment.
+    pub const REQ_LEN: usize = 19;
+    /// DRIVE_CMD bytes, then the MBX_REQ fragment.
+    pub const CMD: usize = 20;
+}
+
 /// Request DATA before STATE.
-pub const REQUEST_FIXED: usize = 11;
+pub const REQUEST_FIXED: usize = req::STATE;
 /// Reply DATA before CMD.
-pub const REPLY_FIXED: usize = 20;
+pub const REPLY_FIXED: usize = rep::CMD;
 /// Bytes of DRIVE_STATE payload (from FLAGS to the tail).
 pub const STATE_PAYLOAD: usize = drive_state::SEQ_TAIL - drive_state::FLAGS;
 /// Bytes of DRIVE_STATE without the extra words: FLAGS through NAMUR.
@@ -88,8 +134,8 @@ impl<'a> CyclicRequest<'a> {
         if d.len() < REQUEST_FIXED {
             return None;
         }
-        let (s, r) = (usize::from(d[6]), usize::from(d[8]));
-        let (rsp_off, req_off, req_len) = (d[7], d[9], d[10]);
+        let (s, r) = (usize::from(d[req::STATE_LEN]), usize::from(d[req::RSP_LEN]));
+        let (rsp_off, req_off, req_len) = (d[req::RSP_OFF], d[req::REQ_OFF], d[req::REQ_LEN]);
         let fits = |off: u8, len: usize, block: usize| len <= MAX_FRAGMENT && usize::from(off) + len <= block;
         if d.len() != REQUEST_FIXED + s + r
             || s > STATE_PAYLOAD
@@ -99,9 +145,9 @@ impl<'a> CyclicRequest<'a> {
             return None;
         }
         Some(CyclicRequest {
-            heartbeat: get16(d, 0),
-            drive_seq: get16(d, 2),
-            state_seq: get16(d, 4),
+            heartbeat: get16(d, req::HEARTBEAT),
+            drive_seq: get16(d, req::DRIVE_SEQ),
+            state_seq: get16(d, req::STATE_SEQ),
             state: &d[REQUEST_FIXED..REQUEST_FIXED + s],
             rsp: (rsp_off, &d[REQUEST_FIXED + s..]),
             req: (req_off, req_len),
@@ -111,14 +157,14 @@ impl<'a> CyclicRequest<'a> {
     /// Encode the DATA into `out` (at least [`Self::len`] bytes); returns its length.
     pub fn encode(&self, out: &mut [u8]) -> usize {
         let (s, r) = (self.state.len(), self.rsp.1.len());
-        put16(out, 0, self.heartbeat);
-        put16(out, 2, self.drive_seq);
-        put16(out, 4, self.state_seq);
-        out[6] = s as u8;
-        out[7] = self.rsp.0;
-        out[8] = r as u8;
-        out[9] = self.req.0;
-        out[10] = self.req.1;
+        put16(out, req::HEARTBEAT, self.heartbeat);
+        put16(out, req::DRIVE_SEQ, self.drive_seq);
+        put16(out, req::STATE_SEQ, self.state_seq);
+        out[req::STATE_LEN] = s as u8;
+        out[req::RSP_OFF] = self.rsp.0;
+        out[req::RSP_LEN] = r as u8;
+        out[req::REQ_OFF] = self.req.0;
+        out[req::REQ_LEN] = self.req.1;
         out[REQUEST_FIXED..REQUEST_FIXED + s].copy_from_slice(self.state);
         out[REQUEST_FIXED + s..REQUEST_FIXED + s + r].copy_from_slice(self.rsp.1);
         REQUEST_FIXED + s + r
@@ -168,34 +214,34 @@ pub fn build_reply(dpm: &Dpm, events: u16, req: (u8, u8), out: &mut [u8]) -> usi
         let h = get16(img, start);
         h != 0 && h == get16(img, start + len - 2)
     };
-    put16(out, 0, events);
+    put16(out, rep::EVENTS, events);
     let c = &img[card::START..card::START + card::LEN];
-    out[2..4].copy_from_slice(&c[card::HEARTBEAT..card::HEARTBEAT + 2]);
-    out[4] = c[card::FLAGS];
-    out[5] = img[status::START + status::COMM_STATE];
-    out[6..8].copy_from_slice(&c[card::BOOT_ID..card::BOOT_ID + 2]);
-    out[8..16].copy_from_slice(&c[card::EVENTS..card::EVENTS + 8]);
+    out[rep::CARD_HEARTBEAT..rep::CARD_HEARTBEAT + 2].copy_from_slice(&c[card::HEARTBEAT..card::HEARTBEAT + 2]);
+    out[rep::CARD_FLAGS] = c[card::FLAGS];
+    out[rep::COMM_STATE] = img[status::START + status::COMM_STATE];
+    out[rep::BOOT_ID..rep::BOOT_ID + 2].copy_from_slice(&c[card::BOOT_ID..card::BOOT_ID + 2]);
+    out[rep::CARD_EVENTS..rep::CMD_SEQ].copy_from_slice(&c[card::EVENTS..card::EVENTS + 8]);
     let mut n = REPLY_FIXED;
     if consistent(drive_cmd::START, drive_cmd::LEN) {
         let b = &img[drive_cmd::START..drive_cmd::START + drive_cmd::LEN];
         let words = usize::from(b[drive_cmd::EXTRA_COUNT]).min((drive_cmd::SEQ_TAIL - drive_cmd::EXTRA) / 2);
         let len = CMD_BASE + 2 * words;
-        out[16..18].copy_from_slice(&b[..2]);
-        out[18] = len as u8;
+        out[rep::CMD_SEQ..rep::CMD_SEQ + 2].copy_from_slice(&b[..2]);
+        out[rep::CMD_LEN] = len as u8;
         out[n..n + len].copy_from_slice(&b[drive_cmd::FLAGS..drive_cmd::FLAGS + len]);
         n += len;
     } else {
-        put16(out, 16, 0);
-        out[18] = 0;
+        put16(out, rep::CMD_SEQ, 0);
+        out[rep::CMD_LEN] = 0;
     }
     let (off, len) = (usize::from(req.0), usize::from(req.1));
     if len > 0 && consistent(mbx_req::START, mbx_req::LEN) {
         let at = mbx_req::START + off;
         out[n..n + len].copy_from_slice(&img[at..at + len]);
-        out[19] = len as u8;
+        out[rep::REQ_LEN] = len as u8;
         n += len;
     } else {
-        out[19] = 0;
+        out[rep::REQ_LEN] = 0;
     }
     n
 }
@@ -229,24 +275,27 @@ impl<'a> CyclicReply<'a> {
         if d.len() < REPLY_FIXED {
             return None;
         }
-        let (c, q) = (usize::from(d[18]), usize::from(d[19]));
+        let (c, q) = (usize::from(d[rep::CMD_LEN]), usize::from(d[rep::REQ_LEN]));
         if d.len() != REPLY_FIXED + c + q || c > drive_cmd::SEQ_TAIL - drive_cmd::FLAGS {
             return None;
         }
         let mut card_events = [0u8; 8];
-        card_events.copy_from_slice(&d[8..16]);
+        card_events.copy_from_slice(&d[rep::CARD_EVENTS..rep::CMD_SEQ]);
         Some(CyclicReply {
-            events: get16(d, 0),
-            card_heartbeat: get16(d, 2),
-            card_flags: d[4],
-            comm_state: d[5],
-            boot_id: get16(d, 6),
+            events: get16(d, rep::EVENTS),
+            card_heartbeat: get16(d, rep::CARD_HEARTBEAT),
+            card_flags: d[rep::CARD_FLAGS],
+            comm_state: d[rep::COMM_STATE],
+            boot_id: get16(d, rep::BOOT_ID),
             card_events,
-            command_seq: get16(d, 16),
+            command_seq: get16(d, rep::CMD_SEQ),
             command: &d[REPLY_FIXED..REPLY_FIXED + c],
             request: &d[REPLY_FIXED + c..],
         })
     }
 }
 
-const _: () = assert!(REPLY_HEADER + MAX_REPLY_DATA + 2 <= super::MAX_REPLY);
+const _: () = {
+    assert!(REPLY_HEADER + MAX_REPLY_DATA + 2 <= super::MAX_REPLY);
+    assert!(rep::CMD_SEQ - rep::CARD_EVENTS == crate::dpm::layout::CARD_EVENT_COUNT);
+};

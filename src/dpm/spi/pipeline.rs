@@ -95,6 +95,11 @@ impl<B> ReplyPipeline<B> {
         }
     }
 
+    /// A buffer taken with [`Self::buffer`] and not used (a refresh that came too late).
+    pub fn release(&mut self, buf: B) {
+        self.put_free(buf);
+    }
+
     /// The counters.
     pub fn stats(&self) -> PipelineStats {
         self.stats

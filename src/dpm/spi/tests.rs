@@ -412,6 +412,50 @@ fn events_are_set_by_card_writes_and_cleared_by_reading_seq_head() {
     assert_eq!(lb.slave().events(lb.dpm()), 1 << 5);
 }
 
+/// Issue 16 item 4: the host's `DRIVE.IRQ_MASK` keeps the per-cycle blocks off the IRQ line
+/// (the bitmap still shows them); an MBX_REQ fragment from offset 0 in a CYCLIC reply counts
+/// as a read of MBX_REQ.
+#[test]
+fn the_irq_mask_keeps_masked_events_off_the_line_and_a_fragment_reads_mbx_req() {
+    let mut host = SpiHost::new(Loopback::new(Dpm::new()));
+    let lb = host.bus_mut();
+    lb.dpm_mut().card().write_card_report(&Default::default());
+    lb.dpm_mut().card().write_status(&Status::INACTIVE);
+    assert!(lb.irq(), "unmasked: CARD and STATUS assert IRQ");
+    let mask = EVENT_BLOCKS & !(1 << 8);
+    assert_eq!(mask, 0x0426, "STATUS, OUTPUTS, CARD, DRIVE_CMD: the value the docs suggest");
+    lb.dpm_mut().host().write_drive_report(&crate::dpm::DriveReport {
+        heartbeat: 1,
+        irq_mask: mask,
+        ..Default::default()
+    });
+    assert_eq!(irq_mask(lb.dpm()), mask);
+    assert!(!lb.irq(), "masked");
+    assert_eq!(lb.slave().events(lb.dpm()), 0b10_0010, "the bitmap is not masked");
+    // A parameter request asserts IRQ, and the reply FLAGS mirror the line.
+    let req = crate::dpm::MailboxRequest { id: 7, ..crate::dpm::MailboxRequest::read(1, 100, 0, 1) };
+    lb.dpm_mut().card().write_request(&req);
+    assert!(lb.irq());
+    host.status().unwrap();
+    assert!(host.events_pending());
+    // A CYCLIC exchange asking MBX_REQ from offset 0 takes the request and clears the event.
+    let r = cyclic::CyclicRequest { heartbeat: 1, drive_seq: 0, state_seq: 0, state: &[], rsp: (0, &[]), req: (0, 32) };
+    let d = host.cyclic(&r).unwrap();
+    let reply = cyclic::CyclicReply::decode(d).unwrap();
+    assert_eq!(reply.request.len(), 32);
+    assert_eq!(u16::from_be_bytes([reply.request[2], reply.request[3]]), 7, "REQ_ID");
+    assert!(!host.bus().irq(), "the fragment read MBX_REQ");
+    // A fragment elsewhere is no read of SEQ_HEAD (the armed reply of the last request is
+    // refreshed with its own fragment first: one exchange to pass it).
+    let r = cyclic::CyclicRequest { req: (2, 8), ..r };
+    host.cyclic(&r).unwrap();
+    let req = crate::dpm::MailboxRequest { id: 8, ..req };
+    host.bus_mut().dpm_mut().card().write_request(&req);
+    host.cyclic(&r).unwrap();
+    host.cyclic(&r).unwrap();
+    assert!(host.bus().irq(), "MBX_REQ still unread");
+}
+
 // ---------------------------------------------------------------------------------------
 // The pipelined host against a busy card
 

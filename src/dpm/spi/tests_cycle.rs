@@ -346,3 +346,60 @@ proptest! {
         }
     }
 }
+
+/// Issue 16 item 5: a drive on `Host::cycle` serves the parameter mailbox through the CYCLIC
+/// exchange's fragments (MBX_REQ in a reply, MBX_RSP in two request fragments): one
+/// transaction per drive cycle throughout, no block access; the card takes the answer.
+#[test]
+fn a_cycle_drive_serves_the_mailbox_through_fragments_only() {
+    use crate::dpm::host::Answer;
+    use crate::dpm::{Mailbox, MailboxRequest, ParamValues};
+    let (mut link, mut node) = (Link::new(), Node::new(DpSlave::new(SLAVE)));
+    let bus = Cut { card: Loopback::new(Dpm::new()), left: None };
+    let mut host = Host::open(SpiHost::new(bus), Options::DEFAULT).unwrap();
+    host.set_irq_mask(crate::dpm::spi::EVENT_BLOCKS & !(1 << 8));
+    let mut now = Instant::from_millis(0);
+    for i in 0..4 {
+        now = now + Duration::from_millis(1);
+        card_step(&mut link, &mut node, &mut host, now);
+        assert!(host.cycle(now, &state(i)).cyclic);
+    }
+    assert!(!host.transport().bus().card.irq(), "only CARD / STATUS / DRIVE_CMD news: masked");
+    let values = ParamValues::new(crate::profile::param::Format::WORD, 1, &[0x12, 0x34]).unwrap();
+    let mut mbx = Mailbox::new(Duration::from_millis(500));
+    let read = MailboxRequest::read(1, 100, 0, 1);
+    let id = mbx.submit(now, &read, false, &mut host.transport_mut().bus_mut().card.dpm_mut().card()).unwrap();
+    assert!(host.transport().bus().card.irq(), "a request asserts IRQ");
+    let (t0, _) = host.transport().traffic();
+    let (mut cycles, mut served, mut answer) = (0, None, None);
+    for i in 0..12 {
+        now = now + Duration::from_millis(1);
+        card_step(&mut link, &mut node, &mut host, now);
+        mbx.poll(now, host.transport().bus().card.dpm());
+        if let Some(a) = mbx.take() {
+            answer = Some(a);
+            break;
+        }
+        let c = host.cycle(now, &state(10 + i));
+        assert!(c.cyclic && c.poll.error.is_none(), "{c:?}");
+        cycles += 1;
+        let r = host.serve_parameters(&mut |q: &MailboxRequest| {
+            assert_eq!((q.pnu, q.kind), (100, read.kind));
+            Answer::Now(Ok(values))
+        });
+        served = served.or(r.unwrap());
+    }
+    assert_eq!(served, Some(id), "the request came in a fragment");
+    assert_eq!(answer, Some((id, Ok(values))), "the card took the fragmented answer");
+    // The host counts the answer written once the tail was carried twice.
+    for i in 0..2 {
+        now = now + Duration::from_millis(1);
+        card_step(&mut link, &mut node, &mut host, now);
+        host.cycle(now, &state(30 + i));
+        cycles += 1;
+    }
+    assert_eq!(host.stats().responses, 1);
+    let (t1, _) = host.transport().traffic();
+    assert_eq!(t1 - t0, cycles, "one transaction per cycle: no block access for the mailbox");
+    println!("mailbox through CYCLIC fragments: answer after {cycles} drive cycles");
+}

@@ -1,0 +1,19 @@
+//! Builds the C reference host (`c-host/`, issue 16 item 5) and its test drive with the system
+//! C compiler, warnings as errors, for the end-to-end test `tests/c_host.rs`.
+fn main() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../c-host");
+    for f in ["include/pbcard_dpm.h", "include/pbcard_host.h", "src/pbcard_host.c", "test/drive.c"] {
+        println!("cargo:rerun-if-changed={}", root.join(f).display());
+    }
+    cc::Build::new()
+        .include(root.join("include"))
+        .file(root.join("src/pbcard_host.c"))
+        .file(root.join("test/drive.c"))
+        .flag("-std=c99")
+        .flag("-pedantic")
+        .flag("-Wall")
+        .flag("-Wextra")
+        .flag("-Werror")
+        .warnings_into_errors(true)
+        .compile("pbcard_c_host");
+}

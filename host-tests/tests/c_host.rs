@@ -1,0 +1,227 @@
+//! The C reference host end to end (issue 16 item 5): `c-host/src/pbcard_host.c` and a small C
+//! drive (`c-host/test/drive.c`), compiled with the system C compiler, drive the card through
+//! the SPI frames of `docs/SPI.md` — the C host's transfer callback is the card's own SPI
+//! slave with the board's reply pipeline (`Loopback` inside `Application::card_only`, the
+//! board firmware's application). A scripted DP master brings the card up and exchanges
+//! ST1 / DP-V1 telegrams with it; the test checks bytes on both sides: open, CONFIG (the
+//! start-up gate opens), STW1 / setpoint reaching the C drive, its actual speed reaching the
+//! master, a parameter request answered by the C drive through the mailbox, a card restart
+//! seen by BOOT_ID, and the per-cycle budget.
+
+use host_tests::c_host::{config, result, CDrive};
+use pbcard::app::Application;
+use pbcard::card;
+use pbcard::dp::{DpSlave, DpState};
+use pbcard::dpm::spi::{crc16, BusFault, SpiBus};
+use pbcard::fdl::telegram;
+use pbcard::node::Node;
+use pbcard::testkit::{self, Frame, Rig, ScriptedMaster, SetPrm};
+use pbcard::time::{Baudrate, Duration, Instant};
+
+const MASTER: u8 = 2;
+const SLAVE: u8 = 5;
+/// The drive's SPI clock (the budget's time base) and its per-cycle SPI budget.
+const SCK_HZ: u32 = 10_000_000;
+const BUDGET_US: u32 = 1000;
+
+/// The card as the C host's SPI bus: the board firmware's application (card only), whose
+/// in-process SPI slave owns the DPM image.
+struct Card {
+    app: Application,
+}
+
+impl SpiBus for Card {
+    fn transfer(&mut self, mosi: &[u8], miso: &mut [u8]) -> Result<(), BusFault> {
+        self.app.host_mut().transport_mut().bus_mut().transfer(mosi, miso)
+    }
+}
+
+fn card(boot_id: u16) -> Card {
+    let mut app = Application::card_only();
+    app.set_baudrate(Some(Baudrate::B1500k));
+    app.link_mut().set_boot_id(boot_id);
+    Card { app }
+}
+
+struct Bench {
+    node: Node,
+    drive: CDrive<Card>,
+    master: ScriptedMaster,
+    now: Instant,
+    budget_us: u32,
+    results: Vec<i32>,
+}
+
+impl Bench {
+    fn new() -> Self {
+        Bench {
+            node: Node::new(DpSlave::new(SLAVE)),
+            drive: CDrive::new(card(0x1111), SCK_HZ, 0),
+            master: ScriptedMaster::new(MASTER, SLAVE),
+            now: Instant::from_millis(0),
+            budget_us: BUDGET_US,
+            results: vec![],
+        }
+    }
+
+    fn app(&mut self) -> &mut Application {
+        &mut self.drive.bus_mut().app
+    }
+
+    /// `n` milliseconds: each one card step, then one C drive cycle.
+    fn run(&mut self, n: u32) {
+        for _ in 0..n {
+            self.now = self.now + Duration::from_millis(1);
+            let now = self.now;
+            self.drive.bus_mut().app.step(now, &mut self.node);
+            let ms = (now.as_micros() / 1000) as u32;
+            let r = self.drive.step(ms, self.budget_us);
+            self.results.push(r);
+            let (_, _, used) = self.drive.last_traffic();
+            assert!(used <= self.budget_us, "a cycle used {used} µs of a {} µs budget", self.budget_us);
+        }
+    }
+
+    /// One MSAC_C1 request and the DP-V1 task over the mailbox-backed parameters; the
+    /// response PDU of the poll that follows.
+    fn c1(&mut self, pdu: &[u8]) -> Vec<u8> {
+        let f = self.master.request(MASTER, Some(51), Some(51), pdu, true);
+        assert_eq!(testkit::feed(&mut self.node, self.now, &f).as_deref(), Some(&[telegram::SC][..]));
+        let now = self.now;
+        let (node, drive) = (&mut self.node, &mut self.drive);
+        node.process_acyclic(now, &mut drive.bus_mut().app.parameters(now));
+        let f = self.master.request(MASTER, Some(51), Some(51), &[], true);
+        let r = testkit::feed(&mut self.node, self.now, &f).expect("a response");
+        assert_eq!(r[0], 0x68, "a response PDU: {r:02X?}");
+        r[9..r.len() - 2].to_vec()
+    }
+}
+
+impl Rig for Bench {
+    fn master(&mut self) -> &mut ScriptedMaster {
+        &mut self.master
+    }
+    fn deliver(&mut self, frame: &[u8]) -> Option<Frame> {
+        testkit::feed(&mut self.node, self.now, frame)
+    }
+    fn settle(&mut self) {
+        self.run(1);
+    }
+    fn dp_state(&self) -> DpState {
+        self.node.slave().state()
+    }
+    fn input_len(&self) -> usize {
+        self.node.slave().input_len()
+    }
+}
+
+fn words(b: &[u8]) -> Vec<u16> {
+    b.chunks(2).map(|w| u16::from_be_bytes([w[0], w[1]])).collect()
+}
+
+#[test]
+fn the_c_host_drives_the_card_end_to_end() {
+    let mut b = Bench::new();
+    assert_eq!(b.drive.crc16(b"123456789"), crc16(b"123456789"), "the C CRC is the card's");
+    // Open (header, STATUS, the host blocks' counters), CONFIG written and taken over.
+    b.run(10);
+    assert_eq!(b.drive.boot(), (0x1111, true));
+    assert_eq!(b.drive.counts().1, 1, "opened once");
+    assert_eq!(b.drive.config_outcome(), config::ACCEPTED);
+    assert!(!b.app().link().gated(), "the drive's CONFIG opened the start-up gate");
+    assert!(b.drive.card().0, "the card's heartbeat is seen");
+
+    // The master brings the card up (DP-V1 on) and runs ST1: STW1 0x047E, then 0x047F with
+    // 50 % setpoint.
+    b.bring_up(&SetPrm::CARD.dpv1_status_1(0x80), card::MODULES[0].cfg);
+    let sp = 0x2000u16;
+    let mut q = [0x04, 0x7E, (sp >> 8) as u8, sp as u8];
+    for _ in 0..5 {
+        b.data_exchange(&q);
+        b.run(2);
+    }
+    q[1] = 0x7F;
+    let mut inputs = vec![];
+    for _ in 0..30 {
+        inputs = b.data_exchange(&q).to_vec();
+        b.run(2);
+    }
+    let (flags, setpoint) = b.drive.command();
+    assert_eq!(flags & 1, 1, "RUN reached the C drive (DRIVE_CMD.FLAGS {flags:04X})");
+    assert_eq!(setpoint, sp as i16, "the setpoint reached the C drive");
+    assert_eq!(b.drive.speed(), sp as i16, "the C drive ran up (0x100 per ms)");
+    let w = words(&inputs);
+    assert_eq!(w[1], sp, "NIST_A from the C drive's DRIVE_STATE reaches the master");
+    assert_eq!(w[0] & 0x0007, 0x0007, "ZSW1: ready, ready to operate, operation enabled ({:04X})", w[0]);
+
+    // The steady state: one transaction of ≤ 64 bytes per drive cycle.
+    let (tx, bytes, used) = b.drive.last_traffic();
+    assert_eq!(tx, 1, "one CYCLIC transaction per cycle");
+    assert!(bytes <= 64, "{bytes} bytes per cycle");
+    println!("C host, ST1 steady state: {tx} transaction, {bytes} bytes, {used} µs at {} MHz", SCK_HZ / 1_000_000);
+
+    // A DP-V1 parameter read of the drive's PNU 100: the card's mailbox, the C drive's answer.
+    let before = b.drive.mailbox().0;
+    let req = [1, 1, 1, 1, 0x10, 1, 0, 100, 0, 0];
+    assert_eq!(b.c1(&[&[0x5F, 0, 47, req.len() as u8][..], &req].concat()), [0x5F, 0, 47, req.len() as u8]);
+    let mut answer = vec![];
+    for _ in 0..10 {
+        b.run(1);
+        let r = b.c1(&[0x5E, 0, 47, 240]);
+        if r[0] == 0x5E {
+            answer = r[4..].to_vec();
+            break;
+        }
+    }
+    assert_eq!(answer, [1, 1, 1, 1, 0x42, 1, 0, 50], "PNU 100 = 50 from the C drive");
+    assert_eq!(b.drive.mailbox().0, before + 1, "one request taken");
+    assert_eq!(b.drive.mailbox().1, before + 1, "one answer written");
+    // A write of PNU 101 through the mailbox reaches the C drive's table.
+    let req = [2, 2, 1, 1, 0x10, 1, 0, 101, 0, 0, 0x42, 1, 0x01, 0x23];
+    assert_eq!(b.c1(&[&[0x5F, 0, 47, req.len() as u8][..], &req].concat()), [0x5F, 0, 47, req.len() as u8]);
+    for _ in 0..10 {
+        b.run(1);
+        let r = b.c1(&[0x5E, 0, 47, 240]);
+        if r[0] == 0x5E {
+            assert_eq!(r[4..], [2, 2, 1, 1], "write done");
+            break;
+        }
+    }
+    assert_eq!(b.drive.value(1), 0x0123);
+
+    // The card restarts (a new BOOT_ID, a fresh image and DP slave): the C host sees it,
+    // opens again and rewrites CONFIG, so the start-up gate opens again.
+    b.drive.bus_mut().app = card(0x2222).app;
+    b.node = Node::new(DpSlave::new(SLAVE));
+    b.run(10);
+    let (restarts, opens, _, _) = b.drive.counts();
+    assert_eq!((restarts, opens), (1, 2), "one restart seen, opened again");
+    assert_eq!(b.drive.boot(), (0x2222, true));
+    assert_eq!(b.drive.config_outcome(), config::ACCEPTED, "CONFIG rewritten to the restarted card");
+    assert!(!b.app().link().gated());
+    b.bring_up(&SetPrm::CARD.dpv1_status_1(0x80), card::MODULES[0].cfg);
+    for stw1 in [0x7E, 0x7E, 0x7E].into_iter().chain([0x7F; 30]) {
+        q[1] = stw1;
+        inputs = b.data_exchange(&q).to_vec();
+        b.run(2);
+    }
+    assert_eq!(words(&inputs)[1], sp, "the restarted card serves the C drive's speed");
+
+    // A budget for one short transaction: the steady state still fits, the C host never
+    // goes beyond it (checked in every `run`).
+    b.budget_us = 60;
+    b.run(20);
+    assert_eq!(*b.results.last().unwrap(), result::OK);
+    let (tx, bytes, used) = b.drive.last_traffic();
+    assert_eq!((tx, bytes), (1, 42));
+    assert!(used <= 60);
+    // No budget: nothing is sent, nothing blocks.
+    b.budget_us = 0;
+    b.run(1);
+    assert_eq!(*b.results.last().unwrap(), result::BUDGET);
+    assert_eq!(b.drive.last_traffic(), (0, 0, 0));
+    let (max_tx, max_us) = b.drive.max_traffic();
+    println!("C host: at most {max_tx} transactions / {max_us} µs in one call (budget {BUDGET_US} µs)");
+    assert!(b.results.iter().all(|&r| r != result::NO_REPLY), "never without a reply: {:?}", b.results);
+    let _ = result::OPENING;
+}
