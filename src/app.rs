@@ -1176,11 +1176,15 @@ pub(crate) mod tests {
     }
 
     /// Issue 12 item 1: I&M0 and I&M1 over MSAC_C1 through the shipped card (Node +
-    /// Application), I&M1 stored in the power-cut-safe journal and back after a reboot.
+    /// Application); I&M1 and I&M3 stored in the card's journal (`store::Journal`, the same
+    /// one as the station address) and back, byte for byte, after a power cycle.
     #[test]
     fn identification_and_maintenance_through_the_card() {
+        use crate::dpv1::im::ImData;
         use crate::store::tests::SimFlash;
-        use crate::store::ImJournal;
+        use crate::store::{Journal, StationAddress, SLOT_SIZE};
+        let mut journal = Journal::new(SimFlash::<{ 4 * SLOT_SIZE }>::new());
+        journal.save(&StationAddress { address: 61, no_add_chg: false }).unwrap();
         let mut b = Bench::new();
         b.bring_up_with(&card::MODULES[0], 0x80);
         assert_eq!(b.c1(&[0x5F, 0x00, 0xFF, 0x04, 0x08, 0x00, 0xFD, 0xE8]), [0x5F, 0x00, 0xFF, 0x04]);
@@ -1191,20 +1195,37 @@ pub(crate) mod tests {
         assert_eq!(&r[8 + 32..8 + 48], b"SIM-DRIVE-000001");
         assert_eq!(&r[8 + 48..8 + 50], &[0, 2]);
         assert_eq!(&r[8 + 56..8 + 58], &[0x3A, 0x00], "PROFILE_ID PROFIdrive");
-        // I&M3 DESCRIPTOR written by the master, stored by the platform.
-        let mut rec = vec![0u8; 10];
-        rec.extend_from_slice(&[b'd'; 54]);
-        let w = [&[0x5F, 0x00, 0xFF, 68, 0x08, 0x00, 0xFD, 0xEB][..], &rec].concat();
+        // I&M1 TAG_FUNCTION + TAG_LOCATION and I&M3 DESCRIPTOR written by the master.
+        let mut im1 = vec![0xA5u8; 10]; // the manufacturer header: not kept
+        im1.extend_from_slice(b"Conveyor 3 main drive           ");
+        im1.extend_from_slice(b"Hall B, cabinet 12    ");
+        let w = [&[0x5F, 0x00, 0xFF, 68, 0x08, 0x00, 0xFD, 0xE9][..], &im1].concat();
         assert_eq!(b.c1(&w), [0x5F, 0x00, 0xFF, 68]);
-        let mut journal = ImJournal::new(SimFlash::<1024>::new());
-        let changed = b.node.im_mut().take_changed().expect("I&M3 changed");
-        journal.save(&changed).unwrap();
-        // Power cycle: a new card loads I&M1-4 from the journal.
+        let mut im3 = vec![0u8; 10];
+        im3.extend_from_slice(&[b'd'; 54]);
+        let w = [&[0x5F, 0x00, 0xFF, 68, 0x08, 0x00, 0xFD, 0xEB][..], &im3].concat();
+        assert_eq!(b.c1(&w), [0x5F, 0x00, 0xFF, 68]);
+        // The platform stores what the card reports as changed (the F411's housekeeping, the
+        // soft slave's --state file), once.
+        let changed = b.node.im_mut().take_changed().expect("I&M1 and I&M3 changed");
+        assert_eq!(b.node.im_mut().take_changed(), None);
+        assert_eq!(journal.save(&changed), Ok(true));
+        // Power cycle: a new card loads I&M1-4 from the journal, the address is untouched.
+        let flash = journal.into_inner();
+        let journal = Journal::new(flash);
+        assert_eq!(journal.load::<StationAddress>(), Some(StationAddress { address: 61, no_add_chg: false }));
         let mut b = Bench::new();
-        if let Some(d) = journal.load() {
+        assert_eq!(b.node.im().data(), &ImData::DEFAULT);
+        if let Some(d) = journal.load::<ImData>() {
             b.node.im_mut().set_data(d);
         }
+        assert_eq!(b.node.im_mut().take_changed(), None, "restoring is no change");
         b.bring_up_with(&card::MODULES[0], 0x80);
+        assert_eq!(b.c1(&[0x5F, 0x00, 0xFF, 0x04, 0x08, 0x00, 0xFD, 0xE9]), [0x5F, 0x00, 0xFF, 0x04]);
+        let r = b.c1(&[0x5E, 0x00, 0xFF, 0xF0]);
+        assert_eq!(&r[..8], &[0x5E, 0x00, 0xFF, 68, 0x08, 0x00, 0xFD, 0xE9]);
+        assert_eq!(&r[8..18], &[0; 10], "header zeros");
+        assert_eq!(&r[18..], &im1[10..], "I&M1 byte for byte");
         assert_eq!(b.c1(&[0x5F, 0x00, 0xFF, 0x04, 0x08, 0x00, 0xFD, 0xEB]), [0x5F, 0x00, 0xFF, 0x04]);
         let r = b.c1(&[0x5E, 0x00, 0xFF, 0xF0]);
         assert_eq!(&r[8 + 10..], &[b'd'; 54]);

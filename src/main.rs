@@ -412,24 +412,25 @@ mod app {
         // Autobaud from power-up: listen at the first search rate (12 Mbit/s).
         let baud = Autobaud::new(pbcard::time::Instant::from_micros(0));
         let b = board::init(device, syst, baud.rate());
-        let store = pbcard::store::JournalStore::new(b.flash);
-        let (address, no_add_chg) = match store.latest() {
-            Some(r) => (r.address, r.no_add_chg),
-            None => (STATION_ADDRESS, false),
-        };
+        let store = pbcard::store::Journal::new(b.flash);
+        let stored = store.load::<pbcard::store::StationAddress>();
+        let (address, no_add_chg) = stored.map_or((STATION_ADDRESS, false), |r| (r.address, r.no_add_chg));
         defmt::info!(
             "pbcard: station {=u8} ({=str}, No_Add_Chg {=bool}), {=str}",
             address,
-            if store.latest().is_some() { "stored" } else { "default" },
+            if stored.is_some() { "stored" } else { "default" },
             no_add_chg,
             board::NAME
         );
         defmt::info!(
-            "address journal: {=u32} records of 16 bytes in 2 × {=u32} bytes at {=u32:#010x}",
-            pbcard::store::JournalStore::<crate::bsp::flash::JournalFlash>::SLOTS,
+            "journal (station address, I&M1-4): {=u32} slots of {=usize} bytes in 2 × {=u32} bytes at {=u32:#010x}",
+            pbcard::store::Journal::<crate::bsp::flash::JournalFlash>::SLOTS,
+            pbcard::store::SLOT_SIZE,
             crate::bsp::flash::JournalFlash::SECTOR_SIZE,
             crate::bsp::flash::JOURNAL_BASE
         );
+        let im = store.load::<pbcard::dpv1::im::ImData>();
+        defmt::info!("I&M1-4: {=str}", if im.is_some() { "stored" } else { "as shipped" });
         if recovered {
             defmt::error!("restarted after a card fault (panic or HardFault)");
         }
@@ -442,6 +443,10 @@ mod app {
         defmt::info!("drive: the control board behind the DPM SPI port (SPI2 slave, card only)");
         let mut node = Node::new(DpSlave::with_address_lock(address, no_add_chg));
         node.set_baudrate(None);
+        // I&M1-4 as stored, before the line starts.
+        if let Some(d) = im {
+            node.im_mut().set_data(d);
+        }
         let mut drive = Drive::new(b.clock, None);
         drive.card_fault = recovered;
         if recovered {
@@ -667,6 +672,11 @@ mod app {
             let acyclic_alive = acyclic_wait
                 .is_none_or(|(_, since)| now.saturating_since(since) < pbcard::time::Duration::from_millis(100));
             let alive = acyclic_alive && line_healthy(&mut line);
+            // I&M1-4 a master wrote go into the journal with the address (QEMU: RAM only).
+            #[cfg(feature = "board-f411")]
+            if let Some(d) = node.lock(|n| n.im_mut().take_changed()) {
+                sup.store_im(d);
+            }
             if sup.tick(now, leds, (v.address, v.no_add_chg), alive) {
                 line.lock(|l| l.restart_rx());
             }

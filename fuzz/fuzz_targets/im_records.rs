@@ -1,11 +1,13 @@
-//! I&M (slot 0 / index 255, `pbcard::dpv1::im`) and its flash journal record
-//! (`pbcard::store::im`) on untrusted bytes: the call parser, a write then a read through the
-//! I&M function, and the journal's slot decoder. No panic, and what they accept is consistent.
+//! I&M (slot 0 / index 255, `pbcard::dpv1::im`) and the flash journal that keeps it
+//! (`pbcard::store`) on untrusted bytes: the call parser, a write then a read through the I&M
+//! function, and the journal's slot decoder with the record decoders. No panic, and what they
+//! accept is consistent.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
 use pbcard::dpv1::im::{Call, Im, CALL_HEADER_LEN, RECORD_LEN};
-use pbcard::store::im::{ImRecord, ImSlot, IM_RECORD_SIZE};
+use pbcard::dpv1::im::ImData;
+use pbcard::store::{decode_slot, encode_slot, Record, Slot, StationAddress, HEADER_LEN, SLOT_SIZE};
 
 fuzz_target!(|data: &[u8]| {
     if let Ok(c) = Call::parse(data) {
@@ -26,11 +28,21 @@ fuzz_target!(|data: &[u8]| {
             assert_eq!(im.take_changed(), None);
         }
     }
-    if data.len() >= IM_RECORD_SIZE {
-        let mut b = [0u8; IM_RECORD_SIZE];
-        b.copy_from_slice(&data[..IM_RECORD_SIZE]);
-        if let ImSlot::Valid(r) = ImRecord::decode(&b) {
-            assert_eq!(r.encode(), b);
+    if data.len() >= SLOT_SIZE {
+        let mut b = [0u8; SLOT_SIZE];
+        b.copy_from_slice(&data[..SLOT_SIZE]);
+        if let Slot::Valid(h) = decode_slot(&b) {
+            let payload = &b[HEADER_LEN..HEADER_LEN + h.len as usize];
+            assert_eq!(encode_slot(h.seq, h.kind, payload), b);
+            if payload.len() == StationAddress::LEN {
+                if let Some(a) = StationAddress::decode(payload) {
+                    assert!(a.address <= 126);
+                }
+            }
+            if payload.len() == ImData::LEN {
+                let d = <ImData as Record>::decode(payload).expect("any I&M bytes");
+                assert_eq!(&d.encode()[..], payload);
+            }
         }
     }
 });

@@ -26,6 +26,9 @@ OPTIONS:
     -c, --config FILE   the stations from a TOML file (per station: address, module, ramp,
                         initial drive parameters, verbose; README, Soft slave). A bad file
                         is one error line and exit status 2, before the device is opened.
+    -s, --state FILE    keep the station address (Set_Slave_Add) and I&M1-4 across restarts in
+                        FILE (created when missing; several stations: FILE.<address> each).
+                        A stored address replaces --address / the configured one.
         --ramp-ms N     simulated drive: ramp time from 0 to 100 % speed. Default 2000.
         --pd-every S    log the process data every S seconds (0 = never). Default 2.
         --idle-us N     silence after which a partial telegram is dropped. Default: 33 bit
@@ -50,6 +53,8 @@ pub struct Options {
     pub more_addresses: Vec<u8>,
     /// `--config FILE`: the stations from a TOML file (overrides the address list).
     pub config: Option<String>,
+    /// `--state FILE`: the address and I&M1–4 kept across restarts ([`crate::state`]).
+    pub state: Option<String>,
     /// Simulated drive: ramp time 0 → 100 %.
     pub ramp: Duration,
     /// Process-data log period (`None` = never).
@@ -69,6 +74,7 @@ impl Options {
             address: card::DEFAULT_ADDRESS,
             more_addresses: Vec::new(),
             config: None,
+            state: None,
             ramp: Duration::from_millis(2000),
             pd_every: Some(Duration::from_secs(2)),
             idle: None,
@@ -199,6 +205,7 @@ where
             "-b" | "--baud" => "--baud",
             "-a" | "--address" => "--address",
             "-c" | "--config" => "--config",
+            "-s" | "--state" => "--state",
             "--ramp-ms" => "--ramp-ms",
             "--pd-every" => "--pd-every",
             "--idle-us" => "--idle-us",
@@ -226,6 +233,8 @@ where
             }
             "--config" if !value.is_empty() => o.config = Some(value),
             "--config" => return Err(ArgError::Invalid { flag, value, expected: "a file" }),
+            "--state" if !value.is_empty() => o.state = Some(value),
+            "--state" => return Err(ArgError::Invalid { flag, value, expected: "a file" }),
             "--ramp-ms" => o.ramp = Duration::from_millis(parse_u64(flag, &value, 3_600_000, "0..=3600000 ms")?),
             "--pd-every" => {
                 let s = parse_u64(flag, &value, 86_400, "0..=86400 s")?;
@@ -253,6 +262,11 @@ mod tests {
         assert!(o.verbose);
         assert_eq!(o.pd_every, None);
         assert_eq!(o.ramp, Duration::from_millis(2000));
+        assert_eq!(o.state, None);
+        let Command::Run(o) = parse_args(["-d", "x", "--state", "/tmp/card.state"]).unwrap() else { panic!() };
+        assert_eq!(o.state.as_deref(), Some("/tmp/card.state"));
+        assert!(matches!(parse_args(["-d", "x", "--state="]), Err(ArgError::Invalid { flag: "--state", .. })));
+        assert_eq!(parse_args(["-d", "x", "-s"]), Err(ArgError::MissingValue("--state")));
         assert_eq!(parse_args(["-d", "x", "--help"]), Ok(Command::Help));
         assert_eq!(parse_args(["-V"]), Ok(Command::Version));
         let Command::Run(o) = parse_args(["-d", "pty", "--address", "5,6, 7"]).unwrap() else { panic!() };

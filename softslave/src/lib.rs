@@ -18,6 +18,7 @@ pub mod args;
 mod monitor;
 pub mod parmrk;
 pub mod serial;
+pub mod state;
 pub mod station;
 
 use std::io;
@@ -74,6 +75,8 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
     for c in &configs {
         stations.push(Station::new(c).map_err(|e| io::Error::new(io::ErrorKind::InvalidInput, e.to_string()))?);
     }
+    // --state: the stored address and I&M1-4 into each station before the line opens.
+    let (mut states, restored) = state::open_all(opts, &mut stations)?;
     let mut port = if opts.device == "pty" { Port::create_pty(rate)? } else { Port::open(&opts.device, rate)? };
 
     let addresses: Vec<String> = configs.iter().map(|c| c.address.to_string()).collect();
@@ -113,6 +116,7 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
         ));
         st.app.set_baudrate(Some(rate));
     }
+    restored.into_iter().for_each(&mut emit);
     emit("waiting for a DP master (Ctrl-C stops)".into());
 
     let mut decoder = Parmrk::new(port.parity());
@@ -214,7 +218,7 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
         }
         if got || now - last_step >= STEP_EVERY {
             last_step = now;
-            for st in stations.iter_mut() {
+            for (i, st) in stations.iter_mut().enumerate() {
                 let events = st.app.step(now_pb(now), &mut st.node);
                 // The configured module stays the only one Chk_Cfg accepts (a DPM CONFIG of
                 // the simulated drive does not widen it).
@@ -229,6 +233,9 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
                 }
                 let prefix = st.prefix();
                 st.monitor.on_step(events, &st.node, &st.app, &mut |m| emit(format!("{prefix} {m}")));
+                if let Some(file) = states.get_mut(i) {
+                    file.persist(&mut st.node).into_iter().for_each(|m| emit(format!("{prefix} {m}")));
+                }
             }
         }
         if let Some(every) = opts.pd_every {

@@ -196,7 +196,7 @@ impl Monitor {
         if events.contains(Events::ADDRESS_CHANGED) {
             self.address = slave.address();
             log(format!(
-                "Set_Slave_Add: station address is now {} (not stored: start with --address {} next time)",
+                "Set_Slave_Add: station address is now {} (kept across restarts with --state FILE, else start with --address {} next time)",
                 self.address, self.address
             ));
         }

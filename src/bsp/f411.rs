@@ -837,7 +837,7 @@ impl LedPins {
 }
 
 /// The independent watchdog: LSI (≈ 32 kHz) / 64, reload [`Iwdg::RELOAD`] → ≈ 2 s, longer
-/// than the worst flash sector erase of the address journal (16 KiB: 0.5 s max, DS10314).
+/// than the worst flash sector erase of the card's journal (16 KiB: 0.5 s max, DS10314).
 pub struct Iwdg(IWDG);
 
 impl Iwdg {
@@ -876,33 +876,41 @@ pub type Line = DmaLine;
 pub type Baud = pbcard::phy::autobaud::Autobaud;
 pub use super::fault::register_application;
 
-/// The low-priority board work (housekeeping task): LED pins, the address journal, the IWDG.
+/// The low-priority board work (housekeeping task): LED pins, the card's journal (station
+/// address, I&M1–4), the IWDG.
 pub struct Supervisor {
     leds: LedPins,
-    store: pbcard::store::JournalStore<super::flash::JournalFlash>,
+    store: pbcard::store::Journal<super::flash::JournalFlash>,
     iwdg: Option<Iwdg>,
     iwdg_periph: Option<IWDG>,
     /// What is stored (address, No_Add_Chg).
     stored: (u8, bool),
+    /// I&M1–4 a master wrote, not stored yet ([`Self::store_im`]).
+    im: Option<pbcard::dpv1::im::ImData>,
 }
 
 impl Supervisor {
     /// The supervisor over the board's LEDs, journal (holding `stored`) and watchdog.
     pub fn new(
         leds: LedPins,
-        store: pbcard::store::JournalStore<super::flash::JournalFlash>,
+        store: pbcard::store::Journal<super::flash::JournalFlash>,
         iwdg: IWDG,
         stored: (u8, bool),
     ) -> Self {
-        Supervisor { leds, store, iwdg: None, iwdg_periph: Some(iwdg), stored }
+        Supervisor { leds, store, iwdg: None, iwdg_periph: Some(iwdg), stored, im: None }
+    }
+
+    /// I&M1–4 to store at the next [`Self::tick`] (`Im::take_changed`).
+    pub fn store_im(&mut self, data: pbcard::dpv1::im::ImData) {
+        self.im = Some(data);
     }
 
     /// Once per millisecond: show `leds`; store `address` (station address, No_Add_Chg) when
-    /// it differs from the stored pair (Set_Slave_Add; the flash stalls the CPU meanwhile, so
-    /// the line is silenced before and restarted after — module documentation "Flash stalls";
-    /// returns `false`: nothing left for the caller to restart); start the IWDG at the first
-    /// call and feed it only when `alive` (the line hardware runs and the protocol tasks make
-    /// progress).
+    /// it differs from the stored pair (Set_Slave_Add) and the I&M1–4 of [`Self::store_im`] (the
+    /// flash stalls the CPU meanwhile, so the line is silenced before and restarted after —
+    /// module documentation "Flash stalls"; returns `false`: nothing left for the caller to
+    /// restart); start the IWDG at the first call and feed it only when `alive` (the line
+    /// hardware runs and the protocol tasks make progress).
     pub fn tick(
         &mut self,
         now: pbcard::time::Instant,
@@ -918,24 +926,32 @@ impl Supervisor {
                 self.iwdg = Some(Iwdg::start(p));
             }
         }
-        if address != self.stored {
+        if address != self.stored || self.im.is_some() {
             if let Some(w) = self.iwdg.as_mut() {
                 w.feed();
             }
             // Silence first (DE low, receiver and DMA off); if the line cannot confirm it, the
-            // write waits for the next millisecond.
+            // write waits for the next millisecond (nothing is taken from the queue before).
             if control::silence() {
-                let result = self.store.save_record(address.0, address.1);
+                if address != self.stored {
+                    let record = pbcard::store::StationAddress { address: address.0, no_add_chg: address.1 };
+                    match self.store.save(&record) {
+                        Ok(written) => {
+                            defmt::info!("station address {} stored (written {=bool})", record, written);
+                        }
+                        Err(e) => defmt::error!("storing the station address failed: {}", e),
+                    }
+                    // On an error: retried at the next change only (no flash wear loop).
+                    self.stored = address;
+                }
+                if let Some(d) = self.im.take() {
+                    match self.store.save(&d) {
+                        Ok(written) => defmt::info!("I&M1-4 stored (written {=bool})", written),
+                        Err(e) => defmt::error!("storing I&M1-4 failed: {}", e),
+                    }
+                }
                 // Restart fully: ring flushed, T_SYN awaited (nothing stale is answered).
                 control::restart();
-                match result {
-                    Ok(r) => {
-                        defmt::info!("station address {=u8} (No_Add_Chg {=bool}) stored: {}", address.0, address.1, r)
-                    }
-                    Err(e) => defmt::error!("storing the station address failed: {}", e),
-                }
-                // A failure is retried at the next change only (no flash wear loop).
-                self.stored = address;
             }
         }
         if alive {
@@ -973,7 +989,7 @@ pub struct Board {
     pub clock: super::clock::SysTickClock,
     /// The LEDs (all off).
     pub leds: LedPins,
-    /// The address journal's flash sectors.
+    /// The journal's flash sectors (station address, I&M1–4).
     pub flash: super::flash::JournalFlash,
     /// The independent watchdog, not started (the application starts it when its tasks run).
     pub iwdg: IWDG,

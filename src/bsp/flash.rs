@@ -1,10 +1,11 @@
-//! The address journal's two flash sectors on the STM32F411 (`pbcard::store::Flash`).
+//! The two flash sectors of the card's journal (`pbcard::store::Journal`: the station address
+//! and I&M1–4, 64 slots of 256 bytes per sector) on the STM32F411 (`pbcard::store::Flash`).
 //!
 //! Sectors 1 and 2 (16 KiB each, 0x0800_4000 and 0x0800_8000; RM0383 Table 4) belong to the
 //! journal: `memory.x` keeps the vector table in sector 0 and starts the program in sector 4
 //! (`_stext = 0x0801_0000`), so sectors 1–3 hold no code (sector 3 stays free). Flashing a new
 //! firmware with probe-rs erases only the sectors the ELF occupies: the stored station address
-//! survives a firmware update.
+//! and I&M1–4 survive a firmware update.
 //!
 //! Erase and program go through the FLASH registers (RM0383 §3.5): unlock with the two KEYR
 //! keys, 32-bit parallelism (PSIZE = x32, 2.7–3.6 V) for whole aligned words and x8 for the

@@ -33,8 +33,9 @@
 //! hh:mm") and 38 reserved bytes; I&M3 DESCRIPTOR (54); I&M4 SIGNATURE (54). I&M1–3 are blanks (0x20) and
 //! I&M4 zeros until written (as the ABB adapters ship them). They are kept in RAM here
 //! ([`Im::data`]); [`Im::take_changed`] hands a written set to the platform, which stores it in
-//! its power-cut-safe journal ([`crate::store::ImJournal`]) and gives it back at boot
-//! ([`Im::set_data`]).
+//! its power-cut-safe journal ([`crate::store::Journal`], the same one as the station address:
+//! F411 flash, the soft slave's `--state` file; QEMU keeps them in RAM) and gives it back at
+//! boot ([`Im::set_data`]).
 //!
 //! **Errors** (the error PDU `DE|DF 80 Error_Code_1 00`; the guideline's classes, our choice of
 //! codes where it leaves one open):
@@ -43,7 +44,7 @@
 //! |---|---|
 //! | index 255 on a slot other than 0 | 0xB2 invalid slot |
 //! | DS_Write shorter than the 4-byte call header | 0xB1 write length error |
-//! | Extended_Function_Num ≠ 0x08 or reserved byte ≠ 0 | 0xB8 invalid parameter |
+//! | Extended_Function_Num ≠ 0x08 or reserved byte ≠ 0 | 0xB8 invalid parameter (our choice, UNVERIFIED: the reference names the class only) |
 //! | FI_Index outside 65000..=65004 (also the reserved 65005..65199) | 0xB0 invalid index |
 //! | a write (call header + data) to I&M0 | 0xB6 access denied |
 //! | a write to I&M1–4 with other than 64 data bytes | 0xB1 write length error |
@@ -76,6 +77,8 @@ pub const HEADER_LEN: usize = 10;
 /// Content bytes of I&M1 … I&M4 (what is stored).
 pub const CONTENT_LEN: usize = RECORD_LEN - HEADER_LEN;
 /// IM_SUPPORTED: bit 0 = I&M1 … bit 3 = I&M4 (ABB FPBA-01 p. 128: "3 = I&M0, I&M1 and I&M2").
+/// UNVERIFIED against the PI I&M guideline: the reference (§4.7) gives only "bit map of
+/// I&M1–4", derived from the field list.
 pub const IM_SUPPORTED: u16 = 0x000F;
 /// IM_VERSION 1.1.
 pub const IM_VERSION: u16 = 0x0101;

@@ -1,45 +1,63 @@
-//! The station address and No_Add_Chg flag in flash, safe against power loss at any moment
-//! (reference §3.9: Set_Slave_Add must survive a power cut).
+//! What the card keeps across power loss — the station address with No_Add_Chg (reference
+//! §3.9: Set_Slave_Add must survive a power cut) and I&M1–I&M4 (reference §4.7, issue 12) —
+//! in **one** journal, safe against power loss at any moment.
 //!
-//! [`JournalStore`] keeps an append-only journal of [`Record`]s in two flash sectors behind
-//! the tiny [`Flash`] trait (NOR semantics: erase sets every byte to 0xFF, programming can
-//! only clear bits). The board maps the trait's sectors 0 and 1 to two real sectors (on the
-//! STM32F411, e.g. sectors 2 and 3, 16 KiB each = 1024 records each).
+//! [`Journal`] is an append-only log of typed records in two flash sectors behind the tiny
+//! [`Flash`] trait (NOR semantics: erase sets every byte to 0xFF, programming can only clear
+//! bits). A record type implements [`Record`] (a kind byte, a fixed payload length, encode and
+//! decode); the card has two: [`StationAddress`] and [`ImData`](crate::dpv1::im::ImData)
+//! (`store/im.rs`). The board maps the trait's sectors 0 and 1 to two real sectors (STM32F411:
+//! sectors 1 and 2, 16 KiB each = 64 slots each, `bsp/flash.rs`).
 //!
-//! * **Save** appends a record with the next sequence number to the first empty slot of the
-//!   sector holding the newest record. When that sector is full, the *other* sector is erased
-//!   and the record goes to its first slot; the full sector keeps the previous record until
-//!   the next switch erases it. No slot is ever programmed twice between erases, and the
-//!   sector holding the newest valid record is never erased.
-//! * **Load** scans both sectors and returns the valid record with the highest sequence
-//!   number.
+//! * **Save** appends a record of one kind with the next sequence number (one counter for all
+//!   kinds) to the first empty slot of the *active* sector, the one holding the newest record.
+//!   Nothing is written when the newest record of that kind already holds the same payload.
+//! * **Compaction.** When the active sector has no room, the *other* sector is erased, the
+//!   newest record of every other kind is copied into it (new sequence numbers, same payload),
+//!   then the new record is written there. The full sector is not touched, so until the copies
+//!   are complete it still holds every kind's newest record.
+//! * **Completing an interrupted compaction.** A power cut after the first copy leaves the
+//!   active sector with some kinds only: the newest records of the others are still in the full
+//!   sector. The next save copies them over first (before its own record), so no sector that
+//!   holds a kind's newest record is ever erased.
+//! * **Load** of a kind: the valid record of that kind with the highest sequence number in
+//!   either sector.
 //!
-//! **Why a torn write can never be mistaken for a record.** Flash failures from power loss
-//! are *unidirectional* relative to the record that was meant to be there: an interrupted
-//! program leaves some bits still 1 that should have become 0, and an interrupted erase turns
-//! some 0 bits into 1. Besides a CRC-16, each record carries a Berger check — the number of
-//! 0 bits in its first eight bytes. Turning 0s into 1s lowers that number in the data but can
-//! only raise the stored count, so *every* such corruption is detected, deterministically
-//! (the CRC catches random bit rot on top). So the journal always yields either the previous
-//! or the new pair, and never `None` once a save has completed.
+//! **Why a torn write can never be mistaken for a record.** Flash failures from power loss are
+//! *unidirectional*: an interrupted program leaves some bits still 1 that should have become 0,
+//! and an interrupted erase turns some 0 bits into 1. Besides a CRC-16, every slot carries a
+//! Berger check — the number of 0 bits in all its other bytes. Turning 0s into 1s lowers that
+//! number in the data but can only raise the stored count, so *every* such corruption is
+//! detected, deterministically (the CRC catches random bit rot on top). So each kind always
+//! loads its previous or its new value — never garbage, never nothing once a save of that
+//! kind completed — and a save of one kind never disturbs another kind, whatever the moment of
+//! the cut (the tests cut after every single byte step, `tests::power_cut_at_every_step_*`).
 //!
-//! Record layout ([`RECORD_SIZE`] = 16 bytes, programmed with one [`Flash::program`] call):
+//! Slot layout ([`SLOT_SIZE`] = 256 bytes; programmed in two [`Flash::program`] calls, header
+//! and payload first, the check bytes last; the padding stays erased):
 //!
 //! | bytes | content |
 //! |---|---|
 //! | 0..4 | sequence number, u32 little-endian, first record = 1 |
-//! | 4 | station address, 0..=126 |
-//! | 5 | flags: `0xA4` \| No_Add_Chg (bit 0) |
-//! | 6..8 | CRC-16/CCITT-FALSE over bytes 0..6, big-endian |
-//! | 8 | Berger check: number of 0 bits in bytes 0..8 |
-//! | 9..16 | reserved, left 0xFF |
+//! | 4 | kind ([`Record::KIND`]; 0x00 and 0xFF are never kinds) |
+//! | 5 | payload length ([`Record::LEN`], at most [`MAX_PAYLOAD`] = 246) |
+//! | 6..6+len | payload ([`Record::encode`]) |
+//! | 6+len..252 | padding, 0xFF |
+//! | 252..254 | CRC-16/CCITT-FALSE (the `crc` crate's `CRC_16_IBM_3740`) over bytes 0..6+len, big-endian |
+//! | 254..256 | Berger check: number of 0 bits in bytes 0..254, u16 big-endian |
+//!
+//! The slot format replaced the address-only journal of 16-byte records (session 4): a card
+//! updated from that firmware finds no record it knows and starts at its default address once
+//! (README, "Flash store").
 
 use crate::card;
 use crate::dp::slave_add::AddressStore;
 
+pub mod im;
+
 /// A flash device with two erasable sectors (NOR semantics).
 pub trait Flash {
-    /// Bytes per sector (the journal uses `SECTOR_SIZE / RECORD_SIZE` slots per sector).
+    /// Bytes per sector (the journal uses `SECTOR_SIZE / SLOT_SIZE` slots per sector).
     const SECTOR_SIZE: u32;
     /// Why an erase or program failed.
     type Error;
@@ -52,124 +70,156 @@ pub trait Flash {
     fn read(&self, sector: u8, offset: u32, buf: &mut [u8]);
 }
 
-/// Bytes per journal record.
-pub const RECORD_SIZE: usize = 16;
+/// One record type of the [`Journal`]: a kind byte of its own and a payload of fixed length.
+pub trait Record: Sized {
+    /// The kind byte in the slot header; unique per record type, never 0x00 or 0xFF.
+    const KIND: u8;
+    /// Payload bytes, at most [`MAX_PAYLOAD`].
+    const LEN: usize;
+    /// Write the payload into `out` (`out.len() == Self::LEN`).
+    fn encode(&self, out: &mut [u8]);
+    /// The value of a payload (`bytes.len() == Self::LEN`); `None` = not a value of this type
+    /// (the journal then reports the kind as not stored).
+    fn decode(bytes: &[u8]) -> Option<Self>;
+}
 
-/// Bits 7..1 of the flags byte of every record.
-const FLAGS_MAGIC: u8 = 0xA4;
+/// Bytes per journal slot.
+pub const SLOT_SIZE: usize = 256;
+/// Bytes of the slot header (sequence number, kind, length).
+pub const HEADER_LEN: usize = 6;
+const CRC_AT: usize = SLOT_SIZE - 4;
+const BERGER_AT: usize = SLOT_SIZE - 2;
+/// The largest payload of a record.
+pub const MAX_PAYLOAD: usize = CRC_AT - HEADER_LEN;
+/// Kinds the journal keeps apart (a slot of a further kind is ignored and not carried over).
+pub const MAX_KINDS: usize = 4;
 
-/// CRC-16/CCITT-FALSE (polynomial 0x1021, initial value 0xFFFF, no reflection, no final
-/// XOR; check value of `"123456789"` = 0x29B1), bitwise: records are 6 bytes, speed is
-/// irrelevant.
+/// CRC-16/CCITT-FALSE (polynomial 0x1021, initial value 0xFFFF, no reflection, no final XOR;
+/// check value of `"123456789"` = 0x29B1), the `crc` crate's byte-wise table (512 bytes).
+static CRC: crc::Crc<u16, crc::Table<1>> = crc::Crc::<u16, crc::Table<1>>::new(&crc::CRC_16_IBM_3740);
+
+/// The CRC-16 of a slot ([`CRC`]).
 pub fn crc16(data: &[u8]) -> u16 {
-    let mut crc: u16 = 0xFFFF;
-    for &b in data {
-        crc ^= (b as u16) << 8;
-        for _ in 0..8 {
-            crc = if crc & 0x8000 != 0 { (crc << 1) ^ 0x1021 } else { crc << 1 };
-        }
-    }
-    crc
+    CRC.checksum(data)
 }
 
-fn zero_bits(data: &[u8]) -> u8 {
-    data.iter().map(|b| b.count_zeros() as u8).sum()
+fn zero_bits(data: &[u8]) -> u16 {
+    data.iter().map(|b| b.count_zeros() as u16).sum()
 }
 
-/// One journal entry.
+/// The header of a valid slot.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
-pub struct Record {
+pub struct SlotHeader {
     /// Sequence number: the newest record has the highest.
     pub seq: u32,
-    /// Station address (0..=126).
-    pub address: u8,
-    /// No_Add_Chg: the address is frozen.
-    pub no_add_chg: bool,
+    /// [`Record::KIND`].
+    pub kind: u8,
+    /// Payload length.
+    pub len: u8,
 }
 
-/// What a record slot holds.
+/// What a slot holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub enum Slot {
-    /// Erased (all 0xFF): free for the next record.
+    /// Erased (all 0xFF): free for a record.
     Empty,
     /// A complete, checked record.
-    Valid(Record),
+    Valid(SlotHeader),
     /// Anything else (torn write, partial erase, corruption): skipped, never reused.
     Invalid,
 }
 
-impl Record {
-    /// The bytes of the record as programmed.
-    pub fn encode(&self) -> [u8; RECORD_SIZE] {
-        let mut b = [0xFF; RECORD_SIZE];
-        b[0..4].copy_from_slice(&self.seq.to_le_bytes());
-        b[4] = self.address;
-        b[5] = FLAGS_MAGIC | self.no_add_chg as u8;
-        let crc = crc16(&b[0..6]);
-        b[6..8].copy_from_slice(&crc.to_be_bytes());
-        b[8] = zero_bits(&b[0..8]);
-        b
-    }
+/// The bytes of a slot holding `payload` (at most [`MAX_PAYLOAD`] bytes; longer is cut).
+pub fn encode_slot(seq: u32, kind: u8, payload: &[u8]) -> [u8; SLOT_SIZE] {
+    let len = payload.len().min(MAX_PAYLOAD);
+    let mut b = [0xFF; SLOT_SIZE];
+    b[0..4].copy_from_slice(&seq.to_le_bytes());
+    b[4] = kind;
+    b[5] = len as u8;
+    b[HEADER_LEN..HEADER_LEN + len].copy_from_slice(&payload[..len]);
+    let crc = crc16(&b[..HEADER_LEN + len]);
+    b[CRC_AT..BERGER_AT].copy_from_slice(&crc.to_be_bytes());
+    let z = zero_bits(&b[..BERGER_AT]);
+    b[BERGER_AT..].copy_from_slice(&z.to_be_bytes());
+    b
+}
 
-    /// Classify the bytes of one slot.
-    pub fn decode(b: &[u8; RECORD_SIZE]) -> Slot {
-        if b.iter().all(|&x| x == 0xFF) {
-            return Slot::Empty;
-        }
-        let ok = b[8] == zero_bits(&b[0..8])
-            && u16::from_be_bytes([b[6], b[7]]) == crc16(&b[0..6])
-            && b[5] & 0xFE == FLAGS_MAGIC
-            && b[4] <= card::MAX_STATION_ADDRESS
-            && b[9..].iter().all(|&x| x == 0xFF);
-        if !ok {
-            return Slot::Invalid;
-        }
-        Slot::Valid(Record {
-            seq: u32::from_le_bytes([b[0], b[1], b[2], b[3]]),
-            address: b[4],
-            no_add_chg: b[5] & 1 != 0,
-        })
+/// Classify the bytes of one slot.
+pub fn decode_slot(b: &[u8; SLOT_SIZE]) -> Slot {
+    if b.iter().all(|&x| x == 0xFF) {
+        return Slot::Empty;
     }
+    let len = b[5] as usize;
+    let ok = u16::from_be_bytes([b[BERGER_AT], b[BERGER_AT + 1]]) == zero_bits(&b[..BERGER_AT])
+        && len <= MAX_PAYLOAD
+        && b[4] != 0x00
+        && b[4] != 0xFF
+        && b[HEADER_LEN + len..CRC_AT].iter().all(|&x| x == 0xFF)
+        && u16::from_be_bytes([b[CRC_AT], b[CRC_AT + 1]]) == crc16(&b[..HEADER_LEN + len]);
+    if !ok {
+        return Slot::Invalid;
+    }
+    Slot::Valid(SlotHeader { seq: u32::from_le_bytes([b[0], b[1], b[2], b[3]]), kind: b[4], len: b[5] })
 }
 
 /// Why a save failed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 pub enum StoreError<E> {
-    /// The flash reported an error (the journal is still consistent: the old pair loads).
+    /// The flash reported an error (the journal is still consistent: the old value loads).
     Flash(E),
     /// Address above 126.
     Address(u8),
     /// Read-back after programming differed (worn or faulty flash).
     Verify,
-    /// The sequence number is exhausted (2³² − 1 saves) or a sector holds no record.
+    /// The sequence number is exhausted (2³² − 1 saves), or a sector has too few slots for
+    /// one record of every kind.
     Exhausted,
+}
+
+/// Where a valid slot is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Loc {
+    sector: u8,
+    slot: u32,
+    seq: u32,
 }
 
 /// The result of scanning both sectors.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Scan {
-    /// The newest valid record and its sector.
-    newest: Option<(u8, Record)>,
+    /// Per kind: its newest valid slot.
+    kinds: [Option<(u8, Loc)>; MAX_KINDS],
+    /// The newest valid slot of any kind (its sector is the active one).
+    newest: Option<Loc>,
     /// Per sector: the first empty slot after the last non-empty one, `None` = full.
     free: [Option<u32>; 2],
 }
 
-/// The power-loss-safe station address journal (see the module documentation).
+impl Scan {
+    fn find(&self, kind: u8) -> Option<Loc> {
+        self.kinds.iter().flatten().find(|(k, _)| *k == kind).map(|&(_, l)| l)
+    }
+    fn active(&self) -> u8 {
+        self.newest.map_or(0, |l| l.sector)
+    }
+}
+
+/// The power-loss-safe journal of the card's records (see the module documentation).
 #[derive(Debug)]
-pub struct JournalStore<F: Flash> {
+pub struct Journal<F: Flash> {
     flash: F,
 }
 
-impl<F: Flash> JournalStore<F> {
+impl<F: Flash> Journal<F> {
     /// Record slots per sector.
-    pub const SLOTS: u32 = F::SECTOR_SIZE / RECORD_SIZE as u32;
+    pub const SLOTS: u32 = F::SECTOR_SIZE / SLOT_SIZE as u32;
 
-    /// A store over `flash` (no flash access yet).
+    /// A journal over `flash` (no flash access yet).
     pub fn new(flash: F) -> Self {
-        JournalStore { flash }
+        Journal { flash }
     }
 
     /// The flash device.
@@ -182,406 +232,201 @@ impl<F: Flash> JournalStore<F> {
         self.flash
     }
 
-    fn read_slot(&self, sector: u8, slot: u32) -> [u8; RECORD_SIZE] {
-        let mut b = [0u8; RECORD_SIZE];
-        self.flash.read(sector, slot * RECORD_SIZE as u32, &mut b);
+    fn read_slot(&self, sector: u8, slot: u32) -> [u8; SLOT_SIZE] {
+        let mut b = [0u8; SLOT_SIZE];
+        self.flash.read(sector, slot * SLOT_SIZE as u32, &mut b);
         b
     }
 
     fn scan(&self) -> Scan {
-        let mut newest: Option<(u8, Record)> = None;
-        let mut free = [Some(0); 2];
+        let mut s = Scan { kinds: [None; MAX_KINDS], newest: None, free: [Some(0); 2] };
         for sector in 0..2u8 {
             for slot in 0..Self::SLOTS {
-                match Record::decode(&self.read_slot(sector, slot)) {
+                match decode_slot(&self.read_slot(sector, slot)) {
                     Slot::Empty => continue,
-                    Slot::Valid(r) => {
-                        if newest.is_none_or(|(_, n)| r.seq > n.seq) {
-                            newest = Some((sector, r));
+                    Slot::Valid(h) => {
+                        let loc = Loc { sector, slot, seq: h.seq };
+                        if s.newest.is_none_or(|n| h.seq > n.seq) {
+                            s.newest = Some(loc);
+                        }
+                        if let Some(e) = s.kinds.iter_mut().flatten().find(|(k, _)| *k == h.kind) {
+                            if h.seq > e.1.seq {
+                                e.1 = loc;
+                            }
+                        } else if let Some(e) = s.kinds.iter_mut().find(|e| e.is_none()) {
+                            *e = Some((h.kind, loc));
                         }
                     }
                     Slot::Invalid => {}
                 }
-                free[sector as usize] = if slot + 1 < Self::SLOTS { Some(slot + 1) } else { None };
+                s.free[sector as usize] = if slot + 1 < Self::SLOTS { Some(slot + 1) } else { None };
             }
         }
-        Scan { newest, free }
+        s
     }
 
-    /// The newest valid record, `None` if there is none (blank or erased flash).
-    pub fn latest(&self) -> Option<Record> {
-        self.scan().newest.map(|(_, r)| r)
+    /// The newest record of type `R` and its sequence number; `None` when none is stored
+    /// (blank or erased flash, or its newest payload is no value of `R`).
+    pub fn latest<R: Record>(&self) -> Option<(u32, R)> {
+        let loc = self.scan().find(R::KIND)?;
+        let b = self.read_slot(loc.sector, loc.slot);
+        if b[5] as usize != R::LEN {
+            return None;
+        }
+        R::decode(&b[HEADER_LEN..HEADER_LEN + R::LEN]).map(|r| (loc.seq, r))
     }
 
-    /// Append `address` / `no_add_chg` as the newest record (nothing is written when they are
-    /// already the newest). Returns the record written.
-    pub fn save_record(&mut self, address: u8, no_add_chg: bool) -> Result<Option<Record>, StoreError<F::Error>> {
-        if address > card::MAX_STATION_ADDRESS {
-            return Err(StoreError::Address(address));
-        }
-        if Self::SLOTS == 0 {
-            return Err(StoreError::Exhausted);
-        }
-        let scan = self.scan();
-        let seq = match scan.newest {
-            Some((_, r)) if r.address == address && r.no_add_chg == no_add_chg => return Ok(None),
-            Some((_, r)) => r.seq.checked_add(1).ok_or(StoreError::Exhausted)?,
-            None => 1,
-        };
-        let rec = Record { seq, address, no_add_chg };
-        let active = scan.newest.map_or(0, |(s, _)| s);
-        let (sector, slot) = match scan.free[active as usize] {
-            Some(slot) => (active, slot),
-            None => {
-                let other = 1 - active;
-                self.flash.erase(other).map_err(StoreError::Flash)?;
-                (other, 0)
-            }
-        };
-        let bytes = rec.encode();
-        self.flash.program(sector, slot * RECORD_SIZE as u32, &bytes).map_err(StoreError::Flash)?;
+    /// The stored value of type `R` ([`Self::latest`] without the sequence number).
+    pub fn load<R: Record>(&self) -> Option<R> {
+        self.latest().map(|(_, r)| r)
+    }
+
+    /// Program `payload` of `kind` as record `seq` into an empty slot, check bytes last, and
+    /// read it back.
+    fn write_slot(
+        &mut self,
+        sector: u8,
+        slot: u32,
+        seq: u32,
+        kind: u8,
+        payload: &[u8],
+    ) -> Result<(), StoreError<F::Error>> {
+        let bytes = encode_slot(seq, kind, payload);
+        let at = slot * SLOT_SIZE as u32;
+        let body = HEADER_LEN + payload.len();
+        self.flash.program(sector, at, &bytes[..body]).map_err(StoreError::Flash)?;
+        self.flash.program(sector, at + CRC_AT as u32, &bytes[CRC_AT..]).map_err(StoreError::Flash)?;
         if self.read_slot(sector, slot) != bytes {
             return Err(StoreError::Verify);
         }
-        Ok(Some(rec))
+        Ok(())
     }
 
-    /// Erase both sectors (factory reset: the next load is `None`). The sector without the
-    /// newest record goes first, so a power cut in between still loads the newest pair.
+    /// Copy the record at `from` as record `seq` into an empty slot.
+    fn copy_slot(&mut self, from: Loc, sector: u8, slot: u32, seq: u32) -> Result<(), StoreError<F::Error>> {
+        let b = self.read_slot(from.sector, from.slot);
+        let len = (b[5] as usize).min(MAX_PAYLOAD);
+        let mut payload = [0u8; MAX_PAYLOAD];
+        payload[..len].copy_from_slice(&b[HEADER_LEN..HEADER_LEN + len]);
+        self.write_slot(sector, slot, seq, b[4], &payload[..len])
+    }
+
+    /// Store `record` as the newest of its kind (nothing is written when it already is).
+    /// Returns whether a record was written. On a power cut the kind keeps its previous
+    /// value or gets the new one; every other kind keeps its value.
+    pub fn save<R: Record>(&mut self, record: &R) -> Result<bool, StoreError<F::Error>> {
+        const { assert!(R::LEN <= MAX_PAYLOAD && R::KIND != 0 && R::KIND != 0xFF) };
+        let mut buf = [0xFF; MAX_PAYLOAD];
+        record.encode(&mut buf[..R::LEN]);
+        let payload = &buf[..R::LEN];
+        let mut scan = self.scan();
+        if let Some(loc) = scan.find(R::KIND) {
+            let b = self.read_slot(loc.sector, loc.slot);
+            if b[5] as usize == R::LEN && &b[HEADER_LEN..HEADER_LEN + R::LEN] == payload {
+                return Ok(false);
+            }
+        }
+        let (sector, slot, carry) = loop {
+            let active = scan.active();
+            let room = scan.free[active as usize].map_or(0, |f| Self::SLOTS - f) as usize;
+            let first_free = scan.free[active as usize].unwrap_or(0);
+            // Kinds whose newest record is outside the active sector: a compaction into the
+            // active sector was cut. The active sector then holds only copies of what the
+            // other sector holds (a record of its own is written only after every copy).
+            let outside = scan.kinds.iter().flatten().filter(|(_, l)| l.sector != active);
+            let mut carry = [None; MAX_KINDS];
+            let mut n = 0;
+            for &(_, l) in outside.clone().filter(|(k, _)| *k != R::KIND) {
+                carry[n] = Some(l);
+                n += 1;
+            }
+            if outside.clone().next().is_none() {
+                if room >= 1 {
+                    break (active, first_free, carry);
+                }
+                // Compaction: every other kind's newest into the erased other sector.
+                for &(_, l) in scan.kinds.iter().flatten().filter(|(k, _)| *k != R::KIND) {
+                    carry[n] = Some(l);
+                    n += 1;
+                }
+                if n + 1 > Self::SLOTS as usize {
+                    return Err(StoreError::Exhausted);
+                }
+                let other = 1 - active;
+                self.flash.erase(other).map_err(StoreError::Flash)?;
+                break (other, 0, carry);
+            }
+            if room > n {
+                // Complete the interrupted compaction, then the record.
+                break (active, first_free, carry);
+            }
+            // No room to complete it: the active sector holds only copies; erase it and
+            // compact again from the other sector, which still holds every kind's newest.
+            self.flash.erase(active).map_err(StoreError::Flash)?;
+            scan = self.scan();
+            if scan.kinds.iter().flatten().any(|(_, l)| l.sector == active) {
+                return Err(StoreError::Verify);
+            }
+        };
+        let mut seq = scan.newest.map_or(0, |l| l.seq);
+        let mut slot = slot;
+        for from in carry.into_iter().flatten() {
+            seq = seq.checked_add(1).ok_or(StoreError::Exhausted)?;
+            self.copy_slot(from, sector, slot, seq)?;
+            slot += 1;
+        }
+        seq = seq.checked_add(1).ok_or(StoreError::Exhausted)?;
+        self.write_slot(sector, slot, seq, R::KIND, payload)?;
+        Ok(true)
+    }
+
+    /// Erase both sectors (factory reset: nothing loads afterwards). The sector without the
+    /// newest record goes first, so a power cut in between still loads the active sector's
+    /// records.
     pub fn erase_all(&mut self) -> Result<(), StoreError<F::Error>> {
-        let active = self.scan().newest.map_or(0, |(s, _)| s);
+        let active = self.scan().active();
         self.flash.erase(1 - active).map_err(StoreError::Flash)?;
         self.flash.erase(active).map_err(StoreError::Flash)
     }
 }
 
-impl<F: Flash> AddressStore for JournalStore<F> {
+/// The station address and No_Add_Chg flag (Set_Slave_Add, reference §3.9) as a journal
+/// record: kind 0x01, payload `address, no_add_chg` (2 bytes).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct StationAddress {
+    /// Station address (0..=126).
+    pub address: u8,
+    /// No_Add_Chg: the address is frozen.
+    pub no_add_chg: bool,
+}
+
+impl Record for StationAddress {
+    const KIND: u8 = 0x01;
+    const LEN: usize = 2;
+    fn encode(&self, out: &mut [u8]) {
+        out.copy_from_slice(&[self.address, self.no_add_chg as u8]);
+    }
+    fn decode(b: &[u8]) -> Option<Self> {
+        (b.len() == 2 && b[0] <= card::MAX_STATION_ADDRESS && b[1] <= 1)
+            .then(|| StationAddress { address: b[0], no_add_chg: b[1] == 1 })
+    }
+}
+
+impl<F: Flash> AddressStore for Journal<F> {
     type Error = StoreError<F::Error>;
 
     fn load(&mut self) -> Option<(u8, bool)> {
-        self.latest().map(|r| (r.address, r.no_add_chg))
+        Journal::load::<StationAddress>(self).map(|r| (r.address, r.no_add_chg))
     }
 
     fn save(&mut self, address: u8, no_add_chg: bool) -> Result<(), Self::Error> {
-        self.save_record(address, no_add_chg).map(|_| ())
+        if address > card::MAX_STATION_ADDRESS {
+            return Err(StoreError::Address(address));
+        }
+        Journal::save(self, &StationAddress { address, no_add_chg }).map(|_| ())
     }
 }
-
-pub mod im;
-
-pub use im::ImJournal;
 
 #[cfg(test)]
-pub(crate) mod tests {
-    use super::*;
-    use std::vec::Vec;
-
-    /// Simulated NOR flash: two sectors of `N` bytes, erase = 0xFF, program clears bits and
-    /// may only touch erased bytes, and an optional power cut after a number of byte steps
-    /// (each programmed byte and each erased byte is one step). The step that is cut is done
-    /// partially: a program clears only some of the bits it should, an erase leaves every
-    /// byte not yet erased with some bits set. After the cut every operation fails.
-    #[derive(Clone)]
-    pub(crate) struct SimFlash<const N: usize> {
-        pub(crate) mem: [[u8; N]; 2],
-        budget: Option<u64>,
-        pub(crate) steps: u64,
-        seed: u64,
-        pub(crate) erases: u32,
-    }
-
-    #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-    pub(crate) struct PowerCut;
-
-    impl<const N: usize> SimFlash<N> {
-        pub(crate) fn new() -> Self {
-            SimFlash { mem: [[0xFF; N]; 2], budget: None, steps: 0, seed: 1, erases: 0 }
-        }
-        fn rand(&mut self) -> u8 {
-            self.seed ^= self.seed << 13;
-            self.seed ^= self.seed >> 7;
-            self.seed ^= self.seed << 17;
-            (self.seed >> 24) as u8
-        }
-        /// Take one step; `false` = the power fails during this step.
-        fn step(&mut self) -> Result<bool, PowerCut> {
-            match self.budget {
-                Some(0) => Err(PowerCut),
-                Some(ref mut b) => {
-                    *b -= 1;
-                    self.steps += 1;
-                    Ok(*b != 0)
-                }
-                None => {
-                    self.steps += 1;
-                    Ok(true)
-                }
-            }
-        }
-        pub(crate) fn cut_after(&mut self, steps: u64, seed: u64) {
-            self.budget = Some(steps + 1);
-            self.seed = seed | 1;
-        }
-        pub(crate) fn power_on(&mut self) {
-            self.budget = None;
-        }
-    }
-
-    impl<const N: usize> Flash for SimFlash<N> {
-        const SECTOR_SIZE: u32 = N as u32;
-        type Error = PowerCut;
-
-        fn erase(&mut self, sector: u8) -> Result<(), PowerCut> {
-            self.erases += 1;
-            for i in 0..N {
-                if !self.step()? {
-                    // Cut mid-erase: bytes from i on are only partly erased.
-                    for j in i..N {
-                        let m = self.rand() & self.rand();
-                        self.mem[sector as usize][j] |= m;
-                    }
-                    self.budget = Some(0);
-                    return Err(PowerCut);
-                }
-                self.mem[sector as usize][i] = 0xFF;
-            }
-            Ok(())
-        }
-
-        fn program(&mut self, sector: u8, offset: u32, data: &[u8]) -> Result<(), PowerCut> {
-            for (i, &d) in data.iter().enumerate() {
-                let a = offset as usize + i;
-                let old = self.mem[sector as usize][a];
-                assert!(old == 0xFF || d == 0xFF, "programming a non-erased byte at {sector}:{a}");
-                if !self.step()? {
-                    let m = self.rand();
-                    self.mem[sector as usize][a] &= d | m;
-                    self.budget = Some(0);
-                    return Err(PowerCut);
-                }
-                self.mem[sector as usize][a] &= d;
-            }
-            Ok(())
-        }
-
-        fn read(&self, sector: u8, offset: u32, buf: &mut [u8]) {
-            let o = offset as usize;
-            buf.copy_from_slice(&self.mem[sector as usize][o..o + buf.len()]);
-        }
-    }
-
-    #[test]
-    fn crc_check_value() {
-        assert_eq!(crc16(b"123456789"), 0x29B1);
-    }
-
-    #[test]
-    fn record_round_trip_and_layout() {
-        let r = Record { seq: 0x0102_0304, address: 126, no_add_chg: true };
-        let b = r.encode();
-        assert_eq!(&b[0..6], &[0x04, 0x03, 0x02, 0x01, 126, 0xA5]);
-        assert_eq!(&b[9..], &[0xFF; 7]);
-        assert_eq!(Record::decode(&b), Slot::Valid(r));
-        assert_eq!(Record::decode(&[0xFF; RECORD_SIZE]), Slot::Empty);
-        assert_eq!(Record::decode(&[0x00; RECORD_SIZE]), Slot::Invalid);
-        let mut bad = Record { seq: 1, address: 127, no_add_chg: false }.encode();
-        assert_eq!(Record::decode(&bad), Slot::Invalid);
-        bad[4] = 3;
-        assert_eq!(Record::decode(&bad), Slot::Invalid); // CRC
-    }
-
-    #[test]
-    fn blank_store_loads_none_then_saves() {
-        let mut s = JournalStore::new(SimFlash::<64>::new());
-        assert_eq!(s.load(), None);
-        s.save(7, false).unwrap();
-        assert_eq!(s.load(), Some((7, false)));
-        s.save(7, false).unwrap(); // unchanged: nothing written
-        assert_eq!(s.flash().steps, 16);
-        assert_eq!(s.save(127, false), Err(StoreError::Address(127)));
-        s.save(9, true).unwrap();
-        assert_eq!(s.load(), Some((9, true)));
-        assert_eq!(s.latest().unwrap().seq, 2);
-        s.erase_all().unwrap();
-        assert_eq!(s.load(), None);
-    }
-
-    #[test]
-    fn sector_switch_keeps_newest() {
-        let mut s = JournalStore::new(SimFlash::<64>::new());
-        for i in 0..20u8 {
-            s.save(i, i % 3 == 0).unwrap();
-            assert_eq!(s.load(), Some((i, i % 3 == 0)));
-            assert_eq!(s.latest().unwrap().seq, i as u32 + 1);
-        }
-        // 4 slots per sector: records 1..4 in 0, 5..8 in 1, … → 4 switches.
-        assert_eq!(s.flash().erases, 4);
-    }
-
-    /// The sequence of saves of the exhaustive test: many sector switches, flag changes,
-    /// a repeated pair (no write).
-    const SAVES: [(u8, bool); 15] = [
-        (3, false),
-        (126, false),
-        (0, false),
-        (125, true),
-        (125, true),
-        (4, false),
-        (4, true),
-        (255 / 2 - 1, false),
-        (17, false),
-        (18, false),
-        (19, true),
-        (20, false),
-        (1, false),
-        (2, true),
-        (99, false),
-    ];
-
-    /// Run `SAVES` on a blank flash with a power cut after `k` steps; then power on and
-    /// check the journal, finish the remaining saves and check again.
-    fn run_with_cut<const N: usize>(k: u64, seed: u64) -> bool {
-        let mut flash = SimFlash::<N>::new();
-        flash.cut_after(k, seed);
-        let mut s = JournalStore::new(flash);
-        let mut committed: Option<(u8, bool)> = None;
-        let mut cut_at = None;
-        for (i, &(a, f)) in SAVES.iter().enumerate() {
-            match s.save(a, f) {
-                Ok(()) => committed = Some((a, f)),
-                Err(StoreError::Flash(PowerCut)) => {
-                    cut_at = Some(i);
-                    break;
-                }
-                Err(e) => panic!("{e:?}"),
-            }
-        }
-        let mut flash = s.into_inner();
-        flash.power_on();
-        let mut s = JournalStore::new(flash);
-        let loaded = s.load();
-        match cut_at {
-            None => assert_eq!(loaded, committed),
-            Some(i) => {
-                let new = Some(SAVES[i]);
-                assert!(
-                    loaded == committed || loaded == new,
-                    "cut after {k} steps (seed {seed}) in save {i}: loaded {loaded:?}, expected {committed:?} or {new:?}"
-                );
-                if committed.is_some() {
-                    assert!(loaded.is_some());
-                }
-                // After the reboot the journal works on: redo the interrupted save and the rest.
-                for &(a, f) in &SAVES[i..] {
-                    s.save(a, f).unwrap();
-                    assert_eq!(s.load(), Some((a, f)));
-                }
-            }
-        }
-        cut_at.is_some()
-    }
-
-    fn total_steps<const N: usize>() -> u64 {
-        let mut s = JournalStore::new(SimFlash::<N>::new());
-        for &(a, f) in &SAVES {
-            s.save(a, f).unwrap();
-        }
-        s.flash().steps
-    }
-
-    /// Power cut after every single byte-program or byte-erase step of a long sequence of
-    /// saves with sector switches (several partial-bit patterns per step): the journal loads
-    /// the old or the new pair, never garbage, never None once something was saved.
-    #[test]
-    fn power_cut_at_every_step() {
-        fn all<const N: usize>() {
-            let total = total_steps::<N>();
-            let mut cuts = 0;
-            for k in 0..=total {
-                for seed in
-                    [0x1234_5678_9ABC_DEF1u64, 0x0F0F_0F0F_1111_2222, 0xFFFF_FFFF_FFFF_FFFF, 0x8000_0000_0000_0001]
-                {
-                    if run_with_cut::<N>(k, seed) {
-                        cuts += 1;
-                    }
-                }
-            }
-            assert_eq!(cuts, 4 * total, "every step was cut once per seed");
-        }
-        all::<48>(); // 3 slots per sector: a switch every third save
-        all::<64>();
-        all::<112>();
-    }
-
-    proptest::proptest! {
-        /// Power cuts after random steps during random saves, several reboots in a row.
-        #[test]
-        fn repeated_power_cuts(ops in proptest::collection::vec((0u8..=126, proptest::bool::ANY, 0u64..60, proptest::num::u64::ANY), 1..40)) {
-            let mut flash = SimFlash::<48>::new();
-            let mut committed: Option<(u8, bool)> = None;
-            for (a, f, cut, seed) in ops {
-                flash.cut_after(cut, seed);
-                let mut s = JournalStore::new(flash);
-                let r = s.save(a, f);
-                flash = s.into_inner();
-                flash.power_on();
-                let mut s = JournalStore::new(flash);
-                let loaded = s.load();
-                match r {
-                    Ok(()) => proptest::prop_assert_eq!(loaded, Some((a, f))),
-                    Err(StoreError::Flash(PowerCut)) => {
-                        proptest::prop_assert!(loaded == committed || loaded == Some((a, f)), "{:?}", loaded);
-                    }
-                    Err(e) => proptest::prop_assert!(false, "{:?}", e),
-                }
-                if committed.is_some() {
-                    proptest::prop_assert!(loaded.is_some());
-                }
-                committed = loaded;
-                flash = s.into_inner();
-            }
-        }
-
-        /// Unidirectional damage (0 → 1: torn program or partial erase) to a record is always
-        /// detected; arbitrary bytes never decode to an out-of-range record.
-        #[test]
-        fn berger_check_detects_unidirectional_errors(seq in proptest::num::u32::ANY, addr in 0u8..=126, flag in proptest::bool::ANY,
-                                                     mask in proptest::collection::vec(proptest::num::u8::ANY, 9)) {
-            let r = Record { seq, address: addr, no_add_chg: flag };
-            let mut b = r.encode();
-            for (x, m) in b.iter_mut().zip(&mask) {
-                *x |= m;
-            }
-            let damaged = b != r.encode();
-            match Record::decode(&b) {
-                Slot::Valid(v) => { proptest::prop_assert!(!damaged); proptest::prop_assert_eq!(v, r); }
-                Slot::Empty | Slot::Invalid => proptest::prop_assert!(damaged),
-            }
-        }
-
-        #[test]
-        fn decode_arbitrary_bytes(b in proptest::array::uniform16(proptest::num::u8::ANY)) {
-            if let Slot::Valid(r) = Record::decode(&b) {
-                proptest::prop_assert!(r.address <= 126);
-                proptest::prop_assert_eq!(r.encode(), b);
-            }
-        }
-    }
-
-    #[test]
-    fn invalid_slots_are_skipped_not_reused() {
-        let mut flash = SimFlash::<64>::new();
-        flash.mem[0][0] = 0x12; // garbage in slot 0
-        flash.mem[0][20] = 0x00; // garbage in slot 1
-        let mut s = JournalStore::new(flash);
-        assert_eq!(s.load(), None);
-        s.save(5, false).unwrap();
-        assert_eq!(s.load(), Some((5, false)));
-        s.save(6, false).unwrap(); // slot 3: the sector is now full
-        s.save(7, false).unwrap(); // → sector 1
-        assert_eq!(s.flash().erases, 1);
-        assert_eq!(s.load(), Some((7, false)));
-        let v: Vec<Slot> = (0..4).map(|i| Record::decode(&s.read_slot(1, i))).collect();
-        assert_eq!(v[1], Slot::Empty);
-    }
-}
+pub(crate) mod tests;
