@@ -119,13 +119,7 @@ impl<const W: usize> TripleWriter<'_, W> {
     /// Store `bytes` (little-endian packed) from word `at` on in the back slot.
     fn write(&mut self, at: usize, bytes: &[u8]) {
         let slot = &self.tb.slots[self.back as usize];
-        for (i, chunk) in bytes.chunks(4).enumerate() {
-            let mut w = [0u8; 4];
-            w[..chunk.len()].copy_from_slice(chunk);
-            if let Some(word) = slot.get(at + i) {
-                word.store(u32::from_le_bytes(w), Ordering::Relaxed);
-            }
-        }
+        store_words(slot.get(at..).unwrap_or(&[]), bytes);
     }
 
     /// Make the back slot the newest: one atomic swap.
@@ -158,10 +152,39 @@ impl<const W: usize> TripleReader<'_, W> {
 
     /// Copy `dst.len()` bytes starting at byte `at` (a multiple of 4) of the front slot.
     fn read(&self, at: usize, dst: &mut [u8]) {
-        let base = at / 4;
-        for (i, chunk) in dst.chunks_mut(4).enumerate() {
-            let w = self.word(base + i).to_le_bytes();
-            chunk.copy_from_slice(&w[..chunk.len()]);
+        let slot = &self.tb.slots[self.front as usize];
+        load_words(slot.get(at / 4..).unwrap_or(&[]), dst);
+    }
+}
+
+/// Store `bytes` little-endian packed into `words` (as many as there are).
+fn store_words(words: &[AtomicU32], bytes: &[u8]) {
+    let mut chunks = bytes.chunks_exact(4);
+    let mut words = words.iter();
+    for (c, w) in (&mut chunks).zip(&mut words) {
+        w.store(u32::from_le_bytes([c[0], c[1], c[2], c[3]]), Ordering::Relaxed);
+    }
+    let rem = chunks.remainder();
+    if let (false, Some(w)) = (rem.is_empty(), words.next()) {
+        let mut b = [0u8; 4];
+        b[..rem.len()].copy_from_slice(rem);
+        w.store(u32::from_le_bytes(b), Ordering::Relaxed);
+    }
+}
+
+/// Load `dst.len()` bytes from `words` (zeros past their end).
+fn load_words(words: &[AtomicU32], dst: &mut [u8]) {
+    let mut chunks = dst.chunks_exact_mut(4);
+    let mut words = words.iter();
+    for c in &mut chunks {
+        let w = words.next().map_or(0, |w| w.load(Ordering::Relaxed));
+        c.copy_from_slice(&w.to_le_bytes());
+    }
+    let rem = chunks.into_remainder();
+    if !rem.is_empty() {
+        let w = words.next().map_or(0, |w| w.load(Ordering::Relaxed)).to_le_bytes();
+        for (d, s) in rem.iter_mut().zip(w) {
+            *d = s;
         }
     }
 }
@@ -197,8 +220,11 @@ pub const QUEUE_LEN: usize = 8;
 /// Core → line queue depth (deferred answers).
 pub const DEFERRED_LEN: usize = 2;
 
-/// A telegram the line handed to the core.
-#[derive(Debug, Clone)]
+/// A telegram the line handed to the core: its bytes are in the slot `seq % QUEUE_LEN` of
+/// [`Shared`], written (word by word, only its length) before the entry is queued; the core
+/// copies them out before it dequeues the entry, so a slot is never written while read (the
+/// ring holds at most `QUEUE_LEN - 1` entries).
+#[derive(Debug, Clone, Copy)]
 pub struct Queued {
     /// Sequence number (the line's count of queued telegrams).
     pub seq: u32,
@@ -207,14 +233,15 @@ pub struct Queued {
     /// The line did not answer: the core's answer goes back through the core → line queue.
     pub deferred: bool,
     len: u16,
-    bytes: [u8; MAX_FRAME_LEN],
 }
 
-impl Queued {
-    /// The telegram's bytes.
-    pub fn bytes(&self) -> &[u8] {
-        &self.bytes[..self.len as usize]
-    }
+/// Words of one telegram slot.
+const SLOT_WORDS: usize = round4(MAX_FRAME_LEN) / 4;
+
+type Slots = [[AtomicU32; SLOT_WORDS]; QUEUE_LEN];
+
+fn slot_of(seq: u32) -> usize {
+    seq as usize % QUEUE_LEN
 }
 
 /// The core's answer to a deferred request (`len` 0: no answer).
@@ -229,6 +256,7 @@ pub struct Deferred {
 /// place (RTIC `init` local) and [`split`](Self::split) it once.
 pub struct Shared {
     to_core: Queue<Queued, QUEUE_LEN>,
+    slots: Slots,
     to_line: Queue<Deferred, DEFERRED_LEN>,
     staging: TripleBuffer<STAGE_WORDS>,
     outputs: TripleBuffer<OUT_WORDS>,
@@ -245,6 +273,7 @@ impl Shared {
     pub const fn new() -> Self {
         Shared {
             to_core: Queue::new(),
+            slots: [const { [const { AtomicU32::new(0) }; SLOT_WORDS] }; QUEUE_LEN],
             to_line: Queue::new(),
             staging: TripleBuffer::new(),
             outputs: TripleBuffer::new(),
@@ -254,13 +283,16 @@ impl Shared {
     /// The line half and the core half. The core half publishes the first staging from
     /// `node` at once, so the line answers from the node's state from the first telegram on.
     pub fn split<'a>(&'a mut self, node: &mut Node) -> (FastPath<'a>, CoreLink<'a>) {
-        let Shared { to_core, to_line, staging, outputs } = self;
+        let Shared { to_core, slots, to_line, staging, outputs } = self;
+        let slots: &Slots = slots;
         let (qp, qc) = to_core.split();
         let (dp, dc) = to_line.split();
         let (sw, sr) = staging.halves();
         let (ow, or) = outputs.halves();
         let mut core = CoreLink {
             from_line: qc,
+            slots,
+            frame: [0; MAX_FRAME_LEN],
             to_line: dp,
             staging: sw,
             outputs: or,
@@ -273,6 +305,7 @@ impl Shared {
         core.publish(node);
         let mut fast = FastPath {
             to_core: qp,
+            slots,
             from_core: dc,
             staging: sr,
             outputs: ow,
@@ -414,6 +447,7 @@ fn after(a: u32, b: u32) -> bool {
 /// telegram the receiver delimited.
 pub struct FastPath<'a> {
     to_core: Producer<'a, Queued>,
+    slots: &'a Slots,
     from_core: Consumer<'a, Deferred>,
     staging: TripleReader<'a, STAGE_WORDS>,
     outputs: TripleWriter<'a, OUT_WORDS>,
@@ -449,6 +483,13 @@ impl<'a> FastPath<'a> {
     pub fn in_window(&mut self) -> bool {
         self.refresh();
         after(self.judge_seq, self.st.done_seq)
+    }
+
+    /// Whether the core has worked on every telegram the line queued (its newest staging
+    /// says so).
+    pub fn core_idle(&mut self) -> bool {
+        self.refresh();
+        !after(self.seq, self.st.done_seq)
     }
 
     /// Free places in the line → core queue.
@@ -492,9 +533,13 @@ impl<'a> FastPath<'a> {
 
     fn queue(&mut self, now: Instant, frame: &[u8], deferred: bool) -> Option<u32> {
         let seq = self.seq.wrapping_add(1);
-        let mut q = Queued { seq, at: now, deferred, len: frame.len() as u16, bytes: [0; MAX_FRAME_LEN] };
-        q.bytes[..frame.len()].copy_from_slice(frame);
-        match self.to_core.enqueue(q) {
+        if !self.to_core.ready() {
+            self.stats.queue_full = self.stats.queue_full.wrapping_add(1);
+            return None;
+        }
+        store_words(&self.slots[slot_of(seq)], frame);
+        // The queue's index update is a release: the core sees the slot written.
+        match self.to_core.enqueue(Queued { seq, at: now, deferred, len: frame.len() as u16 }) {
             Ok(()) => {
                 self.seq = seq;
                 self.stats.queued = self.stats.queued.wrapping_add(1);
@@ -810,6 +855,9 @@ pub struct Stepped {
 /// the node in its lower-priority task).
 pub struct CoreLink<'a> {
     from_line: Consumer<'a, Queued>,
+    slots: &'a Slots,
+    /// The telegram being worked on, copied out of its slot.
+    frame: [u8; MAX_FRAME_LEN],
     to_line: Producer<'a, Deferred>,
     staging: TripleWriter<'a, STAGE_WORDS>,
     outputs: TripleReader<'a, OUT_WORDS>,
@@ -839,9 +887,13 @@ impl CoreLink<'_> {
     /// Work on the oldest queued telegram: `Node::on_frame` at its arrival time, the deferred
     /// answer back to the line, and a new staging. `None` when the queue is empty.
     pub fn step(&mut self, node: &mut Node) -> Option<Stepped> {
-        let q = self.from_line.dequeue()?;
+        // Copy the slot out before the entry is dequeued (then the line may reuse the slot).
+        let q = *self.from_line.peek()?;
+        let len = usize::from(q.len).min(MAX_FRAME_LEN);
+        load_words(&self.slots[slot_of(q.seq)], &mut self.frame[..len]);
+        let _ = self.from_line.dequeue();
         let dx_before = node.slave().stats().data_exchanges;
-        let answer_len = node.on_frame(q.at, q.bytes()).map(|a| {
+        let answer_len = node.on_frame(q.at, &self.frame[..len]).map(|a| {
             let n = a.len().min(MAX_FRAME_LEN);
             self.answer[..n].copy_from_slice(&a[..n]);
             n
@@ -1111,6 +1163,31 @@ mod tests {
         assert_eq!(core.latest_outputs(&mut out), 4);
         assert_eq!(&out[..4], &[9, 8, 7, 6]);
         assert_eq!(node.slave().outputs(), &[9, 8, 7, 6]);
+    }
+
+    /// The benchmark's sequence: after every core run the line sees the core idle.
+    #[test]
+    fn core_idle_after_every_run() {
+        let mut node = Node::new(DpSlave::new(126));
+        let mut shared = Shared::new();
+        let (mut fast, mut core) = shared.split(&mut node);
+        let mut m = ScriptedMaster::new(2, 126);
+        let now = Instant::from_micros(100);
+        let prm = SetPrm::CARD.no_watchdog().pdu();
+        for module in [&card::MODULES[0], card::MODULES.iter().find(|m| m.reference == 101).unwrap()] {
+            for f in [m.srd(Some(61), &prm), m.srd(Some(62), module.cfg), m.srd(Some(60), &[])] {
+                assert!(!matches!(fast.on_frame(now, &f), Verdict::Silent), "{f:02x?}");
+                core.run(&mut node);
+                assert!(fast.core_idle());
+            }
+            for _ in 0..3 {
+                let out = std::vec![0u8; module.outputs as usize];
+                let Verdict::Answer(a) = fast.on_frame(now, &m.srd(None, &out)) else { panic!() };
+                assert_eq!(parts(a).1.len(), module.inputs as usize);
+                core.run(&mut node);
+                assert!(fast.core_idle());
+            }
+        }
     }
 
     /// Other stations' traffic is dropped before any copy: nothing queued.
