@@ -467,6 +467,18 @@ pub struct FastPath<'a> {
 
 const SC_FRAME: [u8; 1] = [telegram::SC];
 
+impl core::fmt::Debug for FastPath<'_> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("FastPath").field("seq", &self.seq).field("stats", &self.stats).finish_non_exhaustive()
+    }
+}
+
+impl core::fmt::Debug for CoreLink<'_> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("CoreLink").field("done_seq", &self.done_seq).field("stats", &self.stats).finish_non_exhaustive()
+    }
+}
+
 impl<'a> FastPath<'a> {
     /// Counters.
     pub fn stats(&self) -> FastStats {
