@@ -4,7 +4,8 @@
 # left in the tree). Exits non-zero if any target crashes; the crashing input is kept in
 # fuzz/artifacts/<target>/ (git-ignored) and printed in hex. The targets are every [[bin]] of
 # fuzz/Cargo.toml (`cargo fuzz list`): the bus-side parsers (telegram, framer, phy_line,
-# dp_params, dpv1_pdu, im_records, pkw, profidrive), the whole slave (slave, node_dpv1) and the DPM (dpm_spi;
+# dp_params, dpv1_pdu, im_records, pkw, profidrive), the whole slave (slave, node_dpv1), the line's fast
+# path against the core alone (fast_path) and the DPM (dpm_spi;
 # dpm_host_blocks: arbitrary drive-written bytes into a running card) and the bus monitor
 # (monitor_capture: the capture format; monitor_decode: cutter + decoder over arbitrary bytes).
 #

@@ -23,6 +23,8 @@
 //!   (reference §4).
 //! * [`profile`] — drive profiles on top of DP-V1 records: PROFIdrive base-mode parameter access
 //!   (record 47) and WEG's simple parameter access (record 48) (reference §5.1).
+//! * [`fast`] — the ASIC-style split: the line's fast path answers from staged frames, the
+//!   core ([`node::Node`]) works behind it in a lower task (issue 11).
 //! * [`node`] — framer + station + slave as one object that every platform drives.
 //! * [`dpm`] — the dual-port memory image shared with the drive's control board (layout,
 //!   sequenced tear-free blocks, P0740 / P0963 status) and the card-side [`dpm::Link`].
@@ -42,6 +44,7 @@ pub mod dp;
 pub mod dpm;
 pub mod dpv1;
 pub mod drive;
+pub mod fast;
 pub mod fdl;
 pub mod led;
 pub mod node;

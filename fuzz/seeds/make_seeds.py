@@ -267,3 +267,16 @@ write("dpm_host_blocks", "drive_state_inputs_then_loss", [0x01] + [1, 4] + [0x55
       + [0x04, 0x37, 0x12, 0x34] + [0] * 60 + [0, 8] + DX_ST1 + [5, 100] + DX_ST1 + [5, 250] + DX_ST1)
 write("dpm_host_blocks", "card_blocks_scribbled", [0x00] + DX_ST1 + [3, 0, 0, 4, 0, 0, 0, 0] + [6] + [3, 5, 0, 32]
       + [0xFF] * 32 + [6] + [3, 6, 0, 8] + [1] * 8 + DX_ST1 + [5, 50])
+
+# fast_path: byte 0 bit 0 the schedule (0 sync, 1 lag); then pbcard::fast::check operations
+# (op, master selector < 170 = master 2, then the op's bytes): 18 the start-up pair (Set_Prm +
+# Chk_Cfg of module 0), 2 Data_Exchange (0 = the configured length, then the bytes), 3
+# Slave_Diag, 6 Global_Control (0 broadcast, command, group), 7 the last request again (a
+# retry), 8 other stations' traffic, 10 FDL_Status, 12 time, 15 DP-V1.
+FP_UP = [18, 0, 0]
+FP_DX = [2, 0, 0, 1, 2, 3, 4]
+write("fast_path", "bring_up_dx_retry", [0] + FP_UP + FP_DX + [7, 0] + [3, 0] + FP_DX + [10, 0])
+write("fast_path", "window_diag", [1] + FP_UP + [3, 0] + [3, 0] + [8, 0, 9, 9, 9, 9] + [10, 0] + FP_DX)
+write("fast_path", "gc_sync_not_supported", [0] + FP_UP + [6, 0, 1, 0x20, 0] + FP_DX + [3, 0] + FP_DX + [3, 0])
+write("fast_path", "dpv1_and_clear", [0] + FP_UP + [15, 0, 0, 4, 0x5E, 0, 1, 4] + [6, 0, 0, 0x02, 0] + FP_DX
+      + [2, 0, 2] + [12, 0, 60] + FP_DX)

@@ -159,22 +159,21 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
                 decoder.feed(&buf[..n], |rx| match rx {
                     Rx::Byte(b) => {
                         for (i, st) in stations.iter_mut().enumerate() {
-                            let node = &mut st.node;
-                            let frames = node.framer().stats().frames;
-                            let response = node.on_byte(now, b).map(<[u8]>::to_vec);
+                            let frames = st.framer.stats().frames;
+                            let response = st.on_byte(now, b);
                             if let Some(r) = response {
-                                let wait = to_us(rate.bits_to_duration(node.min_tsdr().0));
+                                let wait = to_us(rate.bits_to_duration(st.node.min_tsdr().0));
                                 tx = Some((t + wait, r));
                                 tx_station = i;
                             }
-                            if node.framer().stats().frames != frames {
-                                let prefix = format!("#{}", node.slave().address());
+                            if st.framer.stats().frames != frames {
+                                let prefix = format!("#{}", st.node.slave().address());
                                 st.monitor
-                                    .on_frame(node.framer().frame(), node, &mut |m| emit(format!("{prefix} {m}")));
+                                    .on_frame(st.framer.frame(), &st.node, &mut |m| emit(format!("{prefix} {m}")));
                             }
                         }
                     }
-                    Rx::Error => stations.iter_mut().for_each(|st| st.node.on_line_error()),
+                    Rx::Error => stations.iter_mut().for_each(|st| st.framer.line_error()),
                 });
             }
         }
@@ -184,14 +183,14 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
                 now.saturating_duration_since(last_activity).as_micros() as u64,
             ));
             for st in stations.iter_mut() {
-                if st.config.verbose && !st.node.framer().pending().is_empty() {
+                if st.config.verbose && !st.framer.pending().is_empty() {
                     emit(format!(
                         "{} partial telegram dropped after idle line: {}",
                         st.prefix(),
-                        hex(st.node.framer().pending())
+                        hex(st.framer.pending())
                     ));
                 }
-                st.node.on_idle(BitTimes(bits.min(u32::MAX as u64) as u32));
+                st.framer.idle(BitTimes(bits.min(u32::MAX as u64) as u32));
             }
             idle_reported = true;
         }
@@ -231,6 +230,8 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
                 if st.node.has_acyclic_work() {
                     st.node.process_acyclic(now_pb(now), &mut st.app.parameters(now_pb(now)));
                 }
+                // The fast path answers from the node as it is now.
+                st.publish(events);
                 let prefix = st.prefix();
                 st.monitor.on_step(events, &st.node, &st.app, &mut |m| emit(format!("{prefix} {m}")));
                 if let Some(file) = states.get_mut(i) {
@@ -260,7 +261,7 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
         summary.data_exchanges += dx;
         summary.stations.push((st.node.slave().address(), dx));
     }
-    summary.corrupt = stations.first().map_or(0, |st| st.node.framer().stats().corrupt);
+    summary.corrupt = stations.first().map_or(0, |st| st.framer.stats().corrupt);
     emit(format!(
         "stopped after {:.1} s: {} requests, {} Data_Exchange, {} FCB retries, {} corrupt telegrams, {} responses",
         summary.elapsed.as_secs_f64(),

@@ -36,7 +36,10 @@ use pbcard::app::Application;
 use pbcard::card::{self, Module};
 use pbcard::dp::DpSlave;
 use pbcard::drive::DriveConfig;
+use pbcard::fast::{CoreLink, FastPath, Shared, Verdict};
+use pbcard::fdl::framer::{Framer, Push};
 use pbcard::node::Node;
+use pbcard::time::Instant;
 
 use crate::monitor::Monitor;
 
@@ -226,12 +229,20 @@ fn param_error(v: u16) -> String {
     }
 }
 
-/// One independent card on the shared line.
+/// One independent card on the shared line, with the firmware's split (`pbcard::fast`): its
+/// own framer and fast path answer from the staged frames, its core (`CoreLink` + `Node`)
+/// works behind them — in this single-threaded program right after each answer is decided.
 #[derive(Debug)]
 pub struct Station {
     /// What it is.
     pub config: StationConfig,
-    /// Its protocol stack.
+    /// Its framer (the line side; the node's own framer is not used).
+    pub framer: Framer,
+    /// The line half of the split.
+    pub fast: FastPath<'static>,
+    /// The core half of the split.
+    pub core: CoreLink<'static>,
+    /// Its protocol stack (behind the core half).
     pub node: Node,
     /// Its DPM image and simulated drive.
     pub app: Application,
@@ -256,7 +267,42 @@ impl Station {
                 why: format!("refused by the simulated drive ({})", param_error(e.value.0)),
             })?;
         }
-        Ok(Station { config: config.clone(), node, app, monitor: Monitor::new(config.verbose, config.address) })
+        // One split per station for the life of the program.
+        let shared: &'static mut Shared = Box::leak(Box::new(Shared::new()));
+        let (fast, core) = shared.split(&mut node);
+        Ok(Station {
+            config: config.clone(),
+            framer: Framer::new(),
+            fast,
+            core,
+            node,
+            app,
+            monitor: Monitor::new(config.verbose, config.address),
+        })
+    }
+
+    /// One received character at `now`: framed here, a telegram into the fast path (answer
+    /// from the staged frames, or the core's for DP-V1), then the core works on what was
+    /// queued. Returns the answer to send after min_TSDR.
+    pub fn on_byte(&mut self, now: Instant, byte: u8) -> Option<Vec<u8>> {
+        let Push::Frame(_) = self.framer.push(byte) else { return None };
+        let answer = match self.fast.on_frame(now, self.framer.frame()) {
+            Verdict::Silent => None,
+            Verdict::Answer(a) => Some(a.to_vec()),
+            Verdict::Core => {
+                self.core.run(&mut self.node);
+                self.fast.take_deferred().filter(|a| !a.is_empty()).map(<[u8]>::to_vec)
+            }
+        };
+        self.core.run(&mut self.node);
+        answer
+    }
+
+    /// Republish the staging after the node changed outside a telegram (application step,
+    /// DP-V1 work, the required module); `events` from the application step.
+    pub fn publish(&mut self, events: pbcard::dp::Events) {
+        self.core.note_events(events);
+        self.core.publish(&mut self.node);
     }
 
     /// The log prefix: `#5`.

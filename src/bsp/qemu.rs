@@ -25,7 +25,7 @@
 //! * **Benchmark** (feature `bench`): TIM2 with PSC = 0 counts one per executed instruction
 //!   under `-icount shift=0,align=off,sleep=off` (see [`bench`]).
 
-use core::sync::atomic::{AtomicBool, Ordering};
+use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 use cortex_m::peripheral::SYST;
 use pbcard::fdl::framer::{Framer, FramerStats, Push};
@@ -36,7 +36,7 @@ use stm32f4xx_hal::rcc::{self, Enable, RccExt, Reset};
 
 use super::clock::{self, SysTickClock};
 use super::divisor::usart_brr;
-use super::{BusPort, Clock, FrameQueue, LineError, LineEvent, TxError, UnsupportedRate};
+use super::{BusPort, Clock, LineError, LineEvent, TxError, UnsupportedRate};
 
 /// Board name for the boot log.
 pub const NAME: &str = "QEMU netduinoplus2 (STM32F405), USART1 per byte, no line timing";
@@ -46,14 +46,15 @@ pub const SYSTICK_HZ: u32 = 168_000_000;
 
 /// The line port of this board.
 pub type Port = QemuUsart1<SysTickClock>;
-/// The line of this board.
+/// The line of this board: only the line interrupt uses it (the lower tasks read
+/// [`LineView`]).
 pub type Line = QemuLine;
 /// The rate control of this board (fixed).
 pub type Baud = FixedRate;
 
 /// What [`init`] hands to the application.
 pub struct Board {
-    /// USART1, receiving, with its framer and telegram queue.
+    /// USART1, receiving, with its framer; the fast path is attached in `init`.
     pub line: QemuLine,
     /// The microsecond clock (SysTick monotonic).
     pub clock: SysTickClock,
@@ -70,6 +71,43 @@ pub fn init(dp: pac::Peripherals, syst: SYST, rate: Baudrate) -> Board {
     let port = QemuUsart1::new(dp.USART1, clock, pclk2, rate, &mut rcc);
     defmt::info!("USART1 {} (QEMU ignores the rate), HSI {=u32} Hz, SysTick {=u32} Hz", port.baud(), pclk2, SYSTICK_HZ);
     Board { line: QemuLine::new(port), clock }
+}
+
+/// The line's counters for the lower tasks, published by the line interrupt after each
+/// interrupt (plain atomic stores; the lower tasks only load).
+static LINE_STATS: [AtomicU32; 8] = [const { AtomicU32::new(0) }; 8];
+static RX_STATS: [AtomicU32; 4] = [const { AtomicU32::new(0) }; 4];
+/// The lower tasks' view of the QEMU line: no lock shared with the line interrupt.
+pub struct LineView;
+
+impl LineView {
+    /// Counters (as of the line's last interrupt).
+    pub fn stats(&self) -> LineStats {
+        let l = |i: usize| LINE_STATS[i].load(Ordering::Relaxed);
+        LineStats {
+            parity: l(0),
+            framing: l(1),
+            noise: l(2),
+            overrun: l(3),
+            queue_full: l(4),
+            tx_busy: l(5),
+            tx_bad_length: l(6),
+            responses: l(7),
+        }
+    }
+
+    /// The framer's counters.
+    pub fn rx_stats(&self) -> FramerStats {
+        let r = |i: usize| RX_STATS[i].load(Ordering::Relaxed);
+        FramerStats { frames: r(0), corrupt: r(1), truncated: r(2), skipped_bytes: r(3) }
+    }
+
+    /// Telegrams lost on the line (STATUS.CORRUPT_FRAMES): the framer's invalid telegrams and
+    /// those cut off.
+    pub fn corrupt_frames(&self) -> u32 {
+        let f = self.rx_stats();
+        f.corrupt.wrapping_add(f.truncated)
+    }
 }
 
 /// What the line keeps with each telegram.
@@ -106,35 +144,89 @@ pub struct LineStats {
 pub struct QemuLine {
     port: Port,
     framer: Framer,
-    queue: FrameQueue<FrameMeta>,
     stats: LineStats,
+    /// A request the fast path left to the core: its data, until the core's answer is back.
+    awaiting: Option<FrameMeta>,
+    /// The line half of the split (`pbcard::fast`), attached once in `init`.
+    fast: Option<pbcard::fast::FastPath<'static>>,
+    /// Characters are held until the core has caught up (see [`take`]).
+    hold: bool,
+    /// The held characters and their arrival times.
+    held: heapless::Deque<(u8, Instant), HELD>,
 }
+
+/// Characters the line holds at most while the core catches up (two longest telegrams).
+const HELD: usize = 2 * MAX_FRAME_LEN;
 
 impl QemuLine {
     fn new(port: Port) -> Self {
-        QemuLine { port, framer: Framer::new(), queue: FrameQueue::new(), stats: LineStats::default() }
+        QemuLine {
+            port,
+            framer: Framer::new(),
+            stats: LineStats::default(),
+            awaiting: None,
+            fast: None,
+            hold: false,
+            held: heapless::Deque::new(),
+        }
     }
 
-    /// The USART1 interrupt: take every character, send the next response character.
-    /// Returns `true` when telegrams were queued for the decision task.
-    pub fn on_usart(&mut self) -> bool {
+    /// Give the line its fast path (from `init`, after the split).
+    pub fn attach(&mut self, fast: pbcard::fast::FastPath<'static>) {
+        self.fast = Some(fast);
+    }
+
+    /// The USART1 interrupt with the ASIC-style split (`pbcard::fast`): every character into
+    /// the framer, every telegram into the fast path, which answers at once from the staged
+    /// frames (the response's first character goes into DR in this interrupt) or leaves it to
+    /// the core (DP-V1): then the core's answer is sent when the core task pends this
+    /// interrupt again. Returns `true` when telegrams were queued for the core.
+    pub fn on_usart_fast(&mut self) -> bool {
         #[cfg(feature = "bench")]
         let mut entry = bench::count();
-        let mut queued = false;
+        #[cfg(not(feature = "bench"))]
+        let entry = 0u32;
+        let Some(fast) = self.fast.as_mut() else {
+            return false;
+        };
+        let queued_before = fast.stats().queued;
+        if let Some(meta) = self.awaiting {
+            if let Some(answer) = fast.take_deferred() {
+                self.awaiting = None;
+                if !answer.is_empty() {
+                    send(&mut self.port, &mut self.stats, &meta, answer, true);
+                }
+            }
+        }
+        // The core has caught up: the held characters first, in order.
+        if self.hold && fast.core_idle() {
+            self.hold = false;
+        }
+        while !self.hold {
+            let Some((byte, at)) = self.held.pop_front() else { break };
+            self.hold =
+                take(&mut self.port, &mut self.stats, &mut self.framer, fast, &mut self.awaiting, byte, at, entry);
+        }
         while let Some(ev) = self.port.poll_event() {
             match ev {
-                LineEvent::Byte { byte, .. } => {
-                    if let Push::Frame(_) = self.framer.push(byte) {
-                        let meta = FrameMeta {
-                            #[cfg(feature = "bench")]
-                            entry,
-                            #[cfg(feature = "bench")]
-                            len: self.framer.frame().len(),
-                        };
-                        if !self.queue.push(self.framer.frame(), meta) {
+                LineEvent::Byte { byte, at, .. } => {
+                    if self.hold {
+                        // DR is read (QEMU keeps its interrupt line up otherwise); the
+                        // character waits here until the core has caught up.
+                        if self.held.push_back((byte, at)).is_err() {
                             self.stats.queue_full = self.stats.queue_full.wrapping_add(1);
                         }
-                        queued = true;
+                    } else {
+                        self.hold = take(
+                            &mut self.port,
+                            &mut self.stats,
+                            &mut self.framer,
+                            fast,
+                            &mut self.awaiting,
+                            byte,
+                            at,
+                            entry,
+                        );
                     }
                 }
                 LineEvent::Error(e) => {
@@ -152,47 +244,84 @@ impl QemuLine {
                 entry = bench::count();
             }
         }
-        queued
+        publish_stats(&self.stats, &self.framer);
+        fast.stats().queued != queued_before
     }
+}
 
-    /// The next telegram for the decision task: its bytes into `buf`, its length and data.
-    pub fn take_frame(&mut self, buf: &mut [u8; MAX_FRAME_LEN]) -> Option<(usize, FrameMeta)> {
-        self.queue.pop_into(buf)
+/// One character into the framer, a completed telegram into the fast path and its answer
+/// onto the line. Returns whether the fast path queued the telegram for the core: then the
+/// line holds the characters that follow until the core has caught up (QEMU's master is a
+/// host program that sends the next request the moment it has the answer — sooner, in
+/// emulated time, than a real master's turnaround — and would otherwise keep this
+/// interrupt busy so that the core never ran between two requests; the answer itself is
+/// never delayed). The F411's DMA receiver needs nothing of the kind.
+#[allow(clippy::too_many_arguments)]
+fn take(
+    port: &mut Port,
+    stats: &mut LineStats,
+    framer: &mut Framer,
+    fast: &mut pbcard::fast::FastPath<'static>,
+    awaiting: &mut Option<FrameMeta>,
+    byte: u8,
+    at: Instant,
+    entry: u32,
+) -> bool {
+    let Push::Frame(_) = framer.push(byte) else { return false };
+    let _ = entry;
+    let meta = FrameMeta {
+        #[cfg(feature = "bench")]
+        entry,
+        #[cfg(feature = "bench")]
+        len: framer.frame().len(),
+    };
+    let before = fast.stats().queued;
+    match fast.on_frame(at, framer.frame()) {
+        pbcard::fast::Verdict::Answer(bytes) => send(port, stats, &meta, bytes, false),
+        pbcard::fast::Verdict::Core => *awaiting = Some(meta),
+        pbcard::fast::Verdict::Silent => {}
     }
+    fast.stats().queued != before
+}
 
-    /// Send the response to `request` at once (no line timing under QEMU); `true` when it
-    /// was started. The bench build logs the instructions from the interrupt entry of the
-    /// request's last byte to the first response byte in DR.
-    pub fn respond(&mut self, request: &FrameMeta, bytes: &[u8], min_tsdr: BitTimes, _max_tsdr: BitTimes) -> bool {
-        let _ = request;
-        match self.port.start_tx(bytes, min_tsdr) {
-            Ok(()) => {
-                self.stats.responses = self.stats.responses.wrapping_add(1);
-                #[cfg(feature = "bench")]
-                defmt::info!(
-                    "BENCH req {=usize} resp {=usize} instr {=u32}",
-                    request.len,
-                    bytes.len(),
-                    self.port.tx_first_count().wrapping_sub(request.entry)
-                );
-                // QEMU raises no interrupt for TXEIE set while TXE is already set (its line has
-                // no bit time): hand over the rest of the response now, as the per-byte
-                // handler's loop does. Telegrams this takes are queued for the running
-                // decision task's next turn.
-                let _ = self.on_usart();
-                true
-            }
-            Err(TxError::Busy) => {
-                self.stats.tx_busy = self.stats.tx_busy.wrapping_add(1);
-                false
-            }
-            Err(TxError::BadLength) => {
-                self.stats.tx_bad_length = self.stats.tx_bad_length.wrapping_add(1);
-                false
-            }
+/// Start a response at once (the loop of the caller hands over its other characters).
+fn send(port: &mut Port, stats: &mut LineStats, request: &FrameMeta, bytes: &[u8], through_core: bool) {
+    let _ = (request, through_core);
+    match port.start_tx(bytes, BitTimes(0)) {
+        Ok(()) => {
+            stats.responses = stats.responses.wrapping_add(1);
+            #[cfg(feature = "bench")]
+            defmt::info!(
+                "BENCH req {=usize} resp {=usize} instr {=u32} {=str}",
+                request.len,
+                bytes.len(),
+                port.tx_first_count().wrapping_sub(request.entry),
+                if through_core { "core" } else { "fast" }
+            );
+        }
+        Err(TxError::Busy) => stats.tx_busy = stats.tx_busy.wrapping_add(1),
+        Err(TxError::BadLength) => stats.tx_bad_length = stats.tx_bad_length.wrapping_add(1),
+    }
+}
+
+/// The counters into the atomics [`LineView`] reads.
+fn publish_stats(stats: &LineStats, framer: &Framer) {
+    {
+        let l = *stats;
+        for (i, v) in [l.parity, l.framing, l.noise, l.overrun, l.queue_full, l.tx_busy, l.tx_bad_length, l.responses]
+            .into_iter()
+            .enumerate()
+        {
+            LINE_STATS[i].store(v, Ordering::Relaxed);
+        }
+        let f = framer.stats();
+        for (i, v) in [f.frames, f.corrupt, f.truncated, f.skipped_bytes].into_iter().enumerate() {
+            RX_STATS[i].store(v, Ordering::Relaxed);
         }
     }
+}
 
+impl QemuLine {
     /// The (nominal) line rate.
     pub fn baud(&self) -> Baudrate {
         self.port.baud()

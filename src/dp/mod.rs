@@ -384,6 +384,29 @@ impl DpSlave {
         &self.bufs[self.dx_cur as usize][telegram::pdu_range(len, n)]
     }
 
+    /// The staged Data_Exchange answer as it stands (header DA / FC as last patched; the
+    /// response path patches them): what [`crate::fast::CoreLink`] publishes for the line.
+    pub fn staged_dx_frame(&self) -> &[u8] {
+        let id = self.dx_cur as usize;
+        &self.bufs[id][..self.lens[id] as usize]
+    }
+
+    /// The staged Slave_Diag answer, rebuilt first when the diagnosis changed since it was
+    /// staged (the same frame the next Slave_Diag would send): what
+    /// [`crate::fast::CoreLink`] publishes for the line.
+    pub fn staged_diag_frame(&mut self) -> &[u8] {
+        if self.diag_dirty {
+            self.restage_diag();
+        }
+        let id = self.diag_cur as usize;
+        &self.bufs[id][..self.lens[id] as usize]
+    }
+
+    /// New diagnosis waits for the locking master (Data_Exchange answers DH).
+    pub fn has_new_diag(&self) -> bool {
+        self.diag_new
+    }
+
     /// Events since the last call.
     pub fn take_events(&mut self) -> Events {
         core::mem::take(&mut self.events)

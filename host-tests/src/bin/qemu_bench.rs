@@ -210,18 +210,20 @@ fn main() {
     }
     // Rows in first-seen order, samples merged by label; every log line must match the
     // request/response lengths of the exchange it belongs to.
-    let mut rows: Vec<(String, usize, usize, Vec<u32>)> = Vec::new();
+    let mut rows: Vec<(String, usize, usize, Vec<u32>, String)> = Vec::new();
     for (i, ((label, req, resp), line)) in s.sent.iter().zip(&lines[skip..]).enumerate() {
         let f: Vec<&str> = line.split_whitespace().collect();
         let pos = f.iter().position(|w| *w == "BENCH").unwrap_or_else(|| fail(line));
         let num = |k: usize| f.get(pos + k).and_then(|v| v.parse::<u32>().ok()).unwrap_or_else(|| fail(line));
         let (lreq, lresp, instr) = (num(2), num(4), num(6));
+        // `fast`: answered by the fast path at the line; `core`: left to the core (DP-V1).
+        let path = f.get(pos + 7).copied().unwrap_or("fast").to_string();
         if lreq as usize != *req || lresp as usize != *resp {
             fail(&format!("measurement {i} ({label}, {req}/{resp} bytes) does not match log line {line:?}"));
         }
         match rows.iter_mut().find(|r| r.0 == *label) {
             Some(r) => r.3.push(instr),
-            None => rows.push((label.clone(), *req, *resp, vec![instr])),
+            None => rows.push((label.clone(), *req, *resp, vec![instr], path)),
         }
     }
     let stop = q.stop();
@@ -248,6 +250,42 @@ fn main() {
             None => locks.push((what, vec![n])),
         }
     }
+    // The core's work per queued telegram (`CORE step <n> instructions`), in queue order: every
+    // request but FDL_Status (which the fast path answers without queueing) is one step.
+    let core_steps: Vec<u32> = stop
+        .iter()
+        .filter_map(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            let pos = f.windows(2).position(|w| w == ["CORE", "step"])?;
+            f.get(pos + 2)?.parse().ok()
+        })
+        .collect();
+    let queued: Vec<&String> = s.sent.iter().map(|r| &r.0).filter(|l| *l != "FDL_Status").collect();
+    let mut core_rows: Vec<(String, Vec<u32>)> = Vec::new();
+    if core_steps.len() >= queued.len() {
+        // The first steps belong to the ready probe (skipped), the rest pair with the requests.
+        let from = core_steps.len() - queued.len();
+        for (label, n) in queued.iter().zip(&core_steps[from..]) {
+            match core_rows.iter_mut().find(|r| r.0 == **label) {
+                Some(r) => r.1.push(*n),
+                None => core_rows.push(((*label).clone(), vec![*n])),
+            }
+        }
+    }
+    // Critical sections the lower tasks still take (every interrupt masked, so also the fast
+    // path): `CS <what> <n> instructions` lines of the bench build.
+    let mut sections: Vec<(String, u32)> = Vec::new();
+    for l in &stop {
+        let f: Vec<&str> = l.split_whitespace().collect();
+        let Some(pos) = f.iter().position(|w| *w == "CS") else { continue };
+        let (Some(what), Some(n)) = (f.get(pos + 1), f.get(pos + 2).and_then(|v| v.parse::<u32>().ok())) else {
+            continue;
+        };
+        match sections.iter_mut().find(|r| r.0 == *what) {
+            Some(r) => r.1 = r.1.max(n),
+            None => sections.push((what.to_string(), n)),
+        }
+    }
     for what in ["LOCK app.snapshot", "LOCK app.apply", "UNLOCKED app.step", "LOCK process_acyclic"] {
         if !locks.iter().any(|r| r.0 == what) {
             fail(&format!("no {what} line in the firmware log"));
@@ -259,15 +297,39 @@ fn main() {
     println!(
         "(instructions from the USART1 handler entry for the last request byte to the first response byte in DR)\n"
     );
-    println!("| request | frame bytes in → out | instructions | samples | ≥ µs at 96 MHz |");
-    println!("|---|---:|---:|---:|---:|");
-    for (label, req, resp, v) in &rows {
+    println!("| request | answered by | frame bytes in → out | instructions | samples | ≥ µs at 96 MHz |");
+    println!("|---|---|---:|---:|---:|---:|");
+    for (label, req, resp, v, path) in &rows {
         let (lo, hi) = (v.iter().min().unwrap(), v.iter().max().unwrap());
         let instr = if lo == hi { format!("{lo}") } else { format!("{lo} – {hi}") };
-        println!("| {label} | {req} → {resp} | {instr} | {} | {:.1} |", v.len(), *hi as f64 / 96.0);
+        let by = if path == "core" { "core (DP-V1, through the line)" } else { "fast path" };
+        println!("| {label} | {by} | {req} → {resp} | {instr} | {} | {:.1} |", v.len(), *hi as f64 / 96.0);
+    }
+    println!("\n(the core's work per queued telegram, after the answer: `CoreLink::step` = `Node::on_frame` + republishing the staging)\n");
+    println!("| queued request | core instructions | samples |");
+    println!("|---|---:|---:|");
+    for (label, v) in &core_rows {
+        let (lo, hi) = (v.iter().min().unwrap(), v.iter().max().unwrap());
+        let instr = if lo == hi { format!("{lo}") } else { format!("{lo} – {hi}") };
+        println!("| {label} | {instr} | {} |", v.len());
+    }
+    println!("\n(critical sections a lower task still imposes on the fast path: every interrupt masked)\n");
+    println!("| critical section | instructions (max) |");
+    println!("|---|---:|");
+    for (what, n) in &sections {
+        let name = match what.as_str() {
+            "clock.now" => {
+                "`SysTickClock::now` (`interrupt::free` around the SysTick reads; housekeeping, DP-V1 task, core)"
+            }
+            "defmt" => {
+                "one defmt log line over semihosting (the QEMU logger's critical section; the F411 logs over RTT)"
+            }
+            other => other,
+        };
+        println!("| {name} | {n} |");
     }
     println!(
-        "\n(lower-priority work with the Node locked, i.e. the decision masked: the largest count seen, counted with interrupts masked)\n"
+        "\n(lower-priority work with the Node locked: on QEMU this masks the core task only, not the fast path; counted without masking interrupts)\n"
     );
     println!("| under the Node lock | instructions (max) | ≥ µs at 96 MHz | characters at 1.5 Mbit/s |");
     println!("|---|---:|---:|---:|");
@@ -287,4 +349,11 @@ fn main() {
         let us = max as f64 / 96.0;
         println!("| {task} | {max} | {us:.1} | {:.1} |", us / (11.0 / 1.5));
     }
+    let worst = rows
+        .iter()
+        .filter(|r| r.4 != "core")
+        .map(|r| (*r.3.iter().max().unwrap(), &r.0))
+        .max_by_key(|r| r.0)
+        .unwrap_or_else(|| fail("no fast-path answer"));
+    println!("\nworst fast path: {} instructions ({})", worst.0, worst.1);
 }

@@ -1,0 +1,460 @@
+//! The equivalence check of the split (issue 11 item 5): one byte string drives two cards —
+//! a core alone ([`Node::on_frame`], the card before the split) and the split
+//! ([`FastPath`] + [`CoreLink`] + a second [`Node`]) — through the same telegram sequence,
+//! and every answer on the line is compared. Used by the proptest
+//! `split_answers_equal_the_core` and the `fast_path` fuzz target; built only for
+//! `cfg(test)` or the `test-support` feature.
+//!
+//! The sequence: two masters (2 and 3) and a third requester (5), Set_Prm in many forms (the
+//! lock table, short, wrong ident, Sync/Freeze requests, DP-V1 status), Chk_Cfg (every
+//! module, mangled), Data_Exchange of any length, Slave_Diag, Get_Cfg, Rd_Inp / Rd_Outp,
+//! Global_Control (Clear / Sync / Unsync / Freeze / Unfreeze, to us or broadcast),
+//! Set_Slave_Add, FDL_Status, SDA and other function codes, DP-V1 requests (SAP 51, 49, 48),
+//! FCB retries, other stations' traffic, mangled sources (SA 127, SA = own address, FC bit
+//! 7), raw bytes, time steps (the watchdog) and application changes (inputs, extended
+//! diagnosis, Stat_Diag, drive fault, the start-up gate).
+//!
+//! **How the not-ready window is treated** ([`Mode`]):
+//! * [`Mode::Sync`] — the core runs to completion after every telegram (as it does on an idle
+//!   card between a master's requests). Every answer must equal the core alone's, byte for
+//!   byte; no window ever opens.
+//! * [`Mode::Lag`] — after a Set_Prm or Chk_Cfg the core stays behind while the master sends
+//!   what a master sends while it waits for a slave to become ready (Slave_Diag, FDL_Status,
+//!   other stations' traffic, mangled frames); before anything else the core catches up. In
+//!   the window a Slave_Diag answer may differ from the core alone's only in being the older
+//!   staged diagnosis with Station_Not_Ready set (a valid diagnosis answer to the requester
+//!   with octet 1 bit 1); every other answer must be equal. An FCB retry must repeat the
+//!   split's own earlier answer byte for byte (equal to the core alone's outside the window).
+
+use heapless::Vec;
+
+use super::{CoreLink, FastPath, Shared, Verdict};
+use crate::card;
+use crate::dp::DpSlave;
+use crate::fdl::telegram::{
+    self, Decoded, FunctionCode, Header, RequestFunction, ResponseStatus, Telegram, MAX_FRAME_LEN,
+};
+use crate::node::Node;
+use crate::testkit::{Frame, SetPrm};
+use crate::time::Instant;
+
+/// The station address of both cards.
+pub const ME: u8 = 8;
+const MASTERS: [u8; 3] = [2, 3, 5];
+/// Another slave on the bus.
+const OTHER: u8 = 9;
+
+/// How the core is scheduled against the line (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mode {
+    /// The core catches up after every telegram: answers equal.
+    Sync,
+    /// The core stays behind in the not-ready window.
+    Lag,
+}
+
+/// The first difference found.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Mismatch {
+    /// Operation number.
+    pub step: usize,
+    /// The request.
+    pub request: Frame,
+    /// The core alone's answer.
+    pub alone: Option<Frame>,
+    /// The split's answer.
+    pub split: Option<Frame>,
+    /// Which rule failed.
+    pub why: &'static str,
+}
+
+/// Reads the input front to back; zeros once it is used up.
+struct Src<'a>(&'a [u8]);
+
+impl<'a> Src<'a> {
+    fn u8(&mut self) -> u8 {
+        match self.0.split_first() {
+            Some((&b, rest)) => {
+                self.0 = rest;
+                b
+            }
+            None => 0,
+        }
+    }
+    fn bytes(&mut self, n: usize) -> &'a [u8] {
+        let n = n.min(self.0.len());
+        let (a, b) = self.0.split_at(n);
+        self.0 = b;
+        a
+    }
+}
+
+fn frame_of(bytes: &[u8]) -> Frame {
+    let mut f = Frame::new();
+    let _ = f.extend_from_slice(&bytes[..bytes.len().min(MAX_FRAME_LEN)]);
+    f
+}
+
+/// What an operation does.
+enum Action {
+    /// A telegram on the line; `holdable`: the core may stay behind for it in [`Mode::Lag`].
+    Telegram { frame: Frame, holdable: bool, diag: bool },
+    /// Time passes: both nodes' timers.
+    Tick(u64),
+    /// An application change, applied to both nodes.
+    App(u8, Vec<u8, 64>),
+}
+
+struct Rig {
+    fcb: [bool; 128],
+    next: Option<Frame>,
+    last: Option<Frame>,
+}
+
+impl Rig {
+    fn request(&mut self, da: u8, sa: u8, dsap: Option<u8>, ssap: Option<u8>, pdu: &[u8], function: u8) -> Frame {
+        let fcb = &mut self.fcb[usize::from(sa & 0x7F)];
+        *fcb = !*fcb;
+        let hdr = Header { da, sa, fc: FunctionCode::request(function, *fcb, true), dsap, ssap };
+        match crate::testkit::try_frame(&hdr, pdu) {
+            Ok(f) => f,
+            Err(_) => Frame::new(),
+        }
+    }
+}
+
+fn set_prm(src: &mut Src<'_>) -> Vec<u8, 64> {
+    let v = src.u8();
+    let mut p = SetPrm::CARD;
+    match v % 12 {
+        1 => p = p.no_watchdog(),
+        2 => p.station_status = src.u8(),
+        4 => p = p.ident(u16::from(src.u8()) << 8 | u16::from(src.u8())),
+        5 => p.station_status |= src.u8() & 0x30,
+        6 => p.group = src.u8(),
+        7 => p = p.dpv1_status_1(src.u8()),
+        _ => {}
+    }
+    let pdu = p.pdu();
+    let mut out = Vec::new();
+    let n = if v % 12 == 3 { usize::from(src.u8()) % (pdu.len() + 1) } else { pdu.len() };
+    let _ = out.extend_from_slice(&pdu[..n.min(64)]);
+    out
+}
+
+fn next_action(src: &mut Src<'_>, rig: &mut Rig, alone: &Node) -> Action {
+    if let Some(f) = rig.next.take() {
+        rig.last = Some(f.clone());
+        return Action::Telegram { frame: f, holdable: false, diag: false };
+    }
+    let op = src.u8();
+    let da = alone.slave().address();
+    // Mostly the first master, so that sequences reach data exchange.
+    let m = match src.u8() {
+        0..=169 => MASTERS[0],
+        170..=229 => MASTERS[1],
+        _ => MASTERS[2],
+    };
+    let srd = 0x0D;
+    let f = match op % 19 {
+        18 => {
+            // The start-up pair at once: Set_Prm (the card's) then Chk_Cfg (module 0) — the
+            // second telegram follows as the next operation through `rig.next`.
+            let pdu = SetPrm::CARD.pdu();
+            let cfg = rig.request(da, m, Some(62), Some(62), card::MODULES[0].cfg, srd);
+            rig.next = Some(cfg);
+            rig.request(da, m, Some(61), Some(62), &pdu, srd)
+        }
+        0 => {
+            let pdu = set_prm(src);
+            rig.request(da, m, Some(61), Some(62), &pdu, srd)
+        }
+        1 => {
+            let module = &card::MODULES[usize::from(src.u8()) % card::MODULES.len()];
+            let mut cfg: Vec<u8, 32> = Vec::new();
+            let _ = cfg.extend_from_slice(module.cfg);
+            let mangle = src.u8();
+            if mangle & 0xC0 == 0xC0 && !cfg.is_empty() {
+                let i = usize::from(mangle) % cfg.len();
+                cfg[i] = src.u8();
+            }
+            rig.request(da, m, Some(62), Some(62), &cfg, srd)
+        }
+        2 => {
+            let n = match src.u8() % 4 {
+                0 | 1 => alone.slave().output_len(),
+                2 => 0,
+                _ => usize::from(src.u8()) % 40,
+            };
+            let pdu = src.bytes(n);
+            let mut out = [0u8; 64];
+            out[..pdu.len()].copy_from_slice(pdu);
+            rig.request(da, m, None, None, &out[..n], srd)
+        }
+        3 => {
+            let diag = rig.request(da, m, Some(60), Some(62), &[], srd);
+            return Action::Telegram { frame: diag, holdable: true, diag: true };
+        }
+        4 => rig.request(da, m, Some(59), Some(62), &[], srd),
+        5 => {
+            let d = if src.u8() & 1 == 0 { 56 } else { 57 };
+            rig.request(da, m, Some(d), Some(62), &[], srd)
+        }
+        6 => {
+            let to = if src.u8() & 1 == 0 { telegram::BROADCAST } else { da };
+            let cmd = src.u8();
+            let group = src.u8() & 0x03;
+            let hdr =
+                Header { da: to, sa: m, fc: FunctionCode::request(0x06, false, false), dsap: Some(58), ssap: Some(62) };
+            crate::testkit::frame(&hdr, &[cmd, group])
+        }
+        7 => match rig.last.clone() {
+            Some(l) => {
+                let diag = matches!(telegram::decode(&l), Decoded::Frame(Telegram::Data(t), _) if t.dsap == Some(60));
+                return Action::Telegram { frame: l, holdable: diag, diag };
+            }
+            None => Frame::new(),
+        },
+        8 => {
+            let to = if da == OTHER { OTHER + 1 } else { OTHER };
+            let other = rig.request(to, m, None, None, src.bytes(4), srd);
+            return Action::Telegram { frame: other, holdable: true, diag: false };
+        }
+        9 => {
+            let how = src.u8() % 3;
+            let sa = match how {
+                0 => telegram::BROADCAST,
+                1 => da,
+                _ => m,
+            };
+            let mut f = rig.request(da, sa, Some(60), Some(62), &[], srd);
+            if how == 2 && f.len() > 6 {
+                // FC bit 7 (SD3 diagnosis request: FC at 3).
+                let at = if f[0] == telegram::SD2 { 6 } else { 3 };
+                f[at] |= 0x80;
+                let n = f.len();
+                let start = if f[0] == telegram::SD2 { 4 } else { 1 };
+                f[n - 2] = telegram::fcs(&f[start..n - 2]);
+            }
+            return Action::Telegram { frame: f, holdable: true, diag: false };
+        }
+        10 => {
+            let hdr = Header { da, sa: m, fc: FunctionCode::request(0x09, false, false), dsap: None, ssap: None };
+            let f = crate::testkit::frame(&hdr, &[]);
+            return Action::Telegram { frame: f, holdable: true, diag: false };
+        }
+        11 => {
+            let new = src.u8() % 130;
+            let ident = if src.u8() & 0x80 == 0 { card::IDENT_NUMBER } else { 0x1234 };
+            let lock = src.u8() & 1;
+            let [hi, lo] = ident.to_be_bytes();
+            rig.request(da, m, Some(55), Some(62), &[new, hi, lo, lock], srd)
+        }
+        12 => return Action::Tick(u64::from(src.u8()) * 20_000),
+        13 => {
+            let what = src.u8();
+            let n = usize::from(src.u8()) % 40;
+            let mut data = Vec::new();
+            let _ = data.extend_from_slice(src.bytes(n));
+            return Action::App(what, data);
+        }
+        14 => {
+            let n = usize::from(src.u8()) % 24;
+            let mut f = frame_of(src.bytes(n));
+            if let Ok(Some(len)) = telegram::frame_len(&f) {
+                if len <= f.len() && len >= 6 {
+                    f.truncate(len);
+                    let start = if f[0] == telegram::SD2 { 4 } else { 1 };
+                    f[len - 2] = telegram::fcs(&f[start..len - 2]);
+                    f[len - 1] = telegram::ED;
+                }
+            }
+            f
+        }
+        15 => {
+            let sap = [51u8, 49, 48][usize::from(src.u8() % 3)];
+            let n = usize::from(src.u8()) % 12;
+            let pdu = src.bytes(n);
+            rig.request(da, m, Some(sap), Some(sap.min(50)), pdu, srd)
+        }
+        16 => {
+            let function = src.u8() & 0x0F;
+            rig.request(da, m, Some(60), Some(62), &[], function)
+        }
+        _ => {
+            // A new request with the FCB not toggled (a master that re-polls).
+            rig.fcb[usize::from(m)] = !rig.fcb[usize::from(m)];
+            rig.request(da, m, None, None, src.bytes(alone.slave().output_len()), srd)
+        }
+    };
+    rig.last = Some(f.clone());
+    Action::Telegram { frame: f, holdable: false, diag: false }
+}
+
+fn apply(node: &mut Node, what: u8, data: &[u8]) {
+    let s = node.slave_mut();
+    match what % 6 {
+        0 | 1 => s.set_inputs(data),
+        2 => {
+            let _ = s.set_ext_diag(data, what & 0x80 != 0);
+        }
+        3 => s.set_stat_diag(what & 0x80 != 0),
+        4 => s.set_drive_fault(u16::from(what >> 4)),
+        _ => s.set_ready(what & 0x80 == 0),
+    }
+}
+
+/// A valid Slave_Diag answer from `own` to `to` with Station_Not_Ready set.
+fn not_ready_diag(answer: &[u8], own: u8, to: u8) -> bool {
+    match telegram::decode(answer) {
+        Decoded::Frame(Telegram::Data(t), n) => {
+            n == answer.len()
+                && t.sa == own
+                && t.da == to
+                && t.fc == FunctionCode::response(ResponseStatus::Dl)
+                && t.pdu.len() >= 6
+                && t.pdu[0] & 0x02 != 0
+        }
+        _ => false,
+    }
+}
+
+fn split_answer(
+    fast: &mut FastPath<'_>,
+    core: &mut CoreLink<'_>,
+    split: &mut Node,
+    now: Instant,
+    f: &[u8],
+) -> Option<Frame> {
+    match fast.on_frame(now, f) {
+        Verdict::Silent => None,
+        Verdict::Answer(a) => Some(frame_of(a)),
+        Verdict::Core => {
+            core.run(split);
+            match fast.take_deferred() {
+                Some([]) | None => None,
+                Some(a) => Some(frame_of(a)),
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+std::thread_local! {
+    /// Print every telegram (tests only).
+    pub static TRACE: core::cell::Cell<bool> = const { core::cell::Cell::new(false) };
+}
+
+/// What a run reached (to see that the generator gets somewhere).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Coverage {
+    /// Operations run.
+    pub ops: usize,
+    /// Data_Exchange answered with data by the core alone.
+    pub data_exchanges: u32,
+    /// Slave_Diag answered by the line in the not-ready window.
+    pub not_ready_diags: u32,
+    /// Requests the line left to the core.
+    pub deferred: u32,
+    /// FCB retries the line answered.
+    pub retries: u32,
+}
+
+/// Run the operations `data` encodes (at most `max_ops`) on both cards; what was reached,
+/// or the first difference.
+// A test helper without a heap (no_std): the mismatch is returned by value.
+#[allow(clippy::result_large_err)]
+pub fn run(data: &[u8], mode: Mode, max_ops: usize) -> Result<Coverage, Mismatch> {
+    let mut src = Src(data);
+    let mut alone = Node::new(DpSlave::new(ME));
+    let mut split = Node::new(DpSlave::new(ME));
+    let mut shared = Shared::new();
+    let (mut fast, mut core) = shared.split(&mut split);
+    let mut rig = Rig { fcb: [false; 128], next: None, last: None };
+    let mut now = 0u64;
+    // The split's answer to the request the station stored last (what a retry repeats).
+    let mut stored: Option<Option<Frame>> = None;
+    let mut step = 0;
+    while !src.0.is_empty() && step < max_ops {
+        step += 1;
+        match next_action(&mut src, &mut rig, &alone) {
+            Action::Tick(us) => {
+                core.run(&mut split);
+                now += us;
+                let t = Instant::from_micros(now);
+                alone.poll(t);
+                core.poll(t, &mut split);
+            }
+            Action::App(what, data) => {
+                core.run(&mut split);
+                apply(&mut alone, what, &data);
+                apply(&mut split, what, &data);
+                core.publish(&mut split);
+            }
+            Action::Telegram { frame, holdable, diag } => {
+                if mode == Mode::Sync || !holdable || fast.queue_free() < 2 {
+                    core.run(&mut split);
+                }
+                now += 150;
+                let t = Instant::from_micros(now);
+                let before = alone.station().stats();
+                let a = alone.on_frame(t, &frame).map(frame_of);
+                let after = alone.station().stats();
+                let window = fast.in_window();
+                let own = alone.slave().address();
+                let s = split_answer(&mut fast, &mut core, &mut split, t, &frame);
+                if mode == Mode::Sync {
+                    core.run(&mut split);
+                }
+                #[cfg(test)]
+                if TRACE.with(|t| t.get()) {
+                    std::eprintln!("{step} {frame:02x?} alone {a:02x?} split {s:02x?} win {window} alone {:?} split {:?} fast {:?}", alone.station().stats(), split.station().stats(), fast.stats());
+                }
+                let mismatch = |why| Mismatch { step, request: frame.clone(), alone: a.clone(), split: s.clone(), why };
+                if after.retries != before.retries {
+                    if stored.as_ref() != Some(&s) {
+                        return Err(mismatch("a retry did not repeat the split's own answer"));
+                    }
+                } else {
+                    let srd = matches!(telegram::decode(&frame), Decoded::Frame(Telegram::Data(t), _)
+                        if matches!(t.fc.function(), RequestFunction::SrdLow | RequestFunction::SrdHigh));
+                    if (srd && after.requests != before.requests) || after.unsupported != before.unsupported {
+                        stored = Some(s.clone());
+                    }
+                    if window && diag && a.is_some() {
+                        let sa = match telegram::decode(&frame) {
+                            Decoded::Frame(Telegram::Data(t), _) => t.sa,
+                            _ => 0xFF,
+                        };
+                        if !s.as_deref().is_some_and(|b| not_ready_diag(b, own, sa)) {
+                            return Err(mismatch("not-ready window: not a Station_Not_Ready diagnosis"));
+                        }
+                    } else if a != s {
+                        return Err(mismatch("the split answered differently"));
+                    }
+                }
+            }
+        }
+        // The node states never differ: the core sees every telegram in order.
+        if mode == Mode::Sync || !fast.in_window() {
+            core.run(&mut split);
+            if alone.slave().state() != split.slave().state() || alone.slave().outputs() != split.slave().outputs() {
+                return Err(Mismatch {
+                    step,
+                    request: Frame::new(),
+                    alone: None,
+                    split: None,
+                    why: "the split's core state differs from the core alone's",
+                });
+            }
+        }
+    }
+    let fs = fast.stats();
+    Ok(Coverage {
+        ops: step,
+        data_exchanges: alone.slave().stats().data_exchanges,
+        not_ready_diags: fs.not_ready_diag,
+        deferred: fs.deferred,
+        retries: fs.retries,
+    })
+}
