@@ -146,6 +146,17 @@ fn run(m: &Module) -> Figures {
             let state = state_for(&prev, &mut last);
             let (t_before, b_before) = r.app.host().transport().traffic();
             let c = r.app.host_mut().cycle(now, &state);
+            // The drive serves its mailbox as a real one does (the card reads the speed
+            // references after the selection, issue 15 item 10): this drive has none of the
+            // parameters. A drive that never answers would have the card repeat the read after
+            // every mailbox timeout, a fragment each time.
+            let mut server = |_: &crate::dpm::MailboxRequest| {
+                crate::dpm::host::Answer::Now(Err(crate::profile::param::ParamError {
+                    value: crate::profile::param::ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER,
+                    additional_info: None,
+                }))
+            };
+            r.app.host_mut().serve_parameters(&mut server).unwrap();
             let (t_after, b_after) = r.app.host().transport().traffic();
             let (dt, db) = (t_after - t_before, b_after - b_before);
             if tick > 5_000 {
