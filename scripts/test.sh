@@ -29,7 +29,7 @@ cargo clippy --bins -- -D warnings
 cargo clippy --bins --no-default-features --features bench -- -D warnings
 
 echo "== unit tests beside the code (protocol library on the host)"
-cargo t -p pbcard --lib   # the `cargo t` alias (.cargo/config.toml): test on the host target
+cargo test --lib --target "$HOST"
 
 echo "== host-tests: profirust master on a simulated bus, GSD cross-check, scripted services,"
 echo "   and end to end: the firmware in QEMU brought to data exchange by profirust over a socket"

@@ -33,6 +33,9 @@
 //! number (specifier b7..b3 and the appears/disappears bits as sent), else the answer is the
 //! DP-V1 error PDU `DC 80 B5 00` (state conflict: no such alarm outstanding; `DC 80 B2 00` for
 //! another slot). Leaving data exchange drops every alarm and restarts the numbering.
+//! UNVERIFIED: the error codes for a refused Alarm_Ack are our choice — the reference
+//! (`profibus-dp-slave.md`) names 0xB5 only for a busy record-47 read and gives no code for
+//! an Alarm_Ack that matches no outstanding alarm.
 
 /// Why an Alarm_Ack was refused (MSAC_C1 answers the DP-V1 error PDU: [`AckError::Slot`] →
 /// 0xB2 invalid slot, the others → 0xB5 state conflict).

@@ -306,8 +306,10 @@ pub struct HostConfig {
     /// Operate mode if the master's Set_Prm leaves it 0: 0 the card's default (PROFIdrive),
     /// 1 PROFIdrive, 2 Bypass, 3 Echo (`layout::operate_mode`); others make CONFIG invalid.
     pub operate_mode: u8,
-    /// Communication-loss reaction: 0 the drive's own setting, 1 ramp stop, 2 coast, 3 quick
-    /// stop, 4 keep the last setpoint.
+    /// Communication-loss reaction (DRIVE_CMD coding): 0 the drive's own setting, 1 ramp stop,
+    /// 2 coast, 3 quick stop, 4 keep the last setpoint, and WEG P0313's options 3 / 4 / 5
+    /// (CFW-11 / CFW500 manuals, P0313): 5 change to local, 6 change to local keeping commands
+    /// and reference, 7 fault (even without network control).
     pub comm_loss_reaction: u8,
     /// Telegram selection ([`Telegram::None`] = any module the GSD offers; another one =
     /// Chk_Cfg must select its module, else Cfg_Fault).
@@ -337,16 +339,19 @@ impl HostConfig {
         io_update_delay: 0,
     };
 
+    /// The largest communication-loss reaction code (7: WEG P0313 option 5, fault).
+    pub const MAX_COMM_LOSS_REACTION: u8 = 7;
+
     /// The largest I/O update delay (999.0 s, in 0.1 s).
     pub const MAX_IO_UPDATE_DELAY: u16 = 9990;
 
-    /// Whether the card can take it over: address 0..=126, profile 0 or 1, reaction 0..=4,
+    /// Whether the card can take it over: address 0..=126, profile 0 or 1, reaction 0..=7,
     /// telegram none or a known layout.
     pub fn is_valid(&self) -> bool {
         self.station_address <= crate::card::MAX_STATION_ADDRESS
             && self.profile <= 1
             && self.operate_mode <= crate::dpm::layout::operate_mode::ECHO
-            && self.comm_loss_reaction <= 4
+            && self.comm_loss_reaction <= Self::MAX_COMM_LOSS_REACTION
             && self.io_update_delay <= Self::MAX_IO_UPDATE_DELAY
             && (self.telegram == Telegram::None || self.telegram.is_known())
     }

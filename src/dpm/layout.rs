@@ -377,7 +377,8 @@ pub mod drive_cmd {
     pub const SPEED_SETPOINT: usize = 0x04;
     /// u8 fault acknowledges requested so far (wraps).
     pub const FAULT_RESETS: usize = 0x06;
-    /// u8 communication-loss reaction while `COMM_LOSS` is set (0 drive's own … 4 keep last).
+    /// u8 communication-loss reaction while `COMM_LOSS` is set (0 drive's own … 7 fault,
+    /// [`crate::dpm::HostConfig::comm_loss_reaction`] coding).
     pub const COMM_LOSS_REACTION: usize = 0x07;
     /// u8 active operate mode ([`super::operate_mode`]).
     pub const OPERATE_MODE: usize = 0x08;
@@ -753,9 +754,9 @@ pub const FIELDS: &[Field] = &[
     f!("CONFIG.STATION_ADDRESS", config::STATION_ADDRESS, 1, "u8", H, "consistent block, SEQ != 0: station address 0..=125, set outside data exchange like Set_Slave_Add (reported as a changed address and stored; refused with result 4 while No_Add_Chg froze it); 126 = keep the card's address"),
     f!("CONFIG.PROFILE", config::PROFILE, 1, "u8", H, "consistent block, SEQ != 0: 0 PROFIdrive, 1 manufacturer"),
     f!("CONFIG.OPERATE_MODE", config::OPERATE_MODE, 1, "u8", H, "consistent block, SEQ != 0: operate mode when the master's Set_Prm user parameter leaves it 0 (DRIVE_CMD.OPERATE_MODE coding): 0 the card's default (PROFIdrive), 1 PROFIdrive, 2 Bypass, 3 Echo; other values: CONFIG refused"),
-    f!("CONFIG.COMM_LOSS_REACTION", config::COMM_LOSS_REACTION, 1, "u8", H, "consistent block, SEQ != 0: the drive's communication-loss reaction (P0313-style), DRIVE_CMD coding: 0 its own setting, 1 ramp stop, 2 coast, 3 quick stop, 4 keep last setpoint"),
+    f!("CONFIG.COMM_LOSS_REACTION", config::COMM_LOSS_REACTION, 1, "u8", H, "consistent block, SEQ != 0: the drive's communication-loss reaction (P0313-style), used when the master's Set_Prm reaction is 0; DRIVE_CMD coding: 0 its own setting, 1 ramp stop, 2 coast, 3 quick stop, 4 keep last setpoint, 5 change to local, 6 change to local keeping commands and reference, 7 fault (WEG P0313 options 3 / 4 / 5); others make CONFIG invalid"),
     f!("CONFIG.TELEGRAM", config::TELEGRAM, 2, "u16", H, "consistent block, SEQ != 0: telegram selection (STATUS.TELEGRAM coding): 0 = any module; else Chk_Cfg with another module is a Cfg_Fault and PNU 922 shows this telegram"),
-    f!("CONFIG.COMM_LOSS_DELAY_MS", config::COMM_LOSS_DELAY_MS, 2, "u16", H, "reserved in this firmware (accepted, not used; write 0): communication-loss delay in ms — the card reports the loss at once (DRIVE_CMD bit 12), the drive applies its own delay"),
+    f!("CONFIG.COMM_LOSS_DELAY_MS", config::COMM_LOSS_DELAY_MS, 2, "u16", H, "consistent block, SEQ != 0: communication-loss delay in ms (P0314-style; 0 = none): a loss shorter than this is bridged — DRIVE_CMD keeps the last command without bit 12 (COMM_LOSS) — a longer one sets bit 12 with the reaction"),
     f!("CONFIG.PZD_OUT_MAP", config::PZD_OUT_MAP, 16, "u16[8]", H, "reserved in this firmware (accepted, not used; write 0): PNU of output PZD3..PZD10 — the extra words reach the drive raw in DRIVE_CMD.EXTRA"),
     f!("CONFIG.PZD_IN_MAP", config::PZD_IN_MAP, 16, "u16[8]", H, "reserved in this firmware (accepted, not used; write 0): PNU of input PZD3..PZD10 — the drive sends the extra words raw in DRIVE_STATE.EXTRA"),
     f!("CONFIG.IO_UPDATE_DELAY", config::IO_UPDATE_DELAY, 2, "u16", H, "consistent block, SEQ != 0: I/O update delay in 0.1 s (P0799-style, 0..=9990; 0 = none; a v3 host that leaves it 0 has none): after going online (and after Clear) the drive keeps its previous command this long, then the newest outputs apply"),
@@ -789,7 +790,7 @@ pub const FIELDS: &[Field] = &[
     f!("DRIVE_CMD.FLAGS", drive_cmd::FLAGS, 2, "u16", C, "consistent block, SEQ != 0: command bits: 0 run, 1 reverse, 2 coast, 3 quick stop, 4 ramp hold, 5 setpoint zero, 6 ramp reset, 7 fieldbus control, 8 jog 1, 9 jog 2, 10 ramp set 2, 11 pre-excite, 12 communication lost, 13 fieldbus fault"),
     f!("DRIVE_CMD.SPEED_SETPOINT", drive_cmd::SPEED_SETPOINT, 2, "i16", C, "consistent block, SEQ != 0: speed setpoint N2, 0x4000 = 100 % of the reference speed, negative = reverse"),
     f!("DRIVE_CMD.FAULT_RESETS", drive_cmd::FAULT_RESETS, 1, "u8", C, "consistent block, SEQ != 0: fault acknowledges so far (wraps), a change = acknowledge"),
-    f!("DRIVE_CMD.COMM_LOSS_REACTION", drive_cmd::COMM_LOSS_REACTION, 1, "u8", C, "consistent block, FLAGS bit 12: 0 drive's own setting, 1 ramp stop, 2 coast, 3 quick stop, 4 keep last setpoint"),
+    f!("DRIVE_CMD.COMM_LOSS_REACTION", drive_cmd::COMM_LOSS_REACTION, 1, "u8", C, "consistent block, FLAGS bit 12: 0 drive's own setting, 1 ramp stop, 2 coast, 3 quick stop, 4 keep last setpoint, 5 change to local, 6 change to local keeping commands and reference, 7 fault (WEG P0313 options 3 / 4 / 5)"),
     f!("DRIVE_CMD.OPERATE_MODE", drive_cmd::OPERATE_MODE, 1, "u8", C, "consistent block, SEQ != 0: 0 unknown, 1 PROFIdrive, 2 Bypass, 3 Echo (OPTE3/E5 Table 9)"),
     f!("DRIVE_CMD.EXTRA_COUNT", drive_cmd::EXTRA_COUNT, 1, "u8", C, "consistent block, SEQ != 0: valid words of EXTRA (<= 16)"),
     f!("DRIVE_CMD.TELEGRAM", drive_cmd::TELEGRAM, 2, "u16", C, "consistent block, SEQ != 0: active telegram (STATUS.TELEGRAM coding)"),

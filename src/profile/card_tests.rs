@@ -383,6 +383,23 @@ fn the_drives_configured_comm_loss_reaction_is_applied() {
     assert_eq!(b.app.drive().actual_speed(), 0);
 }
 
+/// Item 14 — WEG P0313 options 3 / 4 / 5 (CFW-11 and CFW500 manuals, P0313: change to local,
+/// change to local keeping commands and reference, fault) expressed through the drive's
+/// CONFIG.COMM_LOSS_REACTION 5 / 6 / 7 (the DRIVE_CMD coding): the card takes the CONFIG
+/// and DRIVE_CMD carries the reaction; 8 is no reaction, CONFIG is invalid.
+#[test]
+fn weg_p0313_options_3_to_5_through_the_drives_config() {
+    for reaction in [5u8, 6, 7] {
+        let mut b = Bench::new();
+        b.config(HostConfig { comm_loss_reaction: reaction, ..HostConfig::DEFAULT });
+        b.bring_up(module(1));
+        b.cycles(&[0x04, 0x7E, 0x20, 0x00], 3);
+        b.cycles(&[0x04, 0x7F, 0x20, 0x00], 20);
+        assert_eq!(b.app.drive().image().command.comm_loss_reaction, reaction, "CONFIG reaction {reaction}");
+    }
+    assert!(!HostConfig { comm_loss_reaction: 8, ..HostConfig::DEFAULT }.is_valid());
+}
+
 /// Item 14 — CONFIG.COMM_LOSS_DELAY_MS: a loss shorter than the delay is bridged (DRIVE_CMD
 /// keeps the last command without COMM_LOSS), then the loss command follows.
 #[test]
