@@ -11,6 +11,15 @@
 //!
 //! The layout is not repeated anywhere: every offset and every block codec comes from
 //! `pbcard::dpm::layout` and `pbcard::dpm::codec`, the card firmware's own source of truth.
+//!
+//! The crate's tests (`dpm-host/tests/`) run the [`Host`] against pbcard's card side (`Node`,
+//! `Link`) over both transports a port meets: the memory transport ([`SharedDpm`]) and the
+//! board's SPI frames ([`spi::SpiHost`] over [`spi::Loopback`], the card's `SpiSlave` behind
+//! the board's reply pipeline) — every test in `config.rs`, `heartbeat.rs`, `mailbox.rs` and
+//! `fields.rs` (the SPI refusals too), and the DRIVE_CMD / OUTPUTS pairing of `torn.rs`. The
+//! rest of `torn.rs` (reads cut at a byte by the card's writes) and the `MemoryTransport`
+//! range check stay on memory transports: an SPI READ frame carries a whole block, copied in
+//! one piece and CRC-checked, so the frames cannot tear a block.
 #![cfg_attr(not(feature = "std"), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]

@@ -1,6 +1,11 @@
 //! Configuration: refused (pending) while in data exchange, taken over after; invalid ones
 //! refused; outside data exchange taken at once — the card side is pbcard's `Link`.
+//!
+//! Each test runs twice (`over_both!`): `::memory` over the memory transport, `::spi` through
+//! `SpiHost` over `Loopback` (the board's reply pipeline); an SPI run also proves that frames
+//! crossed and none was refused.
 
+#[macro_use]
 mod common;
 
 use common::Card;
@@ -11,11 +16,11 @@ use pbcard::dpm::{CardEvent, ConfigResult};
 use pbcard::fdl::telegram;
 use pbcard::testkit::Rig;
 
-#[test]
-fn configuration_pending_in_data_exchange_and_taken_over_after() {
-    let mut card = Card::new();
+over_both! {
+fn configuration_pending_in_data_exchange_and_taken_over_after(via) {
+    let mut card = Card::via(via);
     card.bring_up();
-    let mut host = Host::open(card.dpm.clone(), Options::DEFAULT).unwrap();
+    let mut host = Host::open(card.transport(), Options::DEFAULT).unwrap();
     assert_eq!(host.config_outcome(), Ok(ConfigOutcome::NotWritten));
     let cfg = HostConfig {
         station_address: 9,
@@ -55,11 +60,12 @@ fn configuration_pending_in_data_exchange_and_taken_over_after() {
     assert_eq!(host.config_outcome(), Ok(ConfigOutcome::Refused));
     assert_eq!(card.link.config(), Some(&cfg));
 }
+}
 
-#[test]
-fn configuration_outside_data_exchange_is_taken_at_once() {
-    let mut card = Card::new();
-    let mut host = Host::open(card.dpm.clone(), Options::DEFAULT).unwrap();
+over_both! {
+fn configuration_outside_data_exchange_is_taken_at_once(via) {
+    let mut card = Card::via(via);
+    let mut host = Host::open(card.transport(), Options::DEFAULT).unwrap();
     let cfg = HostConfig { station_address: 3, telegram: Telegram::Ppo(2), ..HostConfig::DEFAULT };
     host.write_config(&cfg).unwrap();
     card.cycle(1);
@@ -67,12 +73,13 @@ fn configuration_outside_data_exchange_is_taken_at_once() {
     assert_eq!(host.config_outcome(), Ok(ConfigOutcome::Accepted));
     assert_eq!(card.link.take_config(), Some(cfg));
 }
+}
 
-#[test]
-fn process_data_through_the_link_reaches_the_master() {
-    let mut card = Card::new();
+over_both! {
+fn process_data_through_the_link_reaches_the_master(via) {
+    let mut card = Card::via(via);
     card.bring_up();
-    let mut host = Host::open(card.dpm.clone(), Options::DEFAULT).unwrap();
+    let mut host = Host::open(card.transport(), Options::DEFAULT).unwrap();
     assert_eq!(card.data_exchange(&[0x04, 0x7F, 0x20, 0x00]).len(), 4);
     card.cycle(1);
     let out = host.read_outputs().unwrap();
@@ -92,16 +99,17 @@ fn process_data_through_the_link_reaches_the_master() {
     assert_eq!(card.data_exchange(&[0x04, 0x7F, 0x20, 0x00]), [0x02, 0x37, 0x1F, 0xF0]);
     assert_eq!(card.link.stats().stale_telegram, 1);
 }
+}
 
+over_both! {
 /// CONFIG.STATION_ADDRESS outside data exchange: the slave takes the address, reports it as
 /// ADDRESS_CHANGED (the platform stores it through its `AddressStore`, as after a
 /// Set_Slave_Add), and STATUS shows it.
-#[test]
-fn station_address_taken_outside_data_exchange_and_stored() {
+fn station_address_taken_outside_data_exchange_and_stored(via) {
     use pbcard::dp::slave_add::{AddressStore, MemoryStore};
-    let mut card = Card::new();
+    let mut card = Card::via(via);
     let mut store = MemoryStore::default();
-    let mut host = Host::open(card.dpm.clone(), Options::DEFAULT).unwrap();
+    let mut host = Host::open(card.transport(), Options::DEFAULT).unwrap();
     host.write_config(&HostConfig { station_address: 9, ..HostConfig::DEFAULT }).unwrap();
     let mut changed = false;
     for _ in 0..3 {
@@ -124,14 +132,15 @@ fn station_address_taken_outside_data_exchange_and_stored() {
     assert_eq!(host.config_outcome(), Ok(ConfigOutcome::Accepted));
     assert_eq!(card.node.slave().address(), 9);
 }
+}
 
+over_both! {
 /// In data exchange the address is not touched (pending), and the master keeps talking to
 /// the card at its address.
-#[test]
-fn station_address_refused_in_data_exchange() {
-    let mut card = Card::new();
+fn station_address_refused_in_data_exchange(via) {
+    let mut card = Card::via(via);
     card.bring_up();
-    let mut host = Host::open(card.dpm.clone(), Options::DEFAULT).unwrap();
+    let mut host = Host::open(card.transport(), Options::DEFAULT).unwrap();
     host.write_config(&HostConfig { station_address: 9, ..HostConfig::DEFAULT }).unwrap();
     for _ in 0..3 {
         assert!(!card.cycle(5).contains(Events::ADDRESS_CHANGED));
@@ -141,15 +150,16 @@ fn station_address_refused_in_data_exchange() {
     assert_eq!(card.data_exchange(&[0x04, 0x7E, 0, 0]).len(), 4, "still answering at its address");
     assert_eq!(card.node.slave_mut().set_address(9).ok(), None, "the slave refuses it itself too");
 }
+}
 
+over_both! {
 /// No_Add_Chg (a Set_Slave_Add froze the address): the address stays, the rest of CONFIG
 /// (the telegram) is taken, CONFIG_RESULT says so.
-#[test]
-fn station_address_locked_by_no_add_chg() {
+fn station_address_locked_by_no_add_chg(via) {
     use pbcard::dp::DpSlave;
-    let mut card = Card::new();
+    let mut card = Card::via(via);
     card.node = pbcard::node::Node::new(DpSlave::with_address_lock(common::SLAVE, true));
-    let mut host = Host::open(card.dpm.clone(), Options::DEFAULT).unwrap();
+    let mut host = Host::open(card.transport(), Options::DEFAULT).unwrap();
     let cfg = HostConfig { station_address: 9, telegram: Telegram::Ppo(2), ..HostConfig::DEFAULT };
     host.write_config(&cfg).unwrap();
     card.cycle(1);
@@ -159,14 +169,15 @@ fn station_address_locked_by_no_add_chg() {
     assert_eq!(card.node.slave().address(), common::SLAVE);
     assert_eq!(card.node.slave().required_module().and_then(Telegram::of_module), Some(Telegram::Ppo(2)));
 }
+}
 
+over_both! {
 /// CONFIG.TELEGRAM: the master's Chk_Cfg must select the drive's telegram; another module is
 /// a Cfg_Fault (P0740 "configuration data error"); 0 lifts the restriction. A telegram the
 /// card has no module for is refused.
-#[test]
-fn telegram_selected_by_the_drive_is_enforced() {
-    let mut card = Card::new();
-    let mut host = Host::open(card.dpm.clone(), Options::DEFAULT).unwrap();
+fn telegram_selected_by_the_drive_is_enforced(via) {
+    let mut card = Card::via(via);
+    let mut host = Host::open(card.transport(), Options::DEFAULT).unwrap();
     host.write_config(&HostConfig { telegram: Telegram::Ppo(2), ..HostConfig::DEFAULT }).unwrap();
     card.cycle(1);
     card.cycle(1);
@@ -205,4 +216,5 @@ fn telegram_selected_by_the_drive_is_enforced() {
     card.cycle(1);
     assert_eq!(host.config_outcome(), Ok(ConfigOutcome::Accepted));
     card.bring_up();
+}
 }

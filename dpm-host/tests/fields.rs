@@ -1,8 +1,15 @@
 //! Every field of the map, written by one side and read back by the other through the
 //! transport; opening checks (magic, version, size, capabilities).
+//!
+//! Each test runs twice (`over_both!`): `::memory` over the memory transport, `::spi` through
+//! `SpiHost` over `Loopback` (the board's reply pipeline); an SPI run also proves that frames
+//! crossed and none was refused.
+//! The range checks are per transport: `MemoryTransport`'s and the SPI frames' own.
 
+#[macro_use]
 mod common;
 
+use common::{Image, Via, Wire};
 use dpm_host::layout::{self, cap, BLOCKS, FIELDS};
 use dpm_host::*;
 use pbcard::dp::DpState;
@@ -70,14 +77,13 @@ fn mark(seen: &mut [bool], img: &[u8]) {
     }
 }
 
-#[test]
-fn every_field_crosses_the_transport_both_ways() {
-    let shared = SharedDpm::from(Dpm::with_identity(&Identity {
-        serial: 0xCAFE_F00D,
-        firmware: [1, 2, 3],
-        ..Identity::THIS_CARD
-    }));
-    let mut host = Host::open(shared.clone(), Options::DEFAULT).unwrap();
+over_both! {
+fn every_field_crosses_the_transport_both_ways(via) {
+    let shared = Image::new(
+        via,
+        Dpm::with_identity(&Identity { serial: 0xCAFE_F00D, firmware: [1, 2, 3], ..Identity::THIS_CARD }),
+    );
+    let mut host = Host::open(shared.transport(), Options::DEFAULT).unwrap();
     let mut seen = vec![false; layout::IMAGE_SIZE];
 
     // Card → host.
@@ -183,27 +189,34 @@ fn every_field_crosses_the_transport_both_ways() {
     let p = host.poll(Instant::from_millis(3));
     assert_eq!(p.events.iter().collect::<Vec<_>>(), vec![CardEvent::Watchdog]);
     assert_eq!(p.events.count(CardEvent::Watchdog), 2);
+    shared.assert_frames_crossed();
+}
 }
 
-#[test]
-fn open_checks_magic_version_size_and_capabilities() {
-    let mut dpm = Dpm::new();
-    let host = Host::open(DpmTransport::new(&mut dpm), Options::DEFAULT).unwrap();
+/// The host on `dpm` through the transport `via`.
+fn open(via: Via, dpm: Dpm, opts: Options) -> Result<Host<Wire>, OpenError> {
+    Host::open(Image::new(via, dpm).transport(), opts)
+}
+
+over_both! {
+fn open_checks_magic_version_size_and_capabilities(via) {
+    let dpm = Dpm::new();
+    let host = open(via, dpm, Options::DEFAULT).unwrap();
     assert_eq!(*host.header(), codec::Header::THIS_LAYOUT);
     assert!(host.has(cap::ALL));
 
     let mut bad = Dpm::new();
     bad.as_bytes_mut()[0] = b'X';
-    assert!(matches!(Host::open(DpmTransport::new(&mut bad), Options::DEFAULT), Err(OpenError::BadMagic(_))));
+    assert!(matches!(open(via, bad.clone(), Options::DEFAULT), Err(OpenError::BadMagic(_))));
 
     let mut v0 = Dpm::new();
     v0.as_bytes_mut()[layout::header::LAYOUT_VERSION + 1] = 0;
-    assert_eq!(Host::open(DpmTransport::new(&mut v0), Options::DEFAULT).err(), Some(OpenError::BadVersion(0)));
+    assert_eq!(open(via, v0.clone(), Options::DEFAULT).err(), Some(OpenError::BadVersion(0)));
 
     let mut small = Dpm::new();
     small.as_bytes_mut()[layout::header::IMAGE_SIZE..][..2].copy_from_slice(&624u16.to_be_bytes());
     assert_eq!(
-        Host::open(DpmTransport::new(&mut small), Options::DEFAULT).err(),
+        open(via, small.clone(), Options::DEFAULT).err(),
         Some(OpenError::BadImageSize { version: 4, size: 624 })
     );
 
@@ -213,12 +226,12 @@ fn open_checks_magic_version_size_and_capabilities() {
     b[layout::header::LAYOUT_VERSION..][..2].copy_from_slice(&2u16.to_be_bytes());
     b[layout::header::IMAGE_SIZE..][..2].copy_from_slice(&624u16.to_be_bytes());
     b[layout::header::CAPABILITIES..][..4].copy_from_slice(&0x1Fu32.to_be_bytes());
-    let mut h = Host::open(DpmTransport::new(&mut v2), Options::DEFAULT).unwrap();
+    let mut h = open(via, v2.clone(), Options::DEFAULT).unwrap();
     assert_eq!(h.read_command().err(), Some(Error::NotSupported(cap::DRIVE_CMD)));
     assert!(h.status().is_ok());
     let need = Options { required: cap::DRIVE_CMD | cap::MAILBOX, ..Options::DEFAULT };
     assert_eq!(
-        Host::open(DpmTransport::new(&mut v2), need).err(),
+        open(via, v2.clone(), need).err(),
         Some(OpenError::MissingCapabilities(cap::DRIVE_CMD))
     );
 
@@ -227,7 +240,7 @@ fn open_checks_magic_version_size_and_capabilities() {
     let b = v1.as_bytes_mut();
     b[layout::header::LAYOUT_VERSION..][..2].copy_from_slice(&1u16.to_be_bytes());
     b[layout::header::IMAGE_SIZE..][..2].copy_from_slice(&0xC0u16.to_be_bytes());
-    let mut h = Host::open(DpmTransport::new(&mut v1), Options::DEFAULT).unwrap();
+    let mut h = open(via, v1.clone(), Options::DEFAULT).unwrap();
     assert_eq!(h.header().capabilities, 0);
     assert!(h.card_report().is_err() && h.read_outputs().is_ok());
 
@@ -242,21 +255,40 @@ fn open_checks_magic_version_size_and_capabilities() {
         }
     }
     assert_eq!(Host::open(Dead, Options::DEFAULT).err(), Some(OpenError::Transport(TransportError::NoResponse)));
+    // An SPI bus that fails, and an absent card (MISO pulled up: `0xFF`, never a reply).
+    struct DeadBus(Option<u8>);
+    impl spi::SpiBus for DeadBus {
+        fn transfer(&mut self, _: &[u8], miso: &mut [u8]) -> Result<(), spi::BusFault> {
+            miso.fill(self.0.ok_or(spi::BusFault)?);
+            Ok(())
+        }
+    }
+    for bus in [DeadBus(None), DeadBus(Some(0xFF)), DeadBus(Some(0))].into_iter().filter(|_| via == Via::Spi) {
+        assert_eq!(
+            Host::open(spi::SpiHost::new(bus), Options::DEFAULT).err(),
+            Some(OpenError::Transport(TransportError::NoResponse))
+        );
+    }
+}
 }
 
-#[test]
-fn a_restarted_host_continues_the_counters() {
-    let shared = SharedDpm::new();
-    let mut h = Host::open(shared.clone(), Options::DEFAULT).unwrap();
+over_both! {
+/// A host that restarts on the same card (over SPI: a new `SpiHost`, its TAGs from 0 again,
+/// behind the card's pipeline that may still hold a reply for the old one).
+fn a_restarted_host_continues_the_counters(via) {
+    let shared = Image::new(via, Dpm::new());
+    let mut h = Host::open(shared.transport(), Options::DEFAULT).unwrap();
     let s1 = h.write_config(&HostConfig::DEFAULT).unwrap();
     let i1 = h.write_inputs(&ProcessData::new(Telegram::Standard(1), PdFlags::empty(), &[0; 4])).unwrap();
     h.poll(Instant::from_millis(0));
     drop(h);
-    let mut h = Host::open(shared.clone(), Options::DEFAULT).unwrap();
+    let mut h = Host::open(shared.transport(), Options::DEFAULT).unwrap();
     assert_eq!(h.write_config(&HostConfig::DEFAULT), Ok(s1 + 1), "a new number: the card takes it as new");
     assert_eq!(h.write_inputs(&ProcessData::new(Telegram::Standard(1), PdFlags::empty(), &[0; 4])), Ok(i1 + 1));
     h.poll(Instant::from_millis(1));
     assert_eq!(shared.borrow_mut().drive_report().unwrap().heartbeat, 2, "the heartbeat goes on changing");
+    shared.assert_frames_crossed();
+}
 }
 
 #[test]
@@ -270,4 +302,23 @@ fn memory_transport_refuses_ranges_outside_the_image() {
     assert_eq!(b, [1; 4]);
     let blocks: usize = BLOCKS.iter().map(|b| b.len).sum();
     assert_eq!(blocks, layout::IMAGE_SIZE);
+}
+
+/// The SPI frames as the transport: a range beyond the image is BAD_ADDRESS (or does not fit
+/// a frame), a write to a block the card writes is FORBIDDEN_WRITE; neither changes a byte.
+#[test]
+fn spi_transport_refuses_ranges_outside_the_image_and_the_cards_blocks() {
+    let mut t = spi::SpiHost::new(spi::Loopback::new(Dpm::new()));
+    let before = *t.dpm().as_bytes();
+    let end = layout::IMAGE_SIZE as u16;
+    assert_eq!(Transport::write(&mut t, end - 4, &[1; 6]), Err(TransportError::OutOfRange));
+    assert_eq!(Transport::write(&mut t, layout::status::START as u16, &[1; 2]), Err(TransportError::Refused));
+    let mut b = [0u8; 4];
+    assert_eq!(Transport::read(&mut t, u16::MAX, &mut b), Err(TransportError::OutOfRange));
+    assert_eq!(Transport::read(&mut t, end - 2, &mut b), Err(TransportError::OutOfRange));
+    assert_eq!(t.dpm().as_bytes(), &before, "nothing written");
+    assert_eq!(Transport::read(&mut t, end - 4, &mut b), Ok(()));
+    assert_eq!(b, before[layout::IMAGE_SIZE - 4..]);
+    let s = t.bus().slave().stats();
+    assert_eq!((s.bad_address, s.forbidden_writes), (2, 1), "u16::MAX is refused by the host, never sent");
 }

@@ -1,20 +1,26 @@
 //! Heartbeats both ways: the card's `Link` watches the host's DRIVE.HEARTBEAT (lost: ZSW1
 //! fault to the master, Stat_Diag, CARD.FLAGS, DriveReturned event); the host watches
 //! CARD.HEARTBEAT (lost = the A140 situation, reported once; also when the link dies).
+//!
+//! Each test runs twice (`over_both!`): `::memory` over the memory transport, `::spi` through
+//! `SpiHost` over `Loopback` (the board's reply pipeline); an SPI run also proves that frames
+//! crossed and none was refused.
+//! The dead link is cut above the transport (`Cuttable`), the same cut over both.
 
+#[macro_use]
 mod common;
 
-use common::Card;
+use common::{Card, Wire};
 use dpm_host::*;
 use pbcard::dp::diag::Status2;
 use pbcard::dpm::CardEvent;
 
-#[test]
-fn drive_heartbeat_loss_is_seen_by_the_card_and_its_return_by_the_host() {
-    let mut card = Card::new();
+over_both! {
+fn drive_heartbeat_loss_is_seen_by_the_card_and_its_return_by_the_host(via) {
+    let mut card = Card::via(via);
     card.link.set_drive_timeout(Duration::from_millis(50));
     card.bring_up();
-    let mut host = Host::open(card.dpm.clone(), Options::DEFAULT).unwrap();
+    let mut host = Host::open(card.transport(), Options::DEFAULT).unwrap();
     let inputs = ProcessData::new(Telegram::Standard(1), PdFlags::empty(), &[0x02, 0x37, 0x00, 0x10]);
     for _ in 0..5 {
         host.poll(card.now);
@@ -48,12 +54,13 @@ fn drive_heartbeat_loss_is_seen_by_the_card_and_its_return_by_the_host() {
     assert!(!p.report.unwrap().flags.contains(CardFlags::DRIVE_LOST));
     assert_eq!(card.data_exchange(&[0x04, 0x7F, 0, 0]), [0x02, 0x37, 0x00, 0x10]);
 }
+}
 
-#[test]
-fn card_heartbeat_loss_is_reported_once_and_its_return_too() {
-    let mut card = Card::new();
+over_both! {
+fn card_heartbeat_loss_is_reported_once_and_its_return_too(via) {
+    let mut card = Card::via(via);
     let opts = Options { card_timeout: Duration::from_millis(30), ..Options::DEFAULT };
-    let mut host = Host::open(card.dpm.clone(), opts).unwrap();
+    let mut host = Host::open(card.transport(), opts).unwrap();
     let p = host.poll(card.now);
     assert_eq!(p.card, Liveness::Unknown, "the card has not started");
     for _ in 0..10 {
@@ -79,9 +86,10 @@ fn card_heartbeat_loss_is_reported_once_and_its_return_too() {
     assert!(!host.poll(card.now).card_returned, "once");
     assert_eq!(host.stats().card_losses, 1);
 }
+}
 
 /// A link that can be cut.
-struct Cuttable(SharedDpm, bool);
+struct Cuttable(Wire, bool);
 
 impl Transport for Cuttable {
     fn read(&mut self, offset: u16, buf: &mut [u8]) -> Result<(), TransportError> {
@@ -98,12 +106,12 @@ impl Transport for Cuttable {
     }
 }
 
-#[test]
-fn a_dead_link_is_a_lost_card_and_a_lost_drive() {
-    let mut card = Card::new();
+over_both! {
+fn a_dead_link_is_a_lost_card_and_a_lost_drive(via) {
+    let mut card = Card::via(via);
     card.link.set_drive_timeout(Duration::from_millis(50));
     let opts = Options { card_timeout: Duration::from_millis(50), ..Options::DEFAULT };
-    let mut host = Host::open(Cuttable(card.dpm.clone(), false), opts).unwrap();
+    let mut host = Host::open(Cuttable(card.transport(), false), opts).unwrap();
     for _ in 0..3 {
         card.cycle(10);
         assert_eq!(host.poll(card.now).card, Liveness::Alive);
@@ -122,4 +130,5 @@ fn a_dead_link_is_a_lost_card_and_a_lost_drive() {
     assert_eq!(lost_at, Some(5), "lost once, after the timeout");
     assert!(card.link.drive_lost(), "and the card lost the drive");
     assert!(host.stats().transport_errors >= 20);
+}
 }

@@ -1,9 +1,14 @@
 //! The parameter mailbox between the card's `Link` (pbcard) and the `Host`: answers, the
 //! drive's errors, timeouts, late answers never taken for the next request.
+//!
+//! Each test runs twice (`over_both!`): `::memory` over the memory transport, `::spi` through
+//! `SpiHost` over `Loopback` (the board's reply pipeline); an SPI run also proves that frames
+//! crossed and none was refused.
 
+#[macro_use]
 mod common;
 
-use common::Card;
+use common::{Card, Wire};
 use dpm_host::*;
 use pbcard::dpm::mailbox::{DRIVE_LOST_ERROR, TIMEOUT_ERROR};
 use pbcard::profile::param::{ErrorValue, Format, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
@@ -51,12 +56,7 @@ fn words(v: &ParamValues) -> Vec<u16> {
 }
 
 /// The card asks, the host serves from its table, the card takes the answer.
-fn ask(
-    card: &mut Card,
-    host: &mut Host<SharedDpm>,
-    t: &mut Params,
-    req: MailboxRequest,
-) -> Result<ParamValues, ParamError> {
+fn ask(card: &mut Card, host: &mut Host<Wire>, t: &mut Params, req: MailboxRequest) -> Result<ParamValues, ParamError> {
     let id = card.link.submit_parameter(card.now, &req, &mut card.dpm.borrow_mut()).unwrap();
     card.cycle(1);
     assert_eq!(card.link.take_parameter_response(), None, "not answered yet");
@@ -68,10 +68,10 @@ fn ask(
     out
 }
 
-#[test]
-fn reads_writes_and_the_drives_errors() {
-    let mut card = Card::new();
-    let mut host = Host::open(card.dpm.clone(), Options::DEFAULT).unwrap();
+over_both! {
+fn reads_writes_and_the_drives_errors(via) {
+    let mut card = Card::via(via);
+    let mut host = Host::open(card.transport(), Options::DEFAULT).unwrap();
     let mut t = Params { p100: [1, 2, 3, 4] };
     let v = ask(&mut card, &mut host, &mut t, MailboxRequest::read(1, 100, 1, 2)).unwrap();
     assert_eq!((v.format, words(&v)), (Format::WORD, vec![2, 3]));
@@ -108,12 +108,13 @@ fn reads_writes_and_the_drives_errors() {
     assert_eq!((s.requests, s.responses, s.stale_responses), (7, 7, 0));
     assert_eq!(card.link.mailbox().stats().late_responses, 0);
 }
+}
 
-#[test]
-fn timeout_then_late_answer_is_refused_and_never_taken_for_the_next_request() {
-    let mut card = Card::new();
+over_both! {
+fn timeout_then_late_answer_is_refused_and_never_taken_for_the_next_request(via) {
+    let mut card = Card::via(via);
     card.link.set_mailbox_timeout(Duration::from_millis(100));
-    let mut host = Host::open(card.dpm.clone(), Options::DEFAULT).unwrap();
+    let mut host = Host::open(card.transport(), Options::DEFAULT).unwrap();
     let id1 =
         card.link.submit_parameter(card.now, &MailboxRequest::read(1, 100, 0, 1), &mut card.dpm.borrow_mut()).unwrap();
     // The drive takes it but answers later.
@@ -141,12 +142,13 @@ fn timeout_then_late_answer_is_refused_and_never_taken_for_the_next_request() {
     assert_eq!((id, words(&v.unwrap())), (id2, vec![0xBEEF]));
     assert_eq!(host.stats().stale_responses, 1);
 }
+}
 
-#[test]
-fn a_late_answer_with_no_new_request_is_ignored_by_the_card() {
-    let mut card = Card::new();
+over_both! {
+fn a_late_answer_with_no_new_request_is_ignored_by_the_card(via) {
+    let mut card = Card::via(via);
     card.link.set_mailbox_timeout(Duration::from_millis(50));
-    let mut host = Host::open(card.dpm.clone(), Options::DEFAULT).unwrap();
+    let mut host = Host::open(card.transport(), Options::DEFAULT).unwrap();
     let id =
         card.link.submit_parameter(card.now, &MailboxRequest::read(1, 100, 0, 1), &mut card.dpm.borrow_mut()).unwrap();
     assert_eq!(host.fetch_request().unwrap().map(|r| r.id), Some(id));
@@ -160,12 +162,13 @@ fn a_late_answer_with_no_new_request_is_ignored_by_the_card() {
     card.cycle(1);
     assert_eq!(host.poll(card.now).report.unwrap().late_responses, 1, "the host sees the card's counters");
 }
+}
 
-#[test]
-fn requests_while_the_drive_is_lost_are_answered_by_the_card() {
-    let mut card = Card::new();
+over_both! {
+fn requests_while_the_drive_is_lost_are_answered_by_the_card(via) {
+    let mut card = Card::via(via);
     card.link.set_drive_timeout(Duration::from_millis(30));
-    let mut host = Host::open(card.dpm.clone(), Options::DEFAULT).unwrap();
+    let mut host = Host::open(card.transport(), Options::DEFAULT).unwrap();
     host.poll(card.now);
     card.cycle(10);
     card.cycle(40);
@@ -174,4 +177,5 @@ fn requests_while_the_drive_is_lost_are_answered_by_the_card() {
         card.link.submit_parameter(card.now, &MailboxRequest::read(1, 100, 0, 1), &mut card.dpm.borrow_mut()).unwrap();
     assert_eq!(card.link.take_parameter_response(), Some((id, Err(DRIVE_LOST_ERROR))));
     assert_eq!(host.fetch_request(), Ok(None), "not even written to the drive");
+}
 }

@@ -2,7 +2,21 @@
 //! reads it through the transport, at every point of the read; the host retries and returns
 //! the old or the new content, never a mix. DRIVE_CMD + OUTPUTS are returned as one card
 //! cycle's pair.
+//!
+//! These tests stay on memory-level transports (`Tearing`, `AlwaysTorn`): they are about a
+//! read that the card's writes cut at a byte, which only a memory transport can produce. Over
+//! the SPI frames a block read is one READ frame (`SpiHost`: up to 1024 data bytes, a
+//! whole block), the card copies it from the image in one piece and protects it with a CRC
+//! (a damaged reply is asked again, never taken), so a read through SPI is atomic per
+//! transaction; and the in-process card (`Loopback`) steps only between host calls. The
+//! retry logic under test is the `Host`'s own and the same over every transport. The pairing
+//! of DRIVE_CMD with OUTPUTS across two reads (two frames over SPI) runs over both transports
+//! in `a_command_never_paired_with_its_outputs_is_not_returned`.
 
+#[macro_use]
+mod common;
+
+use common::Image;
 use dpm_host::layout;
 use dpm_host::*;
 use pbcard::dpm::Dpm;
@@ -206,15 +220,20 @@ fn a_block_torn_on_every_attempt_returns_no_data() {
     assert_eq!((s.torn_retries, s.torn_failures), (5 * 5, 5));
 }
 
-#[test]
-fn a_command_never_paired_with_its_outputs_is_not_returned() {
+over_both! {
+/// DRIVE_CMD names OUTPUTS sequence 99, OUTPUTS is at 1: the host retries, then refuses the
+/// pair (over SPI: two READ frames per attempt).
+fn a_command_never_paired_with_its_outputs_is_not_returned(via) {
     let mut dpm = Dpm::new();
     dpm.card().write_outputs(&ProcessData::new(Telegram::Standard(1), PdFlags::empty(), &[0; 4]));
     dpm.card().write_drive_command(&cmd(5, 99));
-    let mut host = Host::open(DpmTransport::new(&mut dpm), Options::DEFAULT).unwrap();
+    let image = Image::new(via, dpm);
+    let mut host = Host::open(image.transport(), Options::DEFAULT).unwrap();
     assert_eq!(host.read_process_data(), Err(Error::Unpaired { command_for: 99, outputs: 1 }));
     assert_eq!(host.stats().unpaired_retries, 8);
     // 0 = a command not tied to outputs: taken as it is.
-    host.transport_mut().dpm_mut().card().write_drive_command(&cmd(5, 0));
+    image.borrow_mut().card().write_drive_command(&cmd(5, 0));
     assert_eq!(host.read_process_data().unwrap().command.command.speed_setpoint, 5);
+    image.assert_frames_crossed();
+}
 }

@@ -1,34 +1,179 @@
 //! The card side for the host tests: a pbcard `Node` on a scripted bus with the card-side
-//! `Link` on a `SharedDpm` the `Host` reaches through its transport.
+//! `Link` on an image the `Host` reaches through its transport — chosen per test with [`Via`]:
+//! the memory transport ([`SharedDpm`]) or the board's SPI frames ([`SpiHost`] over the
+//! in-process card with the board's reply pipeline, [`Loopback`]). [`over_both!`] runs one
+//! test body over each.
 #![allow(dead_code)]
 
-use dpm_host::{Duration, Instant, SharedDpm};
+use std::cell::{RefCell, RefMut};
+use std::rc::Rc;
+
+use dpm_host::spi::{BusFault, CyclicRequest, Loopback, SpiBus, SpiHost};
+use dpm_host::{Duration, Instant, SharedDpm, Transport, TransportError};
 use pbcard::card;
 use pbcard::dp::{DpSlave, DpState, Events};
-use pbcard::dpm::Link;
+use pbcard::dpm::spi::cyclic::MAX_REPLY_DATA;
+use pbcard::dpm::{Dpm, Link};
 use pbcard::node::Node;
 use pbcard::testkit::{self, Frame, Rig, ScriptedMaster, SetPrm};
 
 pub const MASTER: u8 = 2;
 pub const SLAVE: u8 = 5;
 
+/// How the `Host` reaches the card's image.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Via {
+    /// The memory transport: the host reads and writes the image directly (`SharedDpm`).
+    Memory,
+    /// The board's SPI frames: `SpiHost` (READ / WRITE frames, each confirmed by its reply
+    /// fetched in the next transaction) over `Loopback` (the card's `SpiSlave` and the board's
+    /// reply pipeline in front of the image).
+    Spi,
+}
+
+/// Runs a test body over each transport: `over_both! { fn name(via) { .. } }` is the module
+/// `name` with the tests `memory` and `spi` (the test files say `#[macro_use] mod common;`).
+macro_rules! over_both {
+    ($(#[$m:meta])* fn $name:ident($via:ident) $body:block) => {
+        $(#[$m])*
+        mod $name {
+            #[allow(unused_imports)]
+            use super::*;
+            fn run($via: crate::common::Via) $body
+            #[test]
+            fn memory() {
+                run(crate::common::Via::Memory)
+            }
+            #[test]
+            fn spi() {
+                run(crate::common::Via::Spi)
+            }
+        }
+    };
+}
+
+/// The loopback card shared by the card side (its image, between host calls) and the
+/// `SpiHost` (its bus).
+#[derive(Debug, Clone)]
+pub struct SharedBus(pub Rc<RefCell<Loopback>>);
+
+impl SpiBus for SharedBus {
+    fn transfer(&mut self, mosi: &[u8], miso: &mut [u8]) -> Result<(), BusFault> {
+        self.0.borrow_mut().transfer(mosi, miso)
+    }
+}
+
+/// The card's image behind the chosen transport; the card side borrows it between host calls.
+#[derive(Debug, Clone)]
+pub enum Image {
+    Memory(SharedDpm),
+    Spi(SharedBus),
+}
+
+impl Image {
+    pub fn new(via: Via, dpm: Dpm) -> Self {
+        match via {
+            Via::Memory => Image::Memory(SharedDpm::from(dpm)),
+            Via::Spi => Image::Spi(SharedBus(Rc::new(RefCell::new(Loopback::new(dpm))))),
+        }
+    }
+
+    /// The card's side of the image.
+    pub fn borrow_mut(&self) -> RefMut<'_, Dpm> {
+        match self {
+            Image::Memory(m) => m.borrow_mut(),
+            Image::Spi(b) => RefMut::map(b.0.borrow_mut(), |l| l.dpm_mut()),
+        }
+    }
+
+    /// A new host-side transport onto this image (over SPI: a new `SpiHost`, TAGs from 0,
+    /// as a restarted host).
+    pub fn transport(&self) -> Wire {
+        match self {
+            Image::Memory(m) => Wire::Memory(m.clone()),
+            Image::Spi(b) => Wire::Spi(Box::new(SpiHost::new(b.clone()))),
+        }
+    }
+
+    /// The loopback card (SPI only).
+    pub fn loopback(&self) -> Option<RefMut<'_, Loopback>> {
+        match self {
+            Image::Memory(_) => None,
+            Image::Spi(b) => Some(b.0.borrow_mut()),
+        }
+    }
+
+    /// Over SPI: proves the host's accesses crossed as frames — the card's `SpiSlave`
+    /// accepted some and refused none (a test that went around the SPI frames fails here).
+    pub fn assert_frames_crossed(&self) {
+        if let Some(l) = self.loopback() {
+            let s = l.slave().stats();
+            assert!(s.frames_ok > 0, "no SPI frame reached the card: {s:?}");
+            assert_eq!(s.refused(), 0, "SPI frames refused: {s:?}");
+        }
+    }
+}
+
+/// The host's transport: the memory one or the SPI frames.
+#[derive(Debug)]
+pub enum Wire {
+    Memory(SharedDpm),
+    Spi(Box<SpiHost<SharedBus>>),
+}
+
+impl Transport for Wire {
+    fn read(&mut self, offset: u16, buf: &mut [u8]) -> Result<(), TransportError> {
+        match self {
+            Wire::Memory(m) => m.read(offset, buf),
+            Wire::Spi(s) => Transport::read(&mut **s, offset, buf),
+        }
+    }
+    fn write(&mut self, offset: u16, data: &[u8]) -> Result<(), TransportError> {
+        match self {
+            Wire::Memory(m) => m.write(offset, data),
+            Wire::Spi(s) => Transport::write(&mut **s, offset, data),
+        }
+    }
+    fn cyclic(
+        &mut self,
+        req: &CyclicRequest<'_>,
+        out: &mut [u8; MAX_REPLY_DATA],
+    ) -> Option<Result<usize, TransportError>> {
+        match self {
+            Wire::Memory(m) => m.cyclic(req, out),
+            Wire::Spi(s) => Transport::cyclic(&mut **s, req, out),
+        }
+    }
+}
+
 pub struct Card {
     pub node: Node,
-    pub dpm: SharedDpm,
+    pub dpm: Image,
     pub link: Link,
     pub now: Instant,
     master: ScriptedMaster,
 }
 
 impl Card {
+    /// The card over the memory transport.
     pub fn new() -> Self {
+        Self::via(Via::Memory)
+    }
+
+    /// The card with its image behind `via`.
+    pub fn via(via: Via) -> Self {
         Card {
             node: Node::new(DpSlave::new(SLAVE)),
-            dpm: SharedDpm::new(),
+            dpm: Image::new(via, Dpm::new()),
             link: Link::new(),
             now: Instant::from_millis(0),
             master: ScriptedMaster::new(MASTER, SLAVE),
         }
+    }
+
+    /// A host transport onto the card's image.
+    pub fn transport(&self) -> Wire {
+        self.dpm.transport()
     }
 
     /// One card cycle after `ms`: poll the node, publish to the image, collect from it.
@@ -56,6 +201,16 @@ impl Card {
 
     pub fn data_exchange(&mut self, out: &[u8]) -> Vec<u8> {
         Rig::data_exchange(self, out).to_vec()
+    }
+}
+
+/// Every test on a card over SPI ends with [`Image::assert_frames_crossed`] (unless it failed
+/// already).
+impl Drop for Card {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            self.dpm.assert_frames_crossed();
+        }
     }
 }
 
