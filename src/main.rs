@@ -759,6 +759,12 @@ mod app {
         loop {
             next += 1.millis();
             Mono::delay_until(next).await;
+            // QEMU: an answer waits for its quiet window; the line interrupt starts it (or has
+            // dropped it when a character came meanwhile, `bsp::qemu`).
+            #[cfg(feature = "qemu")]
+            if board::answer_waiting() {
+                rtic::pend(stm32f4xx_hal::pac::Interrupt::USART1);
+            }
             let line_errors = line_errors(&mut line);
             let (v, now, leds) = drive.lock(|d| {
                 let v = d.step(&mut node, line_errors);

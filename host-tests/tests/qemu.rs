@@ -482,3 +482,36 @@ fn impossible_sources_and_reserved_fc_are_never_answered() {
     }
     q.stop();
 }
+
+/// Issue 12 item 4e (line part) on the firmware: a request followed without an idle line by
+/// more bytes (`FDL_Status 00 11 22` in one write) is not answered — the answer waits for the
+/// quiet window of `bsp::qemu` and is dropped when a character comes first —; the same request
+/// alone is answered before and after.
+#[test]
+fn a_request_followed_without_a_gap_is_not_answered() {
+    let Some((q, mut phy, _)) = boot_and_connect() else { return };
+    let status = qemu::frame(&Header { da: SLAVE, sa: 2, fc: FunctionCode(0x49), dsap: None, ssap: None }, &[]);
+    let answered = |r: &std::io::Result<Option<Vec<u8>>>| matches!(r, Ok(Some(a)) if matches!(telegram::decode(a), Decoded::Frame(Telegram::Data(_), _)));
+    let r = phy.request(&status, Duration::from_secs(5));
+    if !answered(&r) {
+        fail(q, &[], format!("clean FDL_Status: {r:?}"));
+    }
+    std::thread::sleep(Duration::from_millis(50));
+    let _ = phy.take_received();
+    let mut run_on = status.clone();
+    run_on.extend_from_slice(&[0x00, 0x11, 0x22]);
+    for _ in 0..3 {
+        match phy.request(&run_on, Duration::from_millis(500)) {
+            Ok(None) => {}
+            Ok(Some(a)) => fail(q, &[], format!("{} answered with {}", host_tests::hex(&run_on), host_tests::hex(&a))),
+            Err(e) => fail(q, &[], format!("USART1 socket: {e}")),
+        }
+    }
+    for _ in 0..3 {
+        let r = phy.request(&status, Duration::from_secs(5));
+        if !answered(&r) {
+            fail(q, &[], format!("clean FDL_Status after the run-on ones: {r:?}"));
+        }
+    }
+    q.stop();
+}

@@ -520,3 +520,42 @@ fn impossible_sources_and_reserved_fc_are_never_answered() {
     let summary = slave.finish();
     assert_eq!(summary.responses, 2, "only the two requests from the master were answered");
 }
+
+/// Issue 12 item 4e (line part): a request followed without an idle line by more bytes
+/// (`10 05 02 49 50 16 00 11 22` in one write) is not answered — the line was not idle for
+/// T_SYN after it (reference §1.4), as the F411's `tx_plan` drops it (`TxDrop::LineActive`) —
+/// and the drop is counted; the same request alone is answered before and after.
+#[test]
+fn a_request_followed_without_a_gap_is_not_answered() {
+    let pty = Pty::open().expect("create a pseudo-terminal pair");
+    let slave = SoftSlave::start(pty.path().to_str().expect("a UTF-8 pty path"), 2000);
+    let mut phy = pty.into_phy();
+    let status = [0x10, SLAVE, MASTER, 0x49, SLAVE + MASTER + 0x49, 0x16];
+    let answer = [0x10, MASTER, SLAVE, 0x00, MASTER + SLAVE, 0x16];
+    let t0 = StdInstant::now();
+    let first = loop {
+        if let Some(a) = phy.request(&status, Duration::from_millis(200)).unwrap() {
+            break a;
+        }
+        assert!(t0.elapsed() < DEADLINE, "no answer from the soft slave\n{}", slave.dump());
+    };
+    assert_eq!(first, answer);
+    std::thread::sleep(Duration::from_millis(50));
+    let _ = phy.take_received();
+    let mut run_on = status.to_vec();
+    run_on.extend_from_slice(&[0x00, 0x11, 0x22]);
+    for _ in 0..3 {
+        let r = phy.request(&run_on, Duration::from_millis(300)).unwrap();
+        assert_eq!(r, None, "{} was answered\n{}", hex(&run_on), slave.dump());
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    // The normal case: the clean request is answered again (the bytes after the last one were
+    // cut away by the idle line), three times in a row.
+    for _ in 0..3 {
+        let r = phy.request(&status, Duration::from_secs(5)).unwrap();
+        assert_eq!(r.as_deref(), Some(&answer[..]), "the clean FDL_Status after the run-on ones\n{}", slave.dump());
+    }
+    let summary = slave.finish();
+    assert_eq!(summary.responses, 4, "only the clean requests were answered");
+    assert_eq!(summary.dropped_line_active, 3, "every run-on request counted");
+}

@@ -7,7 +7,12 @@
 //!   telegrams are found by their length, parity/framing errors (8E1 with `PARMRK`) go to
 //!   [`Node::on_line_error`](pbcard::node::Node::on_line_error), silence of at least the idle threshold to [`Node::on_idle`](pbcard::node::Node::on_idle);
 //! * a response is written once min_TSDR has passed since the request was read (spinning for
-//!   the last stretch);
+//!   the last stretch) — unless a character arrived after the request before the answer went
+//!   out (in the same read, or any time up to the write): a request must be followed by an
+//!   idle line (reference §1.4, T_SYN), so one followed without a gap by more bytes is not
+//!   answered ([`Summary::dropped_line_active`]). The telegram itself still reached its station,
+//!   as on the F411, whose `pbcard::phy::line::tx_plan` drops the response for the same reason
+//!   (`TxDrop::LineActive`) after the receiver has handed the telegram on;
 //! * [`Application::step`](pbcard::app::Application::step) runs every 2 ms and after every received chunk;
 //! * [`run`] returns when `stop` is set (the binary sets it on Ctrl-C).
 //!
@@ -55,6 +60,9 @@ pub struct Summary {
     pub corrupt: u32,
     /// Responses written.
     pub responses: u32,
+    /// Responses not written because characters followed the request before the answer was
+    /// due (no idle line after the request: the F411's `TxDrop::LineActive`).
+    pub dropped_line_active: u32,
     /// Per station: address and its Data_Exchange count.
     pub stations: Vec<(u8, u32)>,
 }
@@ -134,6 +142,7 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
     let mut last_step = t0;
     let mut last_pd = t0;
     let mut responses = 0u32;
+    let mut dropped_line_active = 0u32;
 
     while !stop.load(Ordering::Relaxed) {
         let now = StdInstant::now();
@@ -156,24 +165,38 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
                 last_activity = t;
                 idle_reported = false;
                 let now = now_pb(t);
-                decoder.feed(&buf[..n], |rx| match rx {
-                    Rx::Byte(b) => {
-                        for (i, st) in stations.iter_mut().enumerate() {
-                            let frames = st.framer.stats().frames;
-                            let response = st.on_byte(now, b);
-                            if let Some(r) = response {
-                                let wait = to_us(rate.bits_to_duration(st.node.min_tsdr().0));
-                                tx = Some((t + wait, r));
-                                tx_station = i;
-                            }
-                            if st.framer.stats().frames != frames {
-                                let prefix = format!("#{}", st.node.slave().address());
-                                st.monitor
-                                    .on_frame(st.framer.frame(), &st.node, &mut |m| emit(format!("{prefix} {m}")));
-                            }
+                decoder.feed(&buf[..n], |rx| {
+                    // A character after the request and before its answer: the line was not
+                    // idle after the request, so it is not answered (module documentation).
+                    if let Some((_, r)) = tx.take() {
+                        dropped_line_active = dropped_line_active.wrapping_add(1);
+                        if let Some(st) = stations.get(tx_station).filter(|st| st.config.verbose) {
+                            emit(format!(
+                                "{} answer {} dropped: characters followed the request without an idle line",
+                                st.prefix(),
+                                hex(&r)
+                            ));
                         }
                     }
-                    Rx::Error => stations.iter_mut().for_each(|st| st.framer.line_error()),
+                    match rx {
+                        Rx::Byte(b) => {
+                            for (i, st) in stations.iter_mut().enumerate() {
+                                let frames = st.framer.stats().frames;
+                                let response = st.on_byte(now, b);
+                                if let Some(r) = response {
+                                    let wait = to_us(rate.bits_to_duration(st.node.min_tsdr().0));
+                                    tx = Some((t + wait, r));
+                                    tx_station = i;
+                                }
+                                if st.framer.stats().frames != frames {
+                                    let prefix = format!("#{}", st.node.slave().address());
+                                    st.monitor
+                                        .on_frame(st.framer.frame(), &st.node, &mut |m| emit(format!("{prefix} {m}")));
+                                }
+                            }
+                        }
+                        Rx::Error => stations.iter_mut().for_each(|st| st.framer.line_error()),
+                    }
                 });
             }
         }
@@ -199,6 +222,11 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
                 let at = *at;
                 while StdInstant::now() < at {
                     std::hint::spin_loop();
+                }
+                // Characters waiting to be read arrived before the answer: the next round reads
+                // them and drops it.
+                if port.wait_readable(Duration::ZERO)? {
+                    continue;
                 }
                 let (_, bytes) = tx.take().unwrap_or((at, Vec::new()));
                 let sent = StdInstant::now();
@@ -252,7 +280,7 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
         }
     }
 
-    let mut summary = Summary { elapsed: t0.elapsed(), responses, ..Default::default() };
+    let mut summary = Summary { elapsed: t0.elapsed(), responses, dropped_line_active, ..Default::default() };
     for st in &stations {
         let s = st.node.station().stats();
         let dx = st.node.slave().stats().data_exchanges;
@@ -263,13 +291,15 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
     }
     summary.corrupt = stations.first().map_or(0, |st| st.framer.stats().corrupt);
     emit(format!(
-        "stopped after {:.1} s: {} requests, {} Data_Exchange, {} FCB retries, {} corrupt telegrams, {} responses",
+        "stopped after {:.1} s: {} requests, {} Data_Exchange, {} FCB retries, {} corrupt telegrams, {} responses, \
+         {} not sent (line active after the request)",
         summary.elapsed.as_secs_f64(),
         summary.requests,
         summary.data_exchanges,
         summary.retries,
         summary.corrupt,
-        summary.responses
+        summary.responses,
+        summary.dropped_line_active
     ));
     Ok(summary)
 }

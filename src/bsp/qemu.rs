@@ -16,6 +16,22 @@
 //!   program). QEMU holds back the next received byte until DR has been read (no overrun),
 //!   and bytes sent before the receiver is enabled are dropped (the host waits for a first
 //!   answer before it starts its master).
+//! * **An idle line after each request** (reference §1.4: a telegram is valid only when the
+//!   line stays idle for T_SYN after it; issue 12 item 4e, line part). QEMU has no bit time,
+//!   and QEMU's UART hands over the bytes the host wrote back to back one at a time, each
+//!   after DR was read — so "more bytes follow" cannot be seen at the last byte's interrupt.
+//!   Every answer (fast path or core) is therefore staged in the port's buffer
+//!   ([`QemuUsart1::stage_tx`]) and starts only after a quiet window of [`QUIET_US`] (5 ms of
+//!   the SysTick clock; 50 µs of emulated time in the `bench` build, whose `-icount` clock
+//!   only advances with instructions or by jumping to the next timer while the CPU sleeps)
+//!   from the request's last byte; any character arriving in that window — or while the core
+//!   works on a DP-V1 request — drops the answer and counts it
+//!   ([`LineStats::dropped_line_active`], the F411's `TxDrop::LineActive`). The telegram
+//!   itself has reached the fast path / core, as on the F411. No timer is used: the
+//!   housekeeping task (every millisecond) pends USART1 while an answer waits
+//!   ([`answer_waiting`]), and the interrupt starts it once the window has passed, so an
+//!   answer leaves 5–6 ms after its request (the e2e master's slot time is 160 ms). The
+//!   benchmark's instruction count ends when the answer is staged, not at its start.
 //! * **No GPIO, no DE pin**: nothing to switch; the pin multiplexer is not programmed.
 //! * **Logs**: defmt over semihosting (`defmt-semihosting`); QEMU's stdout carries the defmt
 //!   frames, decoded with `defmt-print -e <elf>`.
@@ -75,7 +91,19 @@ pub fn init(dp: pac::Peripherals, syst: SYST, rate: Baudrate) -> Board {
 
 /// The line's counters for the lower tasks, published by the line interrupt after each
 /// interrupt (plain atomic stores; the lower tasks only load).
-static LINE_STATS: [AtomicU32; 8] = [const { AtomicU32::new(0) }; 8];
+static LINE_STATS: [AtomicU32; 9] = [const { AtomicU32::new(0) }; 9];
+/// An answer waits for its quiet window ([`QUIET_US`]): the housekeeping task pends the line
+/// interrupt every millisecond while this is set ([`answer_waiting`]).
+static ANSWER_WAITING: AtomicBool = AtomicBool::new(false);
+
+/// The quiet window after a request before its answer starts (microseconds of the SysTick
+/// clock; see the module documentation): 5 ms, in the benchmark build 50 µs of emulated time.
+pub const QUIET_US: u64 = if cfg!(feature = "bench") { 50 } else { 5_000 };
+
+/// Whether an answer waits for its quiet window (the housekeeping task pends USART1 then).
+pub fn answer_waiting() -> bool {
+    ANSWER_WAITING.load(Ordering::Relaxed)
+}
 static RX_STATS: [AtomicU32; 4] = [const { AtomicU32::new(0) }; 4];
 /// The lower tasks' view of the QEMU line: no lock shared with the line interrupt.
 pub struct LineView;
@@ -93,6 +121,7 @@ impl LineView {
             tx_busy: l(5),
             tx_bad_length: l(6),
             responses: l(7),
+            dropped_line_active: l(8),
         }
     }
 
@@ -135,12 +164,15 @@ pub struct LineStats {
     /// The station returned a response the port could not take (length).
     pub tx_bad_length: u32,
     pub responses: u32,
+    /// Answers not sent because a character arrived after the request within the quiet
+    /// window (no idle line after the request: the F411's `TxDrop::LineActive`).
+    pub dropped_line_active: u32,
 }
 
 /// The QEMU line with the same shape as the F411's `DmaLine`: the per-byte interrupt feeds a
 /// [`Framer`] (frame ends by length; QEMU reports no gaps), complete telegrams go into a queue
-/// for the decision task, which answers through [`QemuLine::respond`] (at once: no line
-/// timing under QEMU).
+/// for the core; the fast path's (or the core's) answer starts after the quiet window
+/// ([`QUIET_US`]: no line timing under QEMU).
 pub struct QemuLine {
     port: Port,
     framer: Framer,
@@ -153,6 +185,11 @@ pub struct QemuLine {
     hold: bool,
     /// The held characters and their arrival times.
     held: heapless::Deque<(u8, Instant), HELD>,
+    /// An answer in the port's buffer, waiting for its quiet window: since when, for which
+    /// request, through the core.
+    staged: Option<(Instant, FrameMeta, bool)>,
+    /// A character arrived while the core worked on the request in `awaiting`.
+    active_while_awaiting: bool,
 }
 
 /// Characters the line holds at most while the core catches up (two longest telegrams).
@@ -168,6 +205,8 @@ impl QemuLine {
             fast: None,
             hold: false,
             held: heapless::Deque::new(),
+            staged: None,
+            active_while_awaiting: false,
         }
     }
 
@@ -193,8 +232,11 @@ impl QemuLine {
         if let Some(meta) = self.awaiting {
             if let Some(answer) = fast.take_deferred() {
                 self.awaiting = None;
-                if !answer.is_empty() {
-                    send(&mut self.port, &mut self.stats, &meta, answer, true);
+                if core::mem::take(&mut self.active_while_awaiting) {
+                    self.stats.dropped_line_active = self.stats.dropped_line_active.wrapping_add(1);
+                } else if !answer.is_empty() {
+                    let now = self.port.clock.now();
+                    stage(&mut self.port, &mut self.stats, &mut self.staged, meta, answer, true, now);
                 }
             }
         }
@@ -204,10 +246,30 @@ impl QemuLine {
         }
         while !self.hold {
             let Some((byte, at)) = self.held.pop_front() else { break };
-            self.hold =
-                take(&mut self.port, &mut self.stats, &mut self.framer, fast, &mut self.awaiting, byte, at, entry);
+            self.hold = take(
+                &mut self.port,
+                &mut self.stats,
+                &mut self.framer,
+                fast,
+                &mut self.awaiting,
+                &mut self.staged,
+                byte,
+                at,
+                entry,
+            );
         }
         while let Some(ev) = self.port.poll_event() {
+            if !matches!(ev, LineEvent::TxDone) {
+                // A character after the request: the line was not idle after it, so its
+                // answer is not sent (module documentation).
+                if self.staged.take().is_some() {
+                    self.port.abort_tx();
+                    self.stats.dropped_line_active = self.stats.dropped_line_active.wrapping_add(1);
+                }
+                if self.awaiting.is_some() {
+                    self.active_while_awaiting = true;
+                }
+            }
             match ev {
                 LineEvent::Byte { byte, at, .. } => {
                     if self.hold {
@@ -223,6 +285,7 @@ impl QemuLine {
                             &mut self.framer,
                             fast,
                             &mut self.awaiting,
+                            &mut self.staged,
                             byte,
                             at,
                             entry,
@@ -244,6 +307,25 @@ impl QemuLine {
                 entry = bench::count();
             }
         }
+        // The quiet window has passed without a character: the answer starts.
+        if let Some((since, meta, through_core)) = self.staged {
+            let now = self.port.clock.now();
+            if now.saturating_since(since).as_micros() >= QUIET_US {
+                self.staged = None;
+                self.port.start_staged();
+                self.stats.responses = self.stats.responses.wrapping_add(1);
+                #[cfg(feature = "bench")]
+                defmt::info!(
+                    "BENCH req {=usize} resp {=usize} instr {=u32} {=str}",
+                    meta.len,
+                    self.port.tx_len,
+                    self.port.tx_first_count().wrapping_sub(meta.entry),
+                    if through_core { "core" } else { "fast" }
+                );
+                let _ = (meta, through_core);
+            }
+        }
+        ANSWER_WAITING.store(self.staged.is_some(), Ordering::Relaxed);
         publish_stats(&self.stats, &self.framer);
         fast.stats().queued != queued_before
     }
@@ -254,8 +336,8 @@ impl QemuLine {
 /// line holds the characters that follow until the core has caught up (QEMU's master is a
 /// host program that sends the next request the moment it has the answer — sooner, in
 /// emulated time, than a real master's turnaround — and would otherwise keep this
-/// interrupt busy so that the core never ran between two requests; the answer itself is
-/// never delayed). The F411's DMA receiver needs nothing of the kind.
+/// interrupt busy so that the core never ran between two requests; the answer itself waits
+/// only for its quiet window, [`QUIET_US`]). The F411's DMA receiver needs nothing of the kind.
 #[allow(clippy::too_many_arguments)]
 fn take(
     port: &mut Port,
@@ -263,6 +345,7 @@ fn take(
     framer: &mut Framer,
     fast: &mut pbcard::fast::FastPath<'static>,
     awaiting: &mut Option<FrameMeta>,
+    staged: &mut Option<(Instant, FrameMeta, bool)>,
     byte: u8,
     at: Instant,
     entry: u32,
@@ -277,28 +360,26 @@ fn take(
     };
     let before = fast.stats().queued;
     match fast.on_frame(at, framer.frame()) {
-        pbcard::fast::Verdict::Answer(bytes) => send(port, stats, &meta, bytes, false),
+        pbcard::fast::Verdict::Answer(bytes) => stage(port, stats, staged, meta, bytes, false, at),
         pbcard::fast::Verdict::Core => *awaiting = Some(meta),
         pbcard::fast::Verdict::Silent => {}
     }
     fast.stats().queued != before
 }
 
-/// Start a response at once (the loop of the caller hands over its other characters).
-fn send(port: &mut Port, stats: &mut LineStats, request: &FrameMeta, bytes: &[u8], through_core: bool) {
-    let _ = (request, through_core);
-    match port.start_tx(bytes, BitTimes(0)) {
-        Ok(()) => {
-            stats.responses = stats.responses.wrapping_add(1);
-            #[cfg(feature = "bench")]
-            defmt::info!(
-                "BENCH req {=usize} resp {=usize} instr {=u32} {=str}",
-                request.len,
-                bytes.len(),
-                port.tx_first_count().wrapping_sub(request.entry),
-                if through_core { "core" } else { "fast" }
-            );
-        }
+/// Put a response into the port's buffer to start once the line has been quiet for
+/// [`QUIET_US`] after `since` (the request's last character; see the module documentation).
+fn stage(
+    port: &mut Port,
+    stats: &mut LineStats,
+    staged: &mut Option<(Instant, FrameMeta, bool)>,
+    request: FrameMeta,
+    bytes: &[u8],
+    through_core: bool,
+    since: Instant,
+) {
+    match port.stage_tx(bytes) {
+        Ok(()) => *staged = Some((since, request, through_core)),
         Err(TxError::Busy) => stats.tx_busy = stats.tx_busy.wrapping_add(1),
         Err(TxError::BadLength) => stats.tx_bad_length = stats.tx_bad_length.wrapping_add(1),
     }
@@ -308,9 +389,19 @@ fn send(port: &mut Port, stats: &mut LineStats, request: &FrameMeta, bytes: &[u8
 fn publish_stats(stats: &LineStats, framer: &Framer) {
     {
         let l = *stats;
-        for (i, v) in [l.parity, l.framing, l.noise, l.overrun, l.queue_full, l.tx_busy, l.tx_bad_length, l.responses]
-            .into_iter()
-            .enumerate()
+        for (i, v) in [
+            l.parity,
+            l.framing,
+            l.noise,
+            l.overrun,
+            l.queue_full,
+            l.tx_busy,
+            l.tx_bad_length,
+            l.responses,
+            l.dropped_line_active,
+        ]
+        .into_iter()
+        .enumerate()
         {
             LINE_STATS[i].store(v, Ordering::Relaxed);
         }
@@ -411,6 +502,8 @@ pub fn register_application(_app: &mut pbcard::app::Application) {}
 enum Tx {
     /// Receiving.
     Idle,
+    /// A response in the buffer, not started ([`QemuUsart1::stage_tx`]).
+    Staged,
     /// Characters left to hand to the data register (TXE interrupt enabled).
     Sending,
     /// All characters handed over; waiting for TC (TC interrupt enabled).
@@ -464,6 +557,43 @@ impl<C: Clock> QemuUsart1<C> {
         self.tx_first_count
     }
 
+    /// Put a response into the buffer without starting it ([`QemuUsart1::start_staged`]
+    /// starts it, [`QemuUsart1::abort_tx`] drops it). In the benchmark build the instruction
+    /// count is taken here: the quiet window that follows is the line's rule, not work.
+    pub fn stage_tx(&mut self, bytes: &[u8]) -> Result<(), TxError> {
+        if self.tx != Tx::Idle {
+            return Err(TxError::Busy);
+        }
+        if bytes.is_empty() || bytes.len() > self.tx_buf.len() {
+            return Err(TxError::BadLength);
+        }
+        self.tx_buf[..bytes.len()].copy_from_slice(bytes);
+        self.tx_len = bytes.len();
+        self.tx = Tx::Staged;
+        #[cfg(feature = "bench")]
+        {
+            self.tx_first_count = bench::count();
+        }
+        Ok(())
+    }
+
+    /// Start the staged response: its first character into DR.
+    pub fn start_staged(&mut self) {
+        if self.tx != Tx::Staged {
+            return;
+        }
+        let _ = self.usart.sr().read();
+        self.usart.dr().write(|w| w.dr().set(u16::from(self.tx_buf[0])));
+        self.tx_pos = 1;
+        if self.tx_pos < self.tx_len {
+            self.tx = Tx::Sending;
+            self.usart.cr1().modify(|_, w| w.txeie().enabled());
+        } else {
+            self.tx = Tx::Draining;
+            self.usart.cr1().modify(|_, w| w.tcie().enabled());
+        }
+    }
+
     fn abort_tx(&mut self) {
         self.usart.cr1().modify(|_, w| w.txeie().clear_bit().tcie().clear_bit());
         self.tx = Tx::Idle;
@@ -500,28 +630,8 @@ impl<C: Clock> BusPort for QemuUsart1<C> {
 
     /// Starts at once: there is no line timing to keep under QEMU (see the module comment).
     fn start_tx(&mut self, bytes: &[u8], _min_gap: BitTimes) -> Result<(), TxError> {
-        if self.tx != Tx::Idle {
-            return Err(TxError::Busy);
-        }
-        if bytes.is_empty() || bytes.len() > self.tx_buf.len() {
-            return Err(TxError::BadLength);
-        }
-        self.tx_buf[..bytes.len()].copy_from_slice(bytes);
-        self.tx_len = bytes.len();
-        let _ = self.usart.sr().read();
-        self.usart.dr().write(|w| w.dr().set(u16::from(self.tx_buf[0])));
-        #[cfg(feature = "bench")]
-        {
-            self.tx_first_count = bench::count();
-        }
-        self.tx_pos = 1;
-        if self.tx_pos < self.tx_len {
-            self.tx = Tx::Sending;
-            self.usart.cr1().modify(|_, w| w.txeie().enabled());
-        } else {
-            self.tx = Tx::Draining;
-            self.usart.cr1().modify(|_, w| w.tcie().enabled());
-        }
+        self.stage_tx(bytes)?;
+        self.start_staged();
         Ok(())
     }
 
