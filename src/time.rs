@@ -144,9 +144,13 @@ impl Baudrate {
         Duration((bits as u64 * 1_000_000).div_ceil(bps))
     }
 
-    /// Bit times elapsed in `d` at this rate (rounded down).
+    /// Bit times elapsed in `d` at this rate (rounded down; saturates instead of overflowing
+    /// for durations beyond ≈ 48 000 years at 12 Mbit/s, e.g. a capture file's wild timestamp).
     pub const fn duration_to_bits(self, d: Duration) -> u64 {
-        d.as_micros() * self.bits_per_second() as u64 / 1_000_000
+        let bps = self.bits_per_second() as u64;
+        let (s, us) = (d.as_micros() / 1_000_000, d.as_micros() % 1_000_000);
+        // floor((s·10⁶ + us)·bps / 10⁶) = s·bps + floor(us·bps / 10⁶): exact, no overflow.
+        s.saturating_mul(bps).saturating_add(us * bps / 1_000_000)
     }
 }
 
@@ -173,6 +177,21 @@ mod tests {
         assert_eq!(Baudrate::B9600.bits_to_duration(33), Duration::from_micros(3438));
         assert_eq!(Baudrate::B12M.bits_to_duration(12), Duration::from_micros(1));
         assert_eq!(Baudrate::B1500k.duration_to_bits(Duration::from_millis(1)), 1500);
+        assert_eq!(Baudrate::B12M.duration_to_bits(Duration::from_micros(2_500_001)), 30_000_012);
+        assert_eq!(Baudrate::B9600.duration_to_bits(Duration::from_micros(1_999_999)), 19_199);
+    }
+
+    /// The monitor_capture fuzz target found it: a capture's huge timestamp overflowed the
+    /// multiplication. Now it saturates; the conversion stays exact below it.
+    #[test]
+    fn duration_to_bits_never_overflows() {
+        for b in Baudrate::ALL {
+            for us in [u64::MAX, u64::MAX / 3, 123_456_789_012, 999_999] {
+                let exact = u128::from(us) * u128::from(b.bits_per_second()) / 1_000_000;
+                let want = u64::try_from(exact).unwrap_or(u64::MAX);
+                assert_eq!(b.duration_to_bits(Duration::from_micros(us)), want, "{b:?} {us}");
+            }
+        }
     }
 
     #[test]
