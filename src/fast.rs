@@ -13,11 +13,12 @@
 //!  │  answers from staging     │  deferred answers   │  Application through Node    │
 //!  │                           │ ◀────────────────── │                              │
 //!  │  reads  ◀── staging  ─────┼── triple buffer ────┼── writes (after every step)  │
-//!  │  writes ──▶ outputs ──────┼── triple buffer ────┼─▶ reads (newest image)       │
+//!  │  (outputs travel in the   │                     │  applies the outputs from    │
+//!  │   queued Data_Exchange)   │                     │  the queued telegram         │
 //!  └───────────────────────────┘                     └──────────────────────────────┘
 //! ```
 //!
-//! **Joined only by two [`heapless::spsc`] queues and two [`TripleBuffer`]s** of
+//! **Joined only by two [`heapless::spsc`] queues and one [`TripleBuffer`]** of
 //! [`AtomicU32`] words: no lock, no critical section, no `unsafe`. A triple buffer has one
 //! writer and one reader; each owns one slot, the third is in the middle, and a publication
 //! is one atomic swap of the middle index (the reader takes the middle with one swap too),
@@ -209,8 +210,6 @@ const OUT_AT: usize = DIAG_AT + DIAG_ROOM;
 const STAGE_BYTES: usize = OUT_AT + round4(card::MAX_OUTPUT_LEN);
 /// Words of one staging.
 pub const STAGE_WORDS: usize = STAGE_BYTES / 4;
-/// Words of one output image (length word + bytes).
-pub const OUT_WORDS: usize = 1 + round4(card::MAX_OUTPUT_LEN) / 4;
 
 const FLAG_DIAG_NEW: u8 = 1 << 0;
 const FLAG_NO_ADD_CHG: u8 = 1 << 1;
@@ -252,14 +251,13 @@ pub struct Deferred {
     bytes: [u8; MAX_FRAME_LEN],
 }
 
-/// What both halves share: the two queues and the two triple buffers. Put it in a `static`
+/// What both halves share: the two queues and the staging's triple buffer. Put it in a `static`
 /// place (RTIC `init` local) and [`split`](Self::split) it once.
 pub struct Shared {
     to_core: Queue<Queued, QUEUE_LEN>,
     slots: Slots,
     to_line: Queue<Deferred, DEFERRED_LEN>,
     staging: TripleBuffer<STAGE_WORDS>,
-    outputs: TripleBuffer<OUT_WORDS>,
 }
 
 impl Default for Shared {
@@ -276,26 +274,23 @@ impl Shared {
             slots: [const { [const { AtomicU32::new(0) }; SLOT_WORDS] }; QUEUE_LEN],
             to_line: Queue::new(),
             staging: TripleBuffer::new(),
-            outputs: TripleBuffer::new(),
         }
     }
 
     /// The line half and the core half. The core half publishes the first staging from
     /// `node` at once, so the line answers from the node's state from the first telegram on.
     pub fn split<'a>(&'a mut self, node: &mut Node) -> (FastPath<'a>, CoreLink<'a>) {
-        let Shared { to_core, slots, to_line, staging, outputs } = self;
+        let Shared { to_core, slots, to_line, staging } = self;
         let slots: &Slots = slots;
         let (qp, qc) = to_core.split();
         let (dp, dc) = to_line.split();
         let (sw, sr) = staging.halves();
-        let (ow, or) = outputs.halves();
         let mut core = CoreLink {
             from_line: qc,
             slots,
             frame: [0; MAX_FRAME_LEN],
             to_line: dp,
             staging: sw,
-            outputs: or,
             done_seq: 0,
             epoch: 0,
             scratch: [0; STAGE_BYTES],
@@ -308,7 +303,6 @@ impl Shared {
             slots,
             from_core: dc,
             staging: sr,
-            outputs: ow,
             st: Staged::EMPTY,
             seq: 0,
             judge_seq: 0,
@@ -450,7 +444,6 @@ pub struct FastPath<'a> {
     slots: &'a Slots,
     from_core: Consumer<'a, Deferred>,
     staging: TripleReader<'a, STAGE_WORDS>,
-    outputs: TripleWriter<'a, OUT_WORDS>,
     st: Staged,
     seq: u32,
     /// Sequence number of the last queued Set_Prm / Chk_Cfg (the not-ready window).
@@ -781,11 +774,6 @@ impl<'a> FastPath<'a> {
                 if !t.pdu.is_empty() && t.pdu.len() != n_out {
                     return self.status(t.sa, ResponseStatus::Rs);
                 }
-                if !t.pdu.is_empty() {
-                    self.outputs.write(1, t.pdu);
-                    self.outputs.write(0, &(n_out as u32).to_le_bytes());
-                    self.outputs.publish();
-                }
                 let dh = st.flags & FLAG_DIAG_NEW != 0 && self.diag_consumed.is_none();
                 let s = if dh { ResponseStatus::Dh } else { ResponseStatus::Dl };
                 if st.in_len == 0 {
@@ -872,7 +860,6 @@ pub struct CoreLink<'a> {
     frame: [u8; MAX_FRAME_LEN],
     to_line: Producer<'a, Deferred>,
     staging: TripleWriter<'a, STAGE_WORDS>,
-    outputs: TripleReader<'a, OUT_WORDS>,
     done_seq: u32,
     epoch: u32,
     scratch: [u8; STAGE_BYTES],
@@ -956,16 +943,6 @@ impl CoreLink<'_> {
         if ev.contains(Events::ADDRESS_CHANGED) {
             self.epoch = self.epoch.wrapping_add(1);
         }
-    }
-
-    /// The newest outputs the line took from Data_Exchange into `out`; their length.
-    pub fn latest_outputs(&mut self, out: &mut [u8]) -> usize {
-        self.outputs.refresh();
-        let n = (self.outputs.word(0) as usize).min(card::MAX_OUTPUT_LEN).min(out.len());
-        let mut tmp = [0u8; card::MAX_OUTPUT_LEN];
-        self.outputs.read(4, &mut tmp[..n]);
-        out[..n].copy_from_slice(&tmp[..n]);
-        n
     }
 
     /// Publish the staging from `node` (after anything changed the node: an application
@@ -1171,9 +1148,6 @@ mod tests {
         let Verdict::Answer(dx) = fast.on_frame(now, &m.srd(None, &[9, 8, 7, 6])) else { panic!() };
         assert_eq!(parts(dx).0, ResponseStatus::Dl as u8);
         core.run(&mut node);
-        let mut out = [0u8; 8];
-        assert_eq!(core.latest_outputs(&mut out), 4);
-        assert_eq!(&out[..4], &[9, 8, 7, 6]);
         assert_eq!(node.slave().outputs(), &[9, 8, 7, 6]);
     }
 
