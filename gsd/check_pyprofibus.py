@@ -36,7 +36,7 @@ def main():
     check(gsd.getField("Vendor_Name"), "no Vendor_Name")
     check(gsd.getField("Model_Name"), "no Model_Name")
     check(gsd.isModular(), "Modular_Station is not 1")
-    check(not gsd.isDPV1(), "DPV1_Slave is not 0")
+    check(gsd.isDPV1(), "DPV1_Slave is not 1 (card::DPV1_SLAVE)")
     for rate in RATES:
         tsdr = gsd.getMaxTSDR(rate)
         check(tsdr is not None, "no MaxTsdr for %d bit/s" % rate)

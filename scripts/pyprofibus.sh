@@ -3,7 +3,7 @@
 # QEMU firmware on pseudo-terminals, with other addresses and modules than the Rust tests use,
 # and runs the simulated drive (host-tests/pyprofibus/master.py). Exit code 0 = pass.
 #   bash scripts/pyprofibus.sh            # both
-#   bash scripts/pyprofibus.sh softslave  # or: multi (two stations in one soft slave), qemu
+#   bash scripts/pyprofibus.sh softslave  # or: gsd (the GSD as pyprofibus reads it), multi (two stations in one soft slave), qemu
 set -euo pipefail
 cd "$(dirname "$0")/.."
 HOST=$(bash scripts/host-triple)
@@ -71,10 +71,17 @@ qemu() {
   cargo build -q --release --no-default-features --features qemu
 }
 
+gsd() {
+  echo "== pyprofibus reads gsd/ODCP0F11.gsd (modules, Chk_Cfg bytes, MaxTsdr, DP-V1, user parameters)"
+  "$PY" gsd/check_pyprofibus.py >"$LOG/gsd.log" 2>&1 || { cat "$LOG/gsd.log"; return 1; }
+  tail -n 1 "$LOG/gsd.log"
+}
+
 case "${1:-all}" in
+  gsd) gsd ;;
   softslave) softslave ;;
   multi) multi ;;
   qemu) qemu ;;
-  all) softslave; multi; qemu ;;
-  *) echo "usage: $0 [softslave|multi|qemu]" >&2; exit 2 ;;
+  all) gsd; softslave; multi; qemu ;;
+  *) echo "usage: $0 [gsd|softslave|multi|qemu]" >&2; exit 2 ;;
 esac
