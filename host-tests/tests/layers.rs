@@ -55,7 +55,6 @@ const KNOWN_DEBT: &[(&str, &str)] = &[
     ("node", "profile"),
     ("phy", "node"),
     ("profile", "card"),
-    ("profile", "dpm"),
     ("store", "card"),
 ];
 

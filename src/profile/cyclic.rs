@@ -33,7 +33,7 @@
 
 use super::drive_if::{ControlProfile, DriveCommand, DriveStatus};
 use super::telegram::{Layout, Word, PZD_SIGNALS};
-use crate::dpm::Telegram;
+use crate::profile::selection::Telegram;
 
 /// The raw words the drive interface carries each way (DPM `EXTRA`, 16 words): the most
 /// programmable words of any telegram.
@@ -351,8 +351,8 @@ impl Cyclic {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dpm::Family;
     use crate::profile::drive_if::{CommandFlags, StatusFlags};
+    use crate::profile::selection::Family;
 
     /// A stub profile: RUN = control word b0, the setpoint passes as N2; status word = the
     /// drive's flags, actual = its speed. Logs what it was asked.

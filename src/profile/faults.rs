@@ -231,7 +231,7 @@ mod tests {
         let mut drive: Table<{ slots(NO_DEFS) }> = Table::new(NO_DEFS);
         let info = CardInfo {
             address: 3,
-            telegram: crate::dpm::Telegram::None,
+            telegram: crate::profile::selection::Telegram::None,
             baud_p963: 5,
             fault_counter: f.counter(),
             faults: *f.numbers(),

@@ -54,6 +54,7 @@ pub mod profidrive;
 pub mod records;
 pub mod references;
 pub mod runtime;
+pub mod selection;
 pub mod table;
 pub mod telegram;
 pub mod weg;

@@ -14,7 +14,7 @@ use super::param::{ErrorValue, ParamAddress, ParamError, ParameterAccess, ValueB
 use super::table::{slots, ParamDef, Table, Type};
 use super::telegram::{DataProfile, Layout, PZD_SIGNALS};
 use crate::card;
-use crate::dpm::{Family, Telegram};
+use crate::profile::selection::{Family, Telegram};
 
 /// PNU 915: PZD assignment of the setpoint telegram — the signal number of each output PZD
 /// (OPTE3/E5 Table 108 UINT[18], coding §6.3.9 Table 37; see [`super::telegram`]).
@@ -520,8 +520,8 @@ impl<const N: usize> ParameterAccess for NumberList<'_, N> {
 #[cfg(test)]
 mod telegram_pnu_tests {
     use super::*;
-    use crate::dpm::Family;
     use crate::profile::param::ParamError;
+    use crate::profile::selection::Family;
 
     struct NoDrive;
     impl ParameterAccess for NoDrive {

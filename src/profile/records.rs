@@ -63,8 +63,8 @@ pub enum RecordErrors {
 
 impl RecordErrors {
     /// The list for the active telegram (WEG telegrams: [`RecordErrors::Weg`]).
-    pub const fn for_telegram(t: crate::dpm::Telegram) -> RecordErrors {
-        use crate::dpm::{Family, Telegram};
+    pub const fn for_telegram(t: crate::profile::selection::Telegram) -> RecordErrors {
+        use crate::profile::selection::{Family, Telegram};
         match t {
             Telegram::Vendor(Family::WegCfw500 | Family::WegCfw11, _) => RecordErrors::Weg,
             _ => RecordErrors::Profidrive,

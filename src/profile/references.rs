@@ -27,7 +27,7 @@
 use super::param::{Attribute, ParamAddress, ParameterAccess, ValueWriter};
 use super::runtime::Scales;
 use super::telegram::{DataProfile, Layout, ProfileFamily};
-use crate::dpm::Telegram;
+use crate::profile::selection::Telegram;
 use crate::time::{Duration, Instant};
 
 /// How long one read may stay unanswered before it is asked again.
@@ -220,8 +220,8 @@ impl References {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dpm::Family;
     use crate::profile::param::{ErrorValue, ParamError, ValueBlock};
+    use crate::profile::selection::Family;
 
     /// A drive answering from a list, `None` = error; `pending_once`: each value needs one
     /// more call (like the mailbox).

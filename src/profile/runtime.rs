@@ -48,7 +48,7 @@ use super::pnu::ProcessView;
 use super::profidrive::{Profidrive, SpeedScale};
 use super::telegram::{DataProfile, Layout, ProfileFamily};
 use super::weg::{weg_profidrive, WegManufacturer, WegModel};
-use crate::dpm::{Family, Telegram};
+use crate::profile::selection::{Family, Telegram};
 use crate::time::{Duration, Instant};
 
 /// INVT CW b8 "enable writing" (INVT §2.6 Table 2-5): PKW writes run only with it set.

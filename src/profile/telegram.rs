@@ -32,7 +32,7 @@
 //! profiles, whose words are not PROFIdrive's). Programmable words of every family are numbered
 //! as VACON's PDI/PDO (the card's convention: WEG and INVT do not number signals).
 
-use crate::dpm::{Family, Telegram};
+use crate::profile::selection::{Family, Telegram};
 
 /// Elements of PNU 915 / 916 (OPTE3/E5 Table 108: UINT[18]) — also the most PZD words of any
 /// telegram (VACON 139).
