@@ -15,7 +15,7 @@ pub const IDENT_NUMBER: u16 = 0x0F11;
 pub const DEFAULT_ADDRESS: u8 = 126;
 
 /// Highest station address a DP slave may have (127 is broadcast; 126 is the default).
-pub const MAX_STATION_ADDRESS: u8 = 126;
+pub const MAX_STATION_ADDRESS: u8 = crate::fdl::telegram::MAX_STATION_ADDRESS;
 
 /// GSD `MaxTsdr_<rate>`: the latest a response starts after the request's last stop bit, in
 /// bit times, per rate. These are the customary standard maxima (reference §1.2) but at

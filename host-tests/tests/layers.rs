@@ -55,7 +55,6 @@ const KNOWN_DEBT: &[(&str, &str)] = &[
     ("node", "profile"),
     ("phy", "node"),
     ("profile", "card"),
-    ("store", "card"),
 ];
 
 fn rank(m: &str) -> Option<u8> {

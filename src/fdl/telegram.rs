@@ -26,6 +26,8 @@ pub const SC: u8 = 0xE5;
 pub const ED: u8 = 0x16;
 /// The broadcast / multicast station address (reference §2.2).
 pub const BROADCAST: u8 = 127;
+/// The highest address a station may have (0..=126; 127 is [`BROADCAST`], reference §2.2).
+pub const MAX_STATION_ADDRESS: u8 = 126;
 /// Largest SD2 LE (reference §2.1).
 pub const LE_MAX: u8 = 249;
 /// Smallest SD2 LE.

@@ -50,8 +50,8 @@
 //! updated from that firmware finds no record it knows and starts at its default address once
 //! (README, "Flash store").
 
-use crate::card;
 use crate::dp::slave_add::AddressStore;
+use crate::fdl::telegram::MAX_STATION_ADDRESS;
 
 pub mod im;
 
@@ -408,7 +408,7 @@ impl Record for StationAddress {
         out.copy_from_slice(&[self.address, self.no_add_chg as u8]);
     }
     fn decode(b: &[u8]) -> Option<Self> {
-        (b.len() == 2 && b[0] <= card::MAX_STATION_ADDRESS && b[1] <= 1)
+        (b.len() == 2 && b[0] <= MAX_STATION_ADDRESS && b[1] <= 1)
             .then(|| StationAddress { address: b[0], no_add_chg: b[1] == 1 })
     }
 }
@@ -421,7 +421,7 @@ impl<F: Flash> AddressStore for Journal<F> {
     }
 
     fn save(&mut self, address: u8, no_add_chg: bool) -> Result<(), Self::Error> {
-        if address > card::MAX_STATION_ADDRESS {
+        if address > MAX_STATION_ADDRESS {
             return Err(StoreError::Address(address));
         }
         Journal::save(self, &StationAddress { address, no_add_chg }).map(|_| ())
