@@ -126,7 +126,7 @@
 //! next a STATUS request padded to the expected reply, whose MISO is the reply; anything
 //! but the echoing reply sends the request again (three retries).
 
-use super::host::{Transport, TransportError};
+use super::host::{CyclicReceipt, Transport, TransportError};
 use super::layout::{self, Writer, BLOCKS};
 use super::{Dpm, IMAGE_SIZE};
 pub use pipeline::{PipelineStats, ReplyPipeline};
@@ -836,8 +836,11 @@ pub struct SpiHost<B: SpiBus> {
     cyclic_pending: Option<u8>,
     /// MBX_REQ fragment bytes the pending CYCLIC request asked (its reply is that much longer).
     cyclic_asked: usize,
-    /// DATA bytes of the last CYCLIC reply (the next transaction is clocked that long).
+    /// DATA bytes of the last CYCLIC reply without its MBX_REQ fragment (the next
+    /// transaction is clocked that long, plus the fragment asked).
     cyclic_reply_len: usize,
+    /// The last CYCLIC reply taken answered the previous call's request.
+    cyclic_previous: bool,
 }
 
 impl<B: SpiBus> SpiHost<B> {
@@ -855,7 +858,8 @@ impl<B: SpiBus> SpiHost<B> {
             bytes: 0,
             cyclic_pending: None,
             cyclic_asked: 0,
-            cyclic_reply_len: cyclic::MAX_REPLY_DATA,
+            cyclic_reply_len: cyclic::MAX_REPLY_DATA - cyclic::MAX_FRAGMENT,
+            cyclic_previous: false,
         }
     }
 
@@ -875,7 +879,10 @@ impl<B: SpiBus> SpiHost<B> {
         let k = req.encode(&mut d);
         let frame = REQUEST_HEADER + k + CRC_LEN;
         let asked = core::mem::replace(&mut self.cyclic_asked, usize::from(req.req.1));
-        let n = frame.max(REPLY_HEADER + self.cyclic_reply_len + asked + CRC_LEN).min(MAX_TRANSACTION);
+        // Clocked as long as the reply expected: the last one's length (without its
+        // fragment) and the fragment the answered request asked.
+        let expect = |len: usize, asked: usize| (REPLY_HEADER + len + asked + CRC_LEN).min(MAX_TRANSACTION);
+        let n = if prev.is_some() { frame.max(expect(self.cyclic_reply_len, asked)) } else { frame };
         let (tag, _) = self
             .codec
             .encode(Command::Cyclic, 0, k as u16, &d[..k], &mut self.mosi[..n])
@@ -884,32 +891,45 @@ impl<B: SpiBus> SpiHost<B> {
         if let Some(ptag) = prev {
             if let Some(r) = self.cyclic_reply(ptag, n) {
                 self.cyclic_pending = Some(tag);
+                self.cyclic_previous = true;
                 return Ok(&self.miso[REPLY_HEADER..REPLY_HEADER + r]);
             }
         }
-        // Fetch the reply to this request with the same request once more (its reply
-        // length unknown: the longest), which starts the chain for the next cycle; the card
-        // applies it again, with the same counters: no change.
-        let n = frame.max(REPLY_HEADER + cyclic::MAX_REPLY_DATA + CRC_LEN);
+        // Fetch the reply to this request with the same request once more, which starts the
+        // chain for the next cycle; the card applies it again, with the same counters: no
+        // change. Clocked as long as the reply expected; a reply longer than that (the
+        // telegram changed) is cut and the next attempt clocks the longest.
+        let n = frame.max(expect(self.cyclic_reply_len, usize::from(req.req.1)));
         let (tag2, _) = self
             .codec
             .encode(Command::Cyclic, 0, k as u16, &d[..k], &mut self.mosi[..n])
             .ok_or(HostError::BadRequest)?;
         self.transfer(n)?;
+        self.cyclic_previous = false;
         match self.cyclic_reply(tag, n) {
             Some(r) => {
                 self.cyclic_pending = Some(tag2);
                 Ok(&self.miso[REPLY_HEADER..REPLY_HEADER + r])
             }
-            None => match SpiHostCodec::decode(&self.miso[..n]) {
-                Ok(r) if r.tag == tag && r.result != ResultCode::Ok => Err(HostError::Refused(r.result)),
-                _ => {
-                    // Perhaps the reply to the repeated request comes next cycle.
-                    self.cyclic_pending = Some(tag2);
-                    Err(HostError::NoReply)
+            None => {
+                self.cyclic_reply_len = cyclic::MAX_REPLY_DATA - cyclic::MAX_FRAGMENT;
+                match SpiHostCodec::decode(&self.miso[..n]) {
+                    Ok(r) if r.tag == tag && r.result != ResultCode::Ok => Err(HostError::Refused(r.result)),
+                    _ => {
+                        // Perhaps the reply to the repeated request comes next cycle.
+                        self.cyclic_pending = Some(tag2);
+                        Err(HostError::NoReply)
+                    }
                 }
-            },
+            }
         }
+    }
+
+    /// Whether the reply the last successful [`Self::cyclic`] returned answers the request
+    /// of the call before (one transaction: the board's pipeline) rather than that call's
+    /// own (two transactions).
+    pub fn cyclic_answered_previous(&self) -> bool {
+        self.cyclic_previous
     }
 
     /// The CYCLIC reply tagged `tag` in the MISO of the last transaction (`n` bytes): its
@@ -1088,11 +1108,12 @@ impl<B: SpiBus> Transport for SpiHost<B> {
         &mut self,
         req: &cyclic::CyclicRequest<'_>,
         out: &mut [u8; cyclic::MAX_REPLY_DATA],
-    ) -> Option<Result<usize, TransportError>> {
+    ) -> Option<Result<CyclicReceipt, TransportError>> {
         Some(match SpiHost::cyclic(self, req) {
             Ok(d) if d.len() <= out.len() => {
-                out[..d.len()].copy_from_slice(d);
-                Ok(d.len())
+                let len = d.len();
+                out[..len].copy_from_slice(d);
+                Ok(CyclicReceipt { len, previous: self.cyclic_previous })
             }
             Ok(_) => Err(TransportError::Corrupt),
             Err(e) => Err(e.into()),
