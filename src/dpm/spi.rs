@@ -114,13 +114,22 @@
 //! newest command). One transaction per drive cycle; when the MISO holds no reply to take
 //! (the first cycle, a block access came between, a late or damaged reply) the same request
 //! is sent once more, whose MISO is the reply to the first: two at most. The parameter
-//! mailbox rides along (the reference hosts): when the reply's events show MBX_REQ changed,
-//! the next request asks its fragment from offset 0 (32 bytes: every read, writes of up to
-//! 18 value bytes); an answer goes to MBX_RSP as two request fragments in ascending order —
-//! head and answer, then the tail — each sent until two exchanges in a row that carried it
-//! got their reply (so the tail, which makes the block consistent, is never applied before
-//! the rest). Longer requests and answers use READ / WRITE. The CYCLIC grammar follows at
-//! the end of this document.
+//! mailbox rides along (the reference hosts), in the bytes the telegram leaves of a 64-byte
+//! transaction each way (the host's budget; ST1 leaves 22 reply / 29 request bytes, PPO 5
+//! 6 / 9; at least 4, at most 32 bytes a fragment), one fragment each way per cycle. MBX_REQ:
+//! when the reply's events show it changed, the next request asks its fragment from offset 0
+//! (carrying SEQ_HEAD: the host's read of the block for the events), the next ones the
+//! following bytes up to the end of its values; a request that took more than one fragment
+//! is taken once a 2-byte fragment at SEQ_TAIL equals the head (each fragment is sent only
+//! while the block is consistent, and the counter only grows, so every fragment between
+//! came from that request); a reply whose events show MBX_REQ changed again restarts it at
+//! offset 0. MBX_RSP: the answer's head, fields and values in ascending fragments, one per
+//! cycle; a fragment counts as applied once the reply **to the request that carried it**
+//! came back OK (one-transaction cycle: the reply answers the previous cycle's request; two
+//! transactions: this cycle's), after a failed exchange the unconfirmed part goes again, and
+//! the tail, which makes the block consistent, goes only once everything before it is
+//! confirmed — so the card never takes a block with a stale middle. No block access. The
+//! CYCLIC grammar follows at the end of this document.
 //!
 //! **A host access** (what [`SpiHost`] does): the request in one transaction, and in the
 //! next a STATUS request padded to the expected reply, whose MISO is the reply; anything
