@@ -597,7 +597,9 @@ static int cyclic(pbc_host *h, const pbc_drive_state *state, pbc_cycle_result *o
      * plus the fragment the answered request asked. */
     n = PBCARD_SPI_REPLY_HEADER + h->cyc_reply_len + h->car_req_len + PBCARD_SPI_CRC_LEN;
     n = n > frame ? n : frame;
-    n2 = PBCARD_SPI_REPLY_HEADER + h->cyc_reply_len + ask_len + PBCARD_SPI_CRC_LEN;
+    /* The fetch of a two-transaction cycle: for the longest command (the first attempt may
+     * have failed because the command grew: a new telegram), plus the fragment asked. */
+    n2 = PBCARD_SPI_REPLY_HEADER + PBCARD_CYC_MAX_REPLY_DATA - PBCARD_CYC_MAX_FRAGMENT + ask_len + PBCARD_SPI_CRC_LEN;
     n2 = n2 > frame ? n2 : frame;
     if (!fits(h, cost_us(h, steady ? n : frame, h->first_tx) + (steady ? 0u : cost_us(h, n2, 0)))) {
         h->stats.budget_short++;

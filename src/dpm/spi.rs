@@ -906,9 +906,9 @@ impl<B: SpiBus> SpiHost<B> {
         }
         // Fetch the reply to this request with the same request once more, which starts the
         // chain for the next cycle; the card applies it again, with the same counters: no
-        // change. Clocked as long as the reply expected; a reply longer than that (the
-        // telegram changed) is cut and the next attempt clocks the longest.
-        let n = frame.max(expect(self.cyclic_reply_len, usize::from(req.req.1)));
+        // change. Clocked for the longest command (the first attempt may have failed because
+        // the command grew: a new telegram), plus the fragment asked.
+        let n = frame.max(expect(cyclic::MAX_REPLY_DATA - cyclic::MAX_FRAGMENT, usize::from(req.req.1)));
         let (tag2, _) = self
             .codec
             .encode(Command::Cyclic, 0, k as u16, &d[..k], &mut self.mosi[..n])
