@@ -248,6 +248,28 @@ fn the_c_host_drives_the_card_end_to_end() {
     b.drive.set_warning(0);
     b.run(3);
 
+    // A parameter read while every other reply of the card comes late (the board's frame task
+    // missed the next NSS fall): the C host's fragments are confirmed only by the reply to the
+    // request that carried them, so the answer is still exactly the drive's.
+    let late = b.app().host().transport().bus().pipeline().late;
+    let req = [4, 1, 1, 1, 0x10, 1, 0, 101, 0, 0];
+    assert_eq!(b.c1(&[&[0x5F, 0, 47, req.len() as u8][..], &req].concat()), [0x5F, 0, 47, req.len() as u8]);
+    let mut answer = vec![];
+    for i in 0..40 {
+        if i % 2 == 0 {
+            b.app().host_mut().transport_mut().bus_mut().set_late(1);
+        }
+        b.run(1);
+        let r = b.c1(&[0x5E, 0, 47, 240]);
+        if r[0] == 0x5E {
+            answer = r[4..].to_vec();
+            break;
+        }
+    }
+    assert_eq!(answer, [4, 1, 1, 1, 0x42, 1, 0x01, 0x23], "PNU 101 = 0x0123 through late replies");
+    assert!(b.app().host().transport().bus().pipeline().late > late, "replies came late");
+    b.run(3);
+
     // The card restarts (a new BOOT_ID, a fresh image and DP slave): the C host sees it,
     // opens again and rewrites CONFIG, so the start-up gate opens again.
     b.drive.bus_mut().app = card(0x2222).app;
