@@ -68,6 +68,11 @@ pub struct Options {
     /// [`cyclic::MIN_FRAGMENT`], at most [`cyclic::MAX_FRAGMENT`] bytes). Default 64 (issue 16:
     /// ≤ 64 bytes per drive cycle for ST1 and PPO 5).
     pub cyclic_bytes: usize,
+    /// The parameter mailbox rides in the CYCLIC exchange's fragments (default). Off: a
+    /// [`Host::cycle`] drive fetches MBX_REQ and writes MBX_RSP with block accesses (a
+    /// request answered within one drive cycle, at the cost of extra transactions in the
+    /// cycles that carry one: the simulated drive, whose tests count card steps per job).
+    pub cyclic_mailbox: bool,
 }
 
 impl Default for Options {
@@ -77,9 +82,15 @@ impl Default for Options {
 }
 
 impl Options {
-    /// 200 ms card timeout, 8 read attempts, nothing required, 64-byte CYCLIC transactions.
-    pub const DEFAULT: Options =
-        Options { card_timeout: Duration::from_millis(200), read_attempts: 8, required: 0, cyclic_bytes: 64 };
+    /// 200 ms card timeout, 8 read attempts, nothing required, 64-byte CYCLIC transactions,
+    /// the mailbox in them.
+    pub const DEFAULT: Options = Options {
+        card_timeout: Duration::from_millis(200),
+        read_attempts: 8,
+        required: 0,
+        cyclic_bytes: 64,
+        cyclic_mailbox: true,
+    };
 }
 
 /// Why [`Host::open`] refused the image.
@@ -936,7 +947,9 @@ impl<T: Transport> Host<T> {
         let req_asked = match &self.req_in {
             Some(a) => a.wanted(req_room),
             // MBX_REQ changed (or not known yet): its first fragment comes with the reply.
-            None if self.has(cap::MAILBOX) && self.mailbox_hint != Some(false) => (0, req_room as u8),
+            None if self.has(cap::MAILBOX) && self.opts.cyclic_mailbox && self.mailbox_hint != Some(false) => {
+                (0, req_room as u8)
+            }
             None => (0, 0),
         };
         let flags = layout::drive_state::FLAGS;
@@ -1079,7 +1092,7 @@ impl<T: Transport> Host<T> {
             }
             // The last CYCLIC reply said MBX_REQ is unchanged since the host read it, or
             // changed: its fragments come with the next replies.
-            None if self.mailbox_hint.is_some() => return Ok(None),
+            None if self.mailbox_hint.is_some() && self.opts.cyclic_mailbox => return Ok(None),
             None => {}
         }
         // The card starts every write of MBX_REQ with a new SEQ_HEAD: while it is the value
@@ -1124,6 +1137,7 @@ impl<T: Transport> Host<T> {
         // Over the CYCLIC exchange the last reply says whether MBX_REQ changed since the
         // request was taken; else (or when it did) the block tells.
         let current = if self.mailbox_hint == Some(false)
+            && self.opts.cyclic_mailbox
             && self.fragment.is_none()
             && self.req_in.is_none()
             && self.request_seen == id
@@ -1141,7 +1155,7 @@ impl<T: Transport> Host<T> {
             return Err(Error::StaleResponse { id, current });
         }
         let rsp = MailboxResponse { id, outcome };
-        if self.mailbox_hint.is_some() {
+        if self.mailbox_hint.is_some() && self.opts.cyclic_mailbox {
             // CYCLIC: through MBX_RSP fragments.
             let mut block = [0u8; layout::mbx_rsp::LEN];
             let seq = next_seq(self.seq_rsp);
