@@ -3,16 +3,23 @@
 //! run it; `no_std`, allocation-free, time passed in.
 //!
 //! [`SimDrive::step`] talks to the card only through the host-side reference implementation
-//! ([`crate::dpm::host::Host`], issue 7 item 5) over any [`Transport`]: it reads DRIVE_CMD
-//! (the drive-neutral command of [`crate::profile::drive_if`]), runs the drive model
+//! ([`crate::dpm::host::Host`], issue 7 item 5) over any [`Transport`], on
+//! [`Host::cycle`](crate::dpm::host::Host::cycle) (issue 16): two exchanges a drive cycle —
+//! the first (CYCLIC over the SPI frames: one transaction in the steady state) brings the
+//! newest DRIVE_CMD (the drive-neutral command of [`crate::profile::drive_if`]), the card's
+//! heartbeat, events and communication state; the drive model runs
 //! ([`model::DriveModel`]: ramps, quick stop, coast, jog, faults, communication-loss
-//! reactions, current / torque / power), writes DRIVE_STATE, reports faults and warnings in
-//! the DRIVE block (with the GSD's device-related diagnosis block), keeps its heartbeat
-//! going, and serves the parameter mailbox from its parameter table ([`params`]).
+//! reactions, current / torque / power); the second delivers DRIVE_STATE computed from that
+//! command before the card's next step (one exchange a cycle would deliver the status of the
+//! previous command, a cycle late). It reports faults and warnings in the DRIVE block (with
+//! the GSD's device-related diagnosis block), keeps its heartbeat going, and serves the
+//! parameter mailbox from its parameter table ([`params`]) — with block accesses
+//! (`Options::cyclic_mailbox` off in `app::Application`: a job within one card step, as the
+//! card's parameter tests count; a drive maker's host carries it in the CYCLIC fragments).
 //!
 //! **Communication errors (WEG CFW500 §4 P0313 and §6, CFW-11 §3 P0313 and §5):** the drive
-//! watches the card through [`Host::poll`] (the `CARD.EVENTS` counters, the STATUS block's
-//! communication state, the card's heartbeat) and raises the manuals' alarms ([`CommAlarms`]):
+//! watches the card through [`Host::cycle`]'s poll (the `CARD.EVENTS` counters, the STATUS
+//! block's communication state, the card's heartbeat) and raises the manuals' alarms ([`CommAlarms`]):
 //!
 //! * **A138** "PROFIBUS DP interface in Clear mode" — event 0 (`CardEvent::ClearMode`) or the
 //!   STATUS state "Clear"; gone when the master leaves Clear (STATUS "online").
