@@ -448,7 +448,7 @@ proptest! {
 }
 
 /// Issue 16 item 5: a drive on `Host::cycle` serves the parameter mailbox through the CYCLIC
-/// exchange's fragments (MBX_REQ in a reply, MBX_RSP in two request fragments): one
+/// exchange's fragments (MBX_REQ in a reply, MBX_RSP in request fragments): one
 /// transaction per drive cycle throughout, no block access; the card takes the answer.
 #[test]
 fn a_cycle_drive_serves_the_mailbox_through_fragments_only() {
