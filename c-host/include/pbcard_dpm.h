@@ -417,6 +417,8 @@
 #define PBCARD_CYC_STATE_BASE                         16u      /* DRIVE_STATE bytes FLAGS..NAMUR */
 #define PBCARD_CYC_CMD_BASE                           12u      /* DRIVE_CMD bytes FLAGS..EXTRA */
 #define PBCARD_CYC_MAX_FRAGMENT                       32u      /* most bytes of a mailbox fragment */
+#define PBCARD_CYC_MIN_FRAGMENT                       4u       /* fewest bytes of a mailbox fragment the reference hosts use */
+#define PBCARD_CYC_TRANSACTION_BYTES                  64u      /* the reference hosts' CYCLIC transaction budget (the mailbox fragments get what the telegram leaves) */
 #define PBCARD_CYC_MAX_REQUEST_DATA                   95u      /* longest CYCLIC request DATA */
 #define PBCARD_CYC_MAX_REPLY_DATA                     96u      /* longest CYCLIC reply DATA */
 

@@ -3,7 +3,9 @@
  * What a drive's control board (the SPI master) runs against the PROFIBUS card: open and
  * version check, one CYCLIC exchange per drive cycle (heartbeat, drive-neutral status out;
  * card heartbeat, events, boot id, drive-neutral command in), the parameter mailbox
- * served to a callback, CONFIG written and rewritten after a card restart (CARD.BOOT_ID).
+ * served to a callback through the CYCLIC exchange's fragments (no block access), the drive's
+ * fault / warning reports (DRIVE), CONFIG written and rewritten after a card restart
+ * (CARD.BOOT_ID).
  *
  * Portable C99, no malloc, no global state: the caller owns a pbc_host and hands in an SPI
  * transfer callback, the time and, per call, a time budget. pbc_cycle never starts a
@@ -106,6 +108,9 @@ typedef struct {
     uint32_t card_timeout_ms; /* CARD.HEARTBEAT unchanged this long = card lost (A140); 0 = 200 */
     pbc_param_fn param; /* may be NULL: requests stay unanswered (the card answers 0x11) */
     void *param_user;
+    uint32_t cyclic_bytes; /* bytes one CYCLIC transaction may clock; 0 = PBCARD_CYC_TRANSACTION_BYTES (64).
+                            * The mailbox fragments get what the telegram leaves of it, each way
+                            * (PBCARD_CYC_MIN_FRAGMENT..PBCARD_CYC_MAX_FRAGMENT bytes). */
 } pbc_options;
 
 /* Results of pbc_cycle and the other calls. */
@@ -151,7 +156,8 @@ typedef struct {
     uint32_t no_reply;
     uint32_t budget_short; /* exchanges or jobs put off for the budget */
     uint32_t requests; /* parameter requests taken */
-    uint32_t responses; /* answers written */
+    uint32_t responses; /* answers written (the tail fragment confirmed) */
+    uint32_t drive_writes; /* DRIVE written whole (a changed fault / warning report) */
     uint32_t card_restarts;
     uint32_t card_losses;
     uint32_t opens;
@@ -183,12 +189,23 @@ typedef struct {
     int have_config, config_dirty, config_state;
     pbc_config config;
     uint16_t config_seq;
-    int mbx_look; /* MBX_REQ changed: read it */
+    /* The mailbox through the CYCLIC fragments (docs/SPI.md "One drive cycle"). */
+    int mbx_hint; /* from the last reply: MBX_REQ changed (1), unchanged (0), unknown (-1) */
     uint16_t request_seen; /* REQ_ID taken last */
     uint16_t request_open; /* REQ_ID taken, not answered (0 = none) */
-    int rsp_dirty; /* rsp to be written */
-    uint16_t rsp_id;
-    pbc_param_response rsp;
+    uint8_t req_blk[PBCARD_MBX_REQ_SIZE]; /* MBX_REQ being assembled from reply fragments */
+    size_t req_have; /* bytes req_blk[0..req_have) received */
+    int req_frags; /* fragments they came in (1 = one consistent copy; else the tail decides) */
+    int req_active;
+    uint8_t rsp_blk[PBCARD_MBX_RSP_SIZE]; /* MBX_RSP being sent in request fragments */
+    size_t rsp_len, rsp_confirmed, rsp_next; /* body bytes, confirmed below, next to send */
+    int rsp_active;
+    uint8_t car_req_off, car_req_len, car_rsp_off, car_rsp_len; /* what the last request carried */
+    size_t cmd_len; /* DRIVE_CMD bytes of the last reply */
+    /* The drive's report (DRIVE), written whole when it changes. */
+    uint16_t fault_code, warning_code, irq_mask;
+    uint8_t fault_count, warning_count;
+    int drive_dirty;
     uint32_t left_us; /* of this call's budget */
     int first_tx; /* no transaction yet in this call (no gap before it) */
     pbc_cycle_result *out;
@@ -213,7 +230,21 @@ int pbc_config_outcome(const pbc_host *h);
 int pbc_cycle(pbc_host *h, uint32_t now_ms, uint32_t budget_us, const pbc_drive_state *state,
               pbc_cycle_result *out);
 
-/* Answer request id later (pbc_param_fn returned 0); written by the next pbc_cycle. */
+/* Report the drive's active fault (0 = none) in DRIVE.FAULT_CODE; a new non-zero code counts
+ * a new fault (DRIVE.FAULT_COUNT). The card raises Ext_Diag and a diagnostic alarm for a fault.
+ * Written whole by the next pbc_cycle (one queued access), then kept by the CYCLIC exchange.
+ * The drive's DRIVE_STATE fault_code / warning_code (pbc_drive_state) feed the profile (ZSW1,
+ * the fault buffer PNU 947); a drive sets both, as the Rust host's set_fault does. */
+void pbc_set_fault(pbc_host *h, uint16_t code);
+
+/* Report the active warning (0 = none) in DRIVE.WARNING_CODE, like pbc_set_fault. */
+void pbc_set_warning(pbc_host *h, uint16_t code);
+
+/* DRIVE.IRQ_MASK: bits of the pending-events bitmap that do not assert IRQ (docs/SPI.md). */
+void pbc_set_irq_mask(pbc_host *h, uint16_t mask);
+
+/* Answer request id later (pbc_param_fn returned 0); sent by the next pbc_cycle calls in
+ * MBX_RSP fragments. */
 int pbc_respond(pbc_host *h, uint16_t id, const pbc_param_response *rsp);
 
 /* The open request (0 = none). */

@@ -44,7 +44,36 @@ void pbc_init(pbc_host *h, const pbc_options *o)
     if (h->o.sck_hz == 0) {
         h->o.sck_hz = 1000000u;
     }
-    h->cyc_reply_len = PBCARD_CYC_MAX_REPLY_DATA;
+    if (h->o.cyclic_bytes == 0) {
+        h->o.cyclic_bytes = PBCARD_CYC_TRANSACTION_BYTES;
+    }
+    h->cyc_reply_len = PBCARD_CYC_MAX_REPLY_DATA - PBCARD_CYC_MAX_FRAGMENT;
+    h->cmd_len = PBCARD_DRIVE_CMD_SEQ_TAIL - PBCARD_DRIVE_CMD_FLAGS;
+    h->mbx_hint = -1;
+}
+
+void pbc_set_fault(pbc_host *h, uint16_t code)
+{
+    if (code != 0 && code != h->fault_code) {
+        h->fault_count++;
+    }
+    h->drive_dirty |= code != h->fault_code;
+    h->fault_code = code;
+}
+
+void pbc_set_warning(pbc_host *h, uint16_t code)
+{
+    if (code != 0 && code != h->warning_code) {
+        h->warning_count++;
+    }
+    h->drive_dirty |= code != h->warning_code;
+    h->warning_code = code;
+}
+
+void pbc_set_irq_mask(pbc_host *h, uint16_t mask)
+{
+    h->drive_dirty |= mask != h->irq_mask;
+    h->irq_mask = mask;
 }
 
 void pbc_set_config(pbc_host *h, const pbc_config *c)
@@ -67,15 +96,40 @@ const pbc_stats *pbc_get_stats(const pbc_host *h) { return &h->stats; }
 
 int pbc_respond(pbc_host *h, uint16_t id, const pbc_param_response *rsp)
 {
+    uint8_t *b = h->rsp_blk;
+    uint8_t n = rsp->values_len > PBCARD_MBX_CAPACITY ? PBCARD_MBX_CAPACITY : rsp->values_len;
+    uint16_t seq;
     if (id == 0 || h->request_open != id) {
         return PBC_E_STALE;
     }
-    if (h->rsp_dirty) {
+    if (h->rsp_active) {
         return PBC_E_BUSY;
     }
-    h->rsp = *rsp;
-    h->rsp_id = id;
-    h->rsp_dirty = 1;
+    /* MBX_RSP encoded whole; pbc_cycle sends it in fragments: the body (head, fields,
+     * values), then the tail once the body is confirmed. */
+    seq = next_seq(h->seq_rsp);
+    h->seq_rsp = seq;
+    memset(b, 0, PBCARD_MBX_RSP_SIZE);
+    put16(&b[PBCARD_MBX_RSP_SEQ_HEAD], seq);
+    put16(&b[PBCARD_MBX_RSP_REQ_ID], id);
+    b[PBCARD_MBX_RSP_RESULT] = rsp->result ? 1u : 0u;
+    h->rsp_len = PBCARD_MBX_RSP_VALUES;
+    if (rsp->result == 0) {
+        b[PBCARD_MBX_RSP_FORMAT] = rsp->format;
+        b[PBCARD_MBX_RSP_COUNT] = rsp->count;
+        b[PBCARD_MBX_RSP_VALUES_LEN] = n;
+        memcpy(&b[PBCARD_MBX_RSP_VALUES], rsp->values, n);
+        h->rsp_len += n;
+    } else {
+        put16(&b[PBCARD_MBX_RSP_ERROR], rsp->error);
+        put16(&b[PBCARD_MBX_RSP_ERROR_INFO], rsp->error_info);
+        b[PBCARD_MBX_RSP_HAS_INFO] = rsp->has_info ? 1u : 0u;
+    }
+    put16(&b[PBCARD_MBX_RSP_SEQ_TAIL], seq);
+    h->rsp_confirmed = 0;
+    h->rsp_next = 0;
+    h->rsp_active = 1;
+    h->request_open = 0;
     return PBC_OK;
 }
 
@@ -295,9 +349,11 @@ static int open_step(pbc_host *h)
         h->open = 1;
         h->stats.opens++;
         h->request_open = 0;
-        h->rsp_dirty = 0;
-        h->mbx_look = 1;
+        h->rsp_active = 0;
+        h->req_active = 0;
+        h->mbx_hint = -1;
         h->cyc_pending = 0;
+        h->drive_dirty = 1; /* the report and the IRQ mask, once */
     }
     return PBC_OK;
 }
@@ -333,7 +389,8 @@ static size_t state_bytes(const pbc_drive_state *s, uint8_t *p)
 
 /* The MISO of the last transaction (n bytes) as the reply to the CYCLIC request tagged tag:
  * 0 = taken into out. */
-static int take_cyclic(pbc_host *h, size_t n, uint8_t tag, pbc_cycle_result *out)
+static int take_cyclic(pbc_host *h, size_t n, uint8_t tag, pbc_cycle_result *out, const uint8_t **frag,
+                       size_t *frag_len)
 {
     reply r;
     size_t c, q, i;
@@ -349,7 +406,10 @@ static int take_cyclic(pbc_host *h, size_t n, uint8_t tag, pbc_cycle_result *out
         || (c > 0 && c < PBCARD_CYC_CMD_BASE)) {
         return -1;
     }
-    h->cyc_reply_len = r.len;
+    h->cyc_reply_len = r.len - q;
+    h->cmd_len = c;
+    *frag = &d[PBCARD_CYC_REPLY_FIXED + c];
+    *frag_len = q;
     out->pending_events = get16(&d[PBCARD_CYC_REP_EVENTS]);
     out->card_flags = d[PBCARD_CYC_REP_CARD_FLAGS];
     out->comm_state = d[PBCARD_CYC_REP_COMM_STATE];
@@ -381,25 +441,172 @@ static int take_cyclic(pbc_host *h, size_t n, uint8_t tag, pbc_cycle_result *out
     return 0;
 }
 
+/* ---------------------------------------------------------------------------------------
+ * The mailbox through the CYCLIC fragments (docs/SPI.md "One drive cycle") */
+
+/* What the telegram leaves of the transaction budget after used bytes (a fragment's size). */
+static size_t room(const pbc_host *h, size_t used)
+{
+    size_t r = h->o.cyclic_bytes > used ? h->o.cyclic_bytes - used : 0u;
+    if (r < PBCARD_CYC_MIN_FRAGMENT) {
+        r = PBCARD_CYC_MIN_FRAGMENT;
+    }
+    return r > PBCARD_CYC_MAX_FRAGMENT ? PBCARD_CYC_MAX_FRAGMENT : r;
+}
+
+/* Bytes of the request being assembled from offset 0 through its values, as far as known. */
+static size_t req_need(const pbc_host *h)
+{
+    size_t v;
+    if (h->req_have <= PBCARD_MBX_REQ_VALUES_LEN) {
+        return PBCARD_MBX_REQ_VALUES;
+    }
+    v = h->req_blk[PBCARD_MBX_REQ_VALUES_LEN];
+    return PBCARD_MBX_REQ_VALUES + (v > PBCARD_MBX_CAPACITY ? PBCARD_MBX_CAPACITY : v);
+}
+
+/* MBX_REQ assembled: a new request goes to the parameter callback. */
+static void take_request(pbc_host *h)
+{
+    const uint8_t *d = h->req_blk;
+    pbc_param_request q;
+    uint16_t id = get16(&d[PBCARD_MBX_REQ_REQ_ID]);
+    if (get16(&d[PBCARD_MBX_REQ_SEQ_HEAD]) == 0 || id == 0 || id == h->request_seen) {
+        return;
+    }
+    memset(&q, 0, sizeof q);
+    q.id = id;
+    q.kind = d[PBCARD_MBX_REQ_KIND];
+    q.axis = d[PBCARD_MBX_REQ_AXIS];
+    q.pnu = get16(&d[PBCARD_MBX_REQ_PNU]);
+    q.subindex = get16(&d[PBCARD_MBX_REQ_SUBINDEX]);
+    q.count = d[PBCARD_MBX_REQ_COUNT];
+    q.format = d[PBCARD_MBX_REQ_FORMAT];
+    q.values_len = d[PBCARD_MBX_REQ_VALUES_LEN] > PBCARD_MBX_CAPACITY ? PBCARD_MBX_CAPACITY
+                                                                       : d[PBCARD_MBX_REQ_VALUES_LEN];
+    memcpy(q.values, &d[PBCARD_MBX_REQ_VALUES], q.values_len);
+    h->request_seen = id;
+    h->request_open = id;
+    h->rsp_active = 0; /* an answer to an older request is no longer wanted */
+    h->stats.requests++;
+    if (h->o.param != NULL) {
+        pbc_param_response a;
+        memset(&a, 0, sizeof a);
+        if (h->o.param(h->o.param_user, &q, &a)) {
+            (void)pbc_respond(h, id, &a);
+        }
+    }
+}
+
+/* A reply's MBX_REQ fragment f (flen bytes) for the asked (off, len); changed: the reply's
+ * events say MBX_REQ changed since the host read its head. Offset 0 starts a request, the
+ * next fragments extend it; a one-fragment request is whole (a consistent copy), a longer
+ * one once the 2-byte fragment at SEQ_TAIL equals its head (the counter only grows). */
+static void req_fragment(pbc_host *h, size_t off, size_t len, const uint8_t *f, size_t flen, int changed)
+{
+    if (len == 0 || flen != len) {
+        if (changed && h->req_active && h->req_have > 0) {
+            h->req_active = 0;
+        }
+        return;
+    }
+    if (off == 0) {
+        memcpy(h->req_blk, f, len);
+        h->req_have = len;
+        h->req_frags = 1;
+        h->req_active = 1;
+    } else if (changed) {
+        h->req_active = 0; /* the head read with offset 0 is no longer the block's */
+        return;
+    } else if (h->req_active) {
+        if (off == PBCARD_MBX_REQ_SEQ_TAIL && len == 2 && h->req_have >= req_need(h)) {
+            if (get16(f) != get16(h->req_blk)) {
+                h->req_active = 0; /* fragments of two requests: again from offset 0 */
+                h->mbx_hint = -1;
+                return;
+            }
+            h->req_frags = 1;
+        } else if (off == h->req_have && off + len <= PBCARD_MBX_REQ_SEQ_TAIL) {
+            memcpy(&h->req_blk[off], f, len);
+            h->req_have += len;
+            h->req_frags++;
+        }
+    }
+    if (!h->req_active || h->req_have < req_need(h) || h->req_frags != 1) {
+        return;
+    }
+    h->req_active = 0;
+    take_request(h);
+}
+
+/* The reply to a request that carried the MBX_RSP fragment (off, len) came back OK: it is
+ * applied; the confirmed tail completes the answer. */
+static void rsp_confirmed(pbc_host *h, size_t off, size_t len)
+{
+    if (!h->rsp_active || len == 0) {
+        return;
+    }
+    if (off == PBCARD_MBX_RSP_SEQ_TAIL && h->rsp_confirmed >= h->rsp_len) {
+        h->rsp_active = 0;
+        h->stats.responses++;
+    } else if (off <= h->rsp_confirmed && off + len <= h->rsp_len && off + len > h->rsp_confirmed) {
+        h->rsp_confirmed = off + len;
+    }
+}
+
 /* One CYCLIC exchange: one transaction when the last one was a CYCLIC request (its MISO
- * is the reply to it), else two (the same request again fetches the reply to the first). */
+ * is the reply to it), else two (the same request again fetches the reply to the first).
+ * The mailbox fragments each way are sized to what the telegram leaves of the budget. */
 static int cyclic(pbc_host *h, const pbc_drive_state *state, pbc_cycle_result *out)
 {
     uint8_t data[PBCARD_CYC_MAX_REQUEST_DATA];
-    size_t s, k, frame, n, n2;
+    size_t s, k, frame, n, n2, req_room, rsp_room, ask_off = 0, ask_len = 0, rsp_off = 0, rsp_n = 0;
+    size_t flen = 0, a_req_off, a_req_len, a_rsp_off, a_rsp_len;
+    const uint8_t *frag = NULL;
     uint8_t tag1, tag2;
-    int steady = h->cyc_pending;
+    int steady = h->cyc_pending, ok = 0, previous = 0, changed;
     memset(data, 0, sizeof data);
     s = state_bytes(state, &data[PBCARD_CYC_REQ_STATE]);
-    k = PBCARD_CYC_REQUEST_FIXED + s;
+    rsp_room = room(h, PBCARD_SPI_REQUEST_HEADER + PBCARD_CYC_REQUEST_FIXED + s + PBCARD_SPI_CRC_LEN);
+    req_room = room(h, PBCARD_SPI_REPLY_HEADER + PBCARD_CYC_REPLY_FIXED + h->cmd_len + PBCARD_SPI_CRC_LEN);
+    if (h->req_active) {
+        size_t need = req_need(h);
+        if (h->req_have < need) {
+            ask_off = h->req_have;
+            ask_len = need - h->req_have < req_room ? need - h->req_have : req_room;
+        } else {
+            ask_off = PBCARD_MBX_REQ_SEQ_TAIL;
+            ask_len = 2;
+        }
+    } else if ((h->caps & PBCARD_CAP_MAILBOX) && h->mbx_hint != 0) {
+        ask_len = req_room; /* MBX_REQ changed (or unknown): its first fragment */
+    }
+    if (h->rsp_active) {
+        if (h->rsp_confirmed >= h->rsp_len) {
+            rsp_off = PBCARD_MBX_RSP_SEQ_TAIL;
+            rsp_n = 2;
+        } else {
+            rsp_off = h->rsp_next >= h->rsp_len ? h->rsp_confirmed : h->rsp_next;
+            rsp_n = h->rsp_len - rsp_off < rsp_room ? h->rsp_len - rsp_off : rsp_room;
+        }
+        memcpy(&data[PBCARD_CYC_REQUEST_FIXED + s], &h->rsp_blk[rsp_off], rsp_n);
+    }
+    k = PBCARD_CYC_REQUEST_FIXED + s + rsp_n;
     frame = PBCARD_SPI_REQUEST_HEADER + k + PBCARD_SPI_CRC_LEN;
-    n = PBCARD_SPI_REPLY_HEADER + h->cyc_reply_len + PBCARD_SPI_CRC_LEN;
+    /* Clocked as long as the reply expected: the last one's length without its fragment,
+     * plus the fragment the answered request asked. */
+    n = PBCARD_SPI_REPLY_HEADER + h->cyc_reply_len + h->car_req_len + PBCARD_SPI_CRC_LEN;
     n = n > frame ? n : frame;
-    n2 = PBCARD_SPI_REPLY_HEADER + PBCARD_CYC_MAX_REPLY_DATA + PBCARD_SPI_CRC_LEN;
+    /* The fetch of a two-transaction cycle: for the longest command (the first attempt may
+     * have failed because the command grew: a new telegram), plus the fragment asked. */
+    n2 = PBCARD_SPI_REPLY_HEADER + PBCARD_CYC_MAX_REPLY_DATA - PBCARD_CYC_MAX_FRAGMENT + ask_len + PBCARD_SPI_CRC_LEN;
     n2 = n2 > frame ? n2 : frame;
     if (!fits(h, cost_us(h, steady ? n : frame, h->first_tx) + (steady ? 0u : cost_us(h, n2, 0)))) {
         h->stats.budget_short++;
         return PBC_E_BUDGET;
+    }
+    if (h->rsp_active && rsp_off != PBCARD_MBX_RSP_SEQ_TAIL) {
+        h->rsp_next = rsp_off + rsp_n;
     }
     /* The counters advance even if the exchange fails (the card may have applied it). */
     h->heartbeat = next_seq(h->heartbeat);
@@ -409,34 +616,72 @@ static int cyclic(pbc_host *h, const pbc_drive_state *state, pbc_cycle_result *o
     put16(&data[PBCARD_CYC_REQ_DRIVE_SEQ], h->seq_drive);
     put16(&data[PBCARD_CYC_REQ_STATE_SEQ], h->seq_state);
     data[PBCARD_CYC_REQ_STATE_LEN] = (uint8_t)s;
+    data[PBCARD_CYC_REQ_RSP_OFF] = (uint8_t)rsp_off;
+    data[PBCARD_CYC_REQ_RSP_LEN] = (uint8_t)rsp_n;
+    data[PBCARD_CYC_REQ_REQ_OFF] = (uint8_t)ask_off;
+    data[PBCARD_CYC_REQ_REQ_LEN] = (uint8_t)ask_len;
+    /* What the request answered by the reply carried: the last one (one transaction) or
+     * this one (two). */
+    a_req_off = h->car_req_off;
+    a_req_len = h->car_req_len;
+    a_rsp_off = h->car_rsp_off;
+    a_rsp_len = h->car_rsp_len;
+    h->car_req_off = (uint8_t)ask_off;
+    h->car_req_len = (uint8_t)ask_len;
+    h->car_rsp_off = (uint8_t)rsp_off;
+    h->car_rsp_len = (uint8_t)rsp_n;
     if (steady) {
         encode(h, PBCARD_SPI_CMD_CYCLIC, 0, (uint16_t)k, data, k, n, &tag1);
-        if (transfer(h, n) == PBC_OK && take_cyclic(h, n, h->cyc_tag, out) == 0) {
+        if (transfer(h, n) == PBC_OK && take_cyclic(h, n, h->cyc_tag, out, &frag, &flen) == 0) {
             h->cyc_tag = tag1;
-            return PBC_OK;
+            ok = 1;
+            previous = 1;
         }
     } else {
         encode(h, PBCARD_SPI_CMD_CYCLIC, 0, (uint16_t)k, data, k, frame, &tag1);
         if (transfer(h, frame) != PBC_OK) {
             h->cyc_pending = 0;
+            h->rsp_next = h->rsp_confirmed;
+            h->mbx_hint = -1;
             return PBC_E_NO_REPLY;
         }
     }
-    h->cyc_pending = 1;
-    h->cyc_tag = tag1;
-    if (!fits(h, cost_us(h, n2, 0))) {
-        h->stats.budget_short++;
-        return PBC_E_BUDGET;
+    if (!ok) {
+        h->cyc_pending = 1;
+        h->cyc_tag = tag1;
+        if (!fits(h, cost_us(h, n2, 0))) {
+            h->stats.budget_short++;
+            h->rsp_next = h->rsp_confirmed;
+            return PBC_E_BUDGET;
+        }
+        /* The same request once more: its MISO is the reply to the first (the card applies
+         * it again with the same counters: no change). */
+        encode(h, PBCARD_SPI_CMD_CYCLIC, 0, (uint16_t)k, data, k, n2, &tag2);
+        if (transfer(h, n2) != PBC_OK) {
+            h->cyc_pending = 0;
+        } else {
+            h->cyc_tag = tag2;
+            ok = take_cyclic(h, n2, tag1, out, &frag, &flen) == 0;
+        }
     }
-    /* The same request once more: its MISO is the reply to the first (the card applies it
-     * again with the same counters: no change). */
-    encode(h, PBCARD_SPI_CMD_CYCLIC, 0, (uint16_t)k, data, k, n2, &tag2);
-    if (transfer(h, n2) != PBC_OK) {
-        h->cyc_pending = 0;
+    if (!ok) {
+        /* A reply longer than expected (the telegram changed) was cut: clock the longest. */
+        h->cyc_reply_len = PBCARD_CYC_MAX_REPLY_DATA - PBCARD_CYC_MAX_FRAGMENT;
+        h->rsp_next = h->rsp_confirmed; /* whatever is not confirmed goes again */
+        h->mbx_hint = -1;
         return PBC_E_NO_REPLY;
     }
-    h->cyc_tag = tag2;
-    return take_cyclic(h, n2, tag1, out) == 0 ? PBC_OK : PBC_E_NO_REPLY;
+    if (!previous) {
+        a_req_off = ask_off;
+        a_req_len = ask_len;
+        a_rsp_off = rsp_off;
+        a_rsp_len = rsp_n;
+    }
+    changed = (out->pending_events & (1u << PBCARD_MBX_REQ_EVENT_BIT)) != 0;
+    h->mbx_hint = changed;
+    rsp_confirmed(h, a_rsp_off, a_rsp_len);
+    req_fragment(h, a_req_off, a_req_len, frag, flen, changed);
+    return PBC_OK;
 }
 
 /* ---------------------------------------------------------------------------------------
@@ -493,79 +738,31 @@ static int read_config_ack(pbc_host *h)
     return PBC_OK;
 }
 
-static int read_request(pbc_host *h)
+/* DRIVE whole (a changed fault / warning report, the IRQ mask) under the next counter; the
+ * CYCLIC exchange keeps it, writing only the heartbeat. */
+static int write_drive(pbc_host *h)
 {
-    const uint8_t *d;
-    pbc_param_request q;
-    uint16_t id;
-    int r = read_image(h, PBCARD_MBX_REQ_START, PBCARD_MBX_REQ_SIZE, &d);
-    if (r != PBC_OK) {
-        return r;
-    }
-    if (get16(&d[PBCARD_MBX_REQ_SEQ_HEAD]) != get16(&d[PBCARD_MBX_REQ_SEQ_TAIL])) {
-        return PBC_OK; /* torn: mbx_look stays set */
-    }
-    h->mbx_look = 0;
-    id = get16(&d[PBCARD_MBX_REQ_REQ_ID]);
-    if (get16(&d[PBCARD_MBX_REQ_SEQ_HEAD]) == 0 || id == 0 || id == h->request_seen) {
-        return PBC_OK;
-    }
-    memset(&q, 0, sizeof q);
-    q.id = id;
-    q.kind = d[PBCARD_MBX_REQ_KIND];
-    q.axis = d[PBCARD_MBX_REQ_AXIS];
-    q.pnu = get16(&d[PBCARD_MBX_REQ_PNU]);
-    q.subindex = get16(&d[PBCARD_MBX_REQ_SUBINDEX]);
-    q.count = d[PBCARD_MBX_REQ_COUNT];
-    q.format = d[PBCARD_MBX_REQ_FORMAT];
-    q.values_len = d[PBCARD_MBX_REQ_VALUES_LEN] > PBCARD_MBX_CAPACITY ? PBCARD_MBX_CAPACITY
-                                                                       : d[PBCARD_MBX_REQ_VALUES_LEN];
-    memcpy(q.values, &d[PBCARD_MBX_REQ_VALUES], q.values_len);
-    h->request_seen = id;
-    h->request_open = id;
-    h->rsp_dirty = 0;
-    h->stats.requests++;
-    if (h->o.param != NULL) {
-        pbc_param_response a;
-        memset(&a, 0, sizeof a);
-        if (h->o.param(h->o.param_user, &q, &a)) {
-            (void)pbc_respond(h, id, &a);
-        }
-    }
-    return PBC_OK;
-}
-
-static int write_response(pbc_host *h)
-{
-    uint8_t b[PBCARD_MBX_RSP_SIZE];
-    uint16_t seq = next_seq(h->seq_rsp);
-    uint8_t n = h->rsp.values_len > PBCARD_MBX_CAPACITY ? PBCARD_MBX_CAPACITY : h->rsp.values_len;
+    uint8_t b[PBCARD_DRIVE_SIZE];
+    uint16_t seq = next_seq(h->seq_drive);
     int r;
     memset(b, 0, sizeof b);
-    put16(&b[PBCARD_MBX_RSP_SEQ_HEAD], seq);
-    put16(&b[PBCARD_MBX_RSP_REQ_ID], h->rsp_id);
-    b[PBCARD_MBX_RSP_RESULT] = h->rsp.result;
-    if (h->rsp.result == 0) {
-        b[PBCARD_MBX_RSP_FORMAT] = h->rsp.format;
-        b[PBCARD_MBX_RSP_COUNT] = h->rsp.count;
-        b[PBCARD_MBX_RSP_VALUES_LEN] = n;
-        memcpy(&b[PBCARD_MBX_RSP_VALUES], h->rsp.values, n);
-    } else {
-        put16(&b[PBCARD_MBX_RSP_ERROR], h->rsp.error);
-        put16(&b[PBCARD_MBX_RSP_ERROR_INFO], h->rsp.error_info);
-        b[PBCARD_MBX_RSP_HAS_INFO] = h->rsp.has_info ? 1u : 0u;
-    }
-    put16(&b[PBCARD_MBX_RSP_SEQ_TAIL], seq);
+    put16(&b[PBCARD_DRIVE_SEQ_HEAD], seq);
+    put16(&b[PBCARD_DRIVE_HEARTBEAT], h->heartbeat);
+    put16(&b[PBCARD_DRIVE_FAULT_CODE], h->fault_code);
+    put16(&b[PBCARD_DRIVE_WARNING_CODE], h->warning_code);
+    b[PBCARD_DRIVE_FAULT_COUNT] = h->fault_count;
+    b[PBCARD_DRIVE_WARNING_COUNT] = h->warning_count;
+    put16(&b[PBCARD_DRIVE_IRQ_MASK], h->irq_mask);
+    put16(&b[PBCARD_DRIVE_SEQ_TAIL], seq);
     if (!fits(h, cost_us(h, PBCARD_SPI_REQUEST_HEADER + sizeof b + PBCARD_SPI_CRC_LEN, h->first_tx))) {
         h->stats.budget_short++;
         return PBC_E_BUDGET;
     }
-    h->seq_rsp = seq;
-    r = write_image(h, PBCARD_MBX_RSP_START, b, (uint16_t)sizeof b);
+    h->seq_drive = seq;
+    r = write_image(h, PBCARD_DRIVE_START, b, (uint16_t)sizeof b);
     if (r == PBC_OK) {
-        h->rsp_dirty = 0;
-        h->request_open = 0;
-        h->stats.responses++;
+        h->drive_dirty = 0;
+        h->stats.drive_writes++;
     }
     return r;
 }
@@ -590,7 +787,9 @@ static void observe_card(pbc_host *h, uint32_t now_ms, int seen, pbc_cycle_resul
                 h->config_state = PBC_CONFIG_WRITING;
             }
             h->request_open = 0;
-            h->rsp_dirty = 0;
+            h->rsp_active = 0;
+            h->req_active = 0;
+            h->mbx_hint = -1;
         }
         h->boot_id = h->boot_id_new;
         if (h->events_valid) {
@@ -604,9 +803,6 @@ static void observe_card(pbc_host *h, uint32_t now_ms, int seen, pbc_cycle_resul
             h->card_heartbeat = h->card_heartbeat_new;
             h->card_changed_ms = now_ms;
             h->card_seen = 1;
-        }
-        if (out->pending_events & (1u << PBCARD_MBX_REQ_EVENT_BIT)) {
-            h->mbx_look = 1;
         }
     }
     out->card_alive = h->card_seen && (uint32_t)(now_ms - h->card_changed_ms) <= h->o.card_timeout_ms;
@@ -651,10 +847,8 @@ int pbc_cycle(pbc_host *h, uint32_t now_ms, uint32_t budget_us, const pbc_drive_
         int j;
         if (h->config_dirty) {
             j = write_config(h);
-        } else if (h->rsp_dirty) {
-            j = write_response(h);
-        } else if (h->mbx_look && (h->caps & PBCARD_CAP_MAILBOX)) {
-            j = read_request(h);
+        } else if (h->drive_dirty) {
+            j = write_drive(h);
         } else if (h->have_config && h->config_state == PBC_CONFIG_WRITING) {
             j = read_config_ack(h);
             if (j == PBC_OK && h->config_state == PBC_CONFIG_WRITING) {

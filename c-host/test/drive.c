@@ -14,6 +14,9 @@
 #define ST_ZERO_SPEED 0x0040u
 #define ST_FLUX_READY 0x0080u
 #define ST_FIELDBUS_CONTROL 0x0100u
+#define ST_FAULT 0x0008u
+#define ST_WARNING 0x0010u
+#define CMD_COAST 0x0004u
 /* PROFIdrive parameter format Word (0x42) and error "impermissible parameter number". */
 #define FORMAT_WORD 0x42u
 #define ERR_PNU 0x00u
@@ -28,6 +31,8 @@ static uint16_t pnus[2] = {100u, 101u};
 static uint16_t values[2] = {50u, 60u};
 static uint32_t restarts, max_used_us, max_transactions, commands;
 static int last_result;
+static uint16_t fault, warning;
+static uint32_t max_bytes_steady, mailbox_cycles;
 
 static int serve(void *user, const pbc_param_request *q, pbc_param_response *a)
 {
@@ -83,7 +88,26 @@ int pbch_drive_init(pbc_transfer_fn transfer, void *user, uint32_t sck_hz, uint1
     max_used_us = 0;
     max_transactions = 0;
     commands = 0;
+    fault = 0;
+    warning = 0;
+    max_bytes_steady = 0;
+    mailbox_cycles = 0;
     return 0;
+}
+
+/* The drive trips with fault code (0 = the fault cleared): DRIVE.FAULT_CODE (the card's
+ * Ext_Diag and diagnostic alarm) and DRIVE_STATE's fault bit and code (ZSW1, PNU 947). */
+void pbch_set_fault(uint16_t code)
+{
+    fault = code;
+    pbc_set_fault(&host, code);
+}
+
+/* A warning (0 = none): DRIVE.WARNING_CODE and DRIVE_STATE's warning bit and code. */
+void pbch_set_warning(uint16_t code)
+{
+    warning = code;
+    pbc_set_warning(&host, code);
 }
 
 /* One drive cycle of 1 ms: exchange, then the drive model (a ramp of 0x100 per ms). */
@@ -100,12 +124,15 @@ int pbch_drive_step(uint32_t now_ms, uint32_t budget_us)
     if (last.transactions > max_transactions) {
         max_transactions = last.transactions;
     }
+    if (last.transactions == 1 && last.bytes > max_bytes_steady) {
+        max_bytes_steady = last.bytes;
+    }
     if (last.have_command) {
         cmd_flags = last.command.flags;
         cmd_setpoint = last.command.speed_setpoint;
         commands++;
     }
-    target = (cmd_flags & CMD_RUN) ? cmd_setpoint : 0;
+    target = (cmd_flags & CMD_RUN) && fault == 0 ? cmd_setpoint : 0;
     if (speed < target) {
         speed = speed + 0x100 > target ? target : speed + 0x100;
     } else if (speed > target) {
@@ -121,6 +148,14 @@ int pbch_drive_step(uint32_t now_ms, uint32_t budget_us)
     if (speed == 0) {
         state.flags |= ST_ZERO_SPEED;
     }
+    if (fault != 0) {
+        state.flags = (uint16_t)((state.flags & ~(ST_RUNNING | ST_AT_REFERENCE)) | ST_FAULT);
+    }
+    if (warning != 0) {
+        state.flags |= ST_WARNING;
+    }
+    state.fault_code = fault;
+    state.warning_code = warning;
     state.speed = (int16_t)speed;
     state.current = (int16_t)(speed / 4);
     return last_result;
@@ -139,6 +174,8 @@ uint32_t pbch_cycles_ok(void) { return pbc_get_stats(&host)->cycles_ok; }
 uint32_t pbch_budget_short(void) { return pbc_get_stats(&host)->budget_short; }
 uint32_t pbch_max_used_us(void) { return max_used_us; }
 uint32_t pbch_max_transactions(void) { return max_transactions; }
+uint32_t pbch_max_bytes_steady(void) { return max_bytes_steady; }
+uint32_t pbch_drive_writes(void) { return pbc_get_stats(&host)->drive_writes; }
 uint32_t pbch_last_transactions(void) { return last.transactions; }
 uint32_t pbch_last_bytes(void) { return last.bytes; }
 uint32_t pbch_last_used_us(void) { return last.used_us; }

@@ -41,6 +41,10 @@ extern "C" {
     fn pbch_value(i: u32) -> u16;
     fn pbch_crc16(p: *const u8, n: u32) -> u16;
     fn pbch_card_event(i: u32) -> u8;
+    fn pbch_set_fault(code: u16);
+    fn pbch_set_warning(code: u16);
+    fn pbch_max_bytes_steady() -> u32;
+    fn pbch_drive_writes() -> u32;
 }
 
 /// `pbc_cycle` results (`pbcard_host.h`).
@@ -133,6 +137,22 @@ impl<B: SpiBus> CDrive<B> {
     /// The last call: transactions, bytes, budget used (µs).
     pub fn last_traffic(&self) -> (u32, u32, u32) {
         unsafe { (pbch_last_transactions(), pbch_last_bytes(), pbch_last_used_us()) }
+    }
+
+    /// The drive trips with `code` (0: cleared): `pbc_set_fault` (DRIVE) and DRIVE_STATE's
+    /// fault bit and code.
+    pub fn set_fault(&mut self, code: u16) {
+        unsafe { pbch_set_fault(code) }
+    }
+
+    /// A warning `code` (0: none): `pbc_set_warning` and DRIVE_STATE's warning bit and code.
+    pub fn set_warning(&mut self, code: u16) {
+        unsafe { pbch_set_warning(code) }
+    }
+
+    /// The most bytes of a one-transaction call, and DRIVE written whole so far.
+    pub fn steady_bytes_and_drive_writes(&self) -> (u32, u32) {
+        unsafe { (pbch_max_bytes_steady(), pbch_drive_writes()) }
     }
 
     /// The most transactions and budget (µs) any call used.

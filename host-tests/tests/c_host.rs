@@ -5,12 +5,15 @@
 //! board firmware's application). A scripted DP master brings the card up and exchanges
 //! ST1 / DP-V1 telegrams with it; the test checks bytes on both sides: open, CONFIG (the
 //! start-up gate opens), STW1 / setpoint reaching the C drive, its actual speed reaching the
-//! master, a parameter request answered by the C drive through the mailbox, a card restart
+//! master, a parameter read and write answered by the C drive through the CYCLIC exchange's
+//! mailbox fragments, a fault and a warning of the C drive seen by the master (ZSW1, Ext_Diag,
+//! PNU 947), a card restart
 //! seen by BOOT_ID, and the per-cycle budget.
 
 use host_tests::c_host::{config, result, CDrive};
 use pbcard::app::Application;
 use pbcard::card;
+use pbcard::dp::diag::Status1;
 use pbcard::dp::{DpSlave, DpState};
 use pbcard::dpm::spi::{crc16, BusFault, SpiBus};
 use pbcard::fdl::telegram;
@@ -50,6 +53,8 @@ struct Bench {
     now: Instant,
     budget_us: u32,
     results: Vec<i32>,
+    /// (transactions, bytes) of every call.
+    traffic: Vec<(u32, u32)>,
 }
 
 impl Bench {
@@ -61,6 +66,7 @@ impl Bench {
             now: Instant::from_millis(0),
             budget_us: BUDGET_US,
             results: vec![],
+            traffic: vec![],
         }
     }
 
@@ -77,7 +83,8 @@ impl Bench {
             let ms = (now.as_micros() / 1000) as u32;
             let r = self.drive.step(ms, self.budget_us);
             self.results.push(r);
-            let (_, _, used) = self.drive.last_traffic();
+            let (tx, bytes, used) = self.drive.last_traffic();
+            self.traffic.push((tx, bytes));
             assert!(used <= self.budget_us, "a cycle used {used} µs of a {} µs budget", self.budget_us);
         }
     }
@@ -160,8 +167,10 @@ fn the_c_host_drives_the_card_end_to_end() {
     assert!(bytes <= 64, "{bytes} bytes per cycle");
     println!("C host, ST1 steady state: {tx} transaction, {bytes} bytes, {used} µs at {} MHz", SCK_HZ / 1_000_000);
 
-    // A DP-V1 parameter read of the drive's PNU 100: the card's mailbox, the C drive's answer.
+    // A DP-V1 parameter read of the drive's PNU 100: the card's mailbox, the C drive's answer,
+    // through the CYCLIC exchange's fragments: every cycle one transaction of ≤ 64 bytes.
     let before = b.drive.mailbox().0;
+    let from = b.traffic.len();
     let req = [1, 1, 1, 1, 0x10, 1, 0, 100, 0, 0];
     assert_eq!(b.c1(&[&[0x5F, 0, 47, req.len() as u8][..], &req].concat()), [0x5F, 0, 47, req.len() as u8]);
     let mut answer = vec![];
@@ -175,6 +184,8 @@ fn the_c_host_drives_the_card_end_to_end() {
     }
     assert_eq!(answer, [1, 1, 1, 1, 0x42, 1, 0, 50], "PNU 100 = 50 from the C drive");
     assert_eq!(b.drive.mailbox().0, before + 1, "one request taken");
+    // The C host counts the answer written once the reply confirms its tail fragment.
+    b.run(2);
     assert_eq!(b.drive.mailbox().1, before + 1, "one answer written");
     // A write of PNU 101 through the mailbox reaches the C drive's table.
     let req = [2, 2, 1, 1, 0x10, 1, 0, 101, 0, 0, 0x42, 1, 0x01, 0x23];
@@ -188,6 +199,76 @@ fn the_c_host_drives_the_card_end_to_end() {
         }
     }
     assert_eq!(b.drive.value(1), 0x0123);
+    b.run(3);
+    let mbx = &b.traffic[from..];
+    assert!(mbx.iter().all(|&(tx, bytes)| tx == 1 && bytes <= 64), "mailbox cycles: {mbx:?}");
+    assert!(mbx.iter().any(|&(_, bytes)| bytes > 42), "fragments rode along: {mbx:?}");
+    println!(
+        "C host, ST1 with a parameter read and write in flight: {} cycles, at most {} bytes, one transaction each",
+        mbx.len(),
+        mbx.iter().map(|t| t.1).max().unwrap()
+    );
+
+    // The C drive trips (fault 0x2310, overcurrent): DRIVE.FAULT_CODE and DRIVE_STATE. The
+    // master sees ZSW1's fault bit, the card's Ext_Diag (Station_Status_1 b3), and the fault in
+    // the product's fault buffer, PNU 947 element 0 (record 47); the motor stops.
+    let writes = b.drive.steady_bytes_and_drive_writes().1;
+    b.drive.set_fault(0x2310);
+    b.run(3);
+    assert_eq!(b.drive.steady_bytes_and_drive_writes().1, writes + 1, "DRIVE written whole once");
+    for _ in 0..3 {
+        inputs = b.data_exchange(&q).to_vec();
+        b.run(2);
+    }
+    let zsw1 = words(&inputs)[0];
+    assert_eq!(zsw1 & 0x0008, 0x0008, "ZSW1 b3 fault ({zsw1:04X})");
+    assert_eq!(zsw1 & 0x0004, 0, "not in operation ({zsw1:04X})");
+    assert!(b.node.slave().standard_diag().status1.contains(Status1::EXT_DIAG), "Ext_Diag for the drive fault");
+    let req = [3, 1, 1, 1, 0x10, 1, 0x03, 0xB3, 0, 0];
+    assert_eq!(b.c1(&[&[0x5F, 0, 47, req.len() as u8][..], &req].concat()), [0x5F, 0, 47, req.len() as u8]);
+    let r = b.c1(&[0x5E, 0, 47, 240]);
+    assert_eq!(r[0], 0x5E, "PNU 947 answered by the card: {r:02X?}");
+    assert_eq!(r[4..8], [3, 1, 1, 1], "{r:02X?}");
+    assert_eq!(r[r.len() - 2..], [0x23, 0x10], "PNU 947[0] = the C drive's fault: {r:02X?}");
+    // A warning beside it (0x0F01): ZSW1 b7; the fault cleared in the drive and acknowledged
+    // by the master (STW1 b7 edge): ZSW1 b3 and Ext_Diag go.
+    b.drive.set_warning(0x0F01);
+    b.drive.set_fault(0);
+    b.run(3);
+    for stw1 in [0xFE, 0x7E, 0x7E, 0x7F, 0x7F] {
+        q[1] = stw1;
+        inputs = b.data_exchange(&q).to_vec();
+        b.run(2);
+    }
+    let zsw1 = words(&inputs)[0];
+    assert_eq!(zsw1 & 0x0088, 0x0080, "ZSW1 b7 warning, b3 fault gone ({zsw1:04X})");
+    assert!(!b.node.slave().standard_diag().status1.contains(Status1::EXT_DIAG), "no Ext_Diag for a warning");
+    assert_eq!(b.app().link().drive_report().warning_code, 0x0F01, "DRIVE.WARNING_CODE from the C host");
+    assert_eq!(b.app().link().drive_report().fault_count, 1, "one fault reported");
+    b.drive.set_warning(0);
+    b.run(3);
+
+    // A parameter read while every other reply of the card comes late (the board's frame task
+    // missed the next NSS fall): the C host's fragments are confirmed only by the reply to the
+    // request that carried them, so the answer is still exactly the drive's.
+    let late = b.app().host().transport().bus().pipeline().late;
+    let req = [4, 1, 1, 1, 0x10, 1, 0, 101, 0, 0];
+    assert_eq!(b.c1(&[&[0x5F, 0, 47, req.len() as u8][..], &req].concat()), [0x5F, 0, 47, req.len() as u8]);
+    let mut answer = vec![];
+    for i in 0..40 {
+        if i % 2 == 0 {
+            b.app().host_mut().transport_mut().bus_mut().set_late(1);
+        }
+        b.run(1);
+        let r = b.c1(&[0x5E, 0, 47, 240]);
+        if r[0] == 0x5E {
+            answer = r[4..].to_vec();
+            break;
+        }
+    }
+    assert_eq!(answer, [4, 1, 1, 1, 0x42, 1, 0x01, 0x23], "PNU 101 = 0x0123 through late replies");
+    assert!(b.app().host().transport().bus().pipeline().late > late, "replies came late");
+    b.run(3);
 
     // The card restarts (a new BOOT_ID, a fresh image and DP slave): the C host sees it,
     // opens again and rewrites CONFIG, so the start-up gate opens again.

@@ -199,6 +199,12 @@ pub fn write_c_header(out: &mut impl Write) -> fmt::Result {
         ("CYC_STATE_BASE", cyclic::STATE_BASE, "DRIVE_STATE bytes FLAGS..NAMUR"),
         ("CYC_CMD_BASE", cyclic::CMD_BASE, "DRIVE_CMD bytes FLAGS..EXTRA"),
         ("CYC_MAX_FRAGMENT", cyclic::MAX_FRAGMENT, "most bytes of a mailbox fragment"),
+        ("CYC_MIN_FRAGMENT", cyclic::MIN_FRAGMENT, "fewest bytes of a mailbox fragment the reference hosts use"),
+        (
+            "CYC_TRANSACTION_BYTES",
+            crate::dpm::host::Options::DEFAULT.cyclic_bytes,
+            "the reference hosts' CYCLIC transaction budget (the mailbox fragments get what the telegram leaves)",
+        ),
         ("CYC_MAX_REQUEST_DATA", cyclic::MAX_REQUEST_DATA, "longest CYCLIC request DATA"),
         ("CYC_MAX_REPLY_DATA", cyclic::MAX_REPLY_DATA, "longest CYCLIC reply DATA"),
     ] {

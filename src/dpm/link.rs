@@ -82,6 +82,12 @@ pub struct Link {
     config: Option<HostConfig>,
     config_new: bool,
     mailbox: Mailbox,
+    /// The parameter request a [`super::ParamCache`] waits for (0 = none): its answer is kept
+    /// for that cache, whichever cache looks first ([`Link::take_parameter_answer`]).
+    param_claim: u16,
+    /// When the answer waiting in the mailbox arrived (a claim not taken within the mailbox
+    /// timeout is given up, so a claimant that never comes back cannot block the mailbox).
+    param_answered_at: Option<Instant>,
     line_errors: u32,
     /// DEVICE.SEQ last taken.
     device_seq: u16,
@@ -138,6 +144,8 @@ impl Link {
             config: None,
             config_new: false,
             mailbox: Mailbox::new(Mailbox::DEFAULT_TIMEOUT),
+            param_claim: 0,
+            param_answered_at: None,
             line_errors: 0,
             startup_gate: false,
         }
@@ -230,11 +238,44 @@ impl Link {
     /// [`Link::collect`]).
     pub fn poll_parameter(&mut self, now: Instant, dpm: &Dpm) {
         self.mailbox.poll(now, dpm);
+        match (self.mailbox.answered(), self.param_answered_at) {
+            (None, _) => self.param_answered_at = None,
+            (Some(_), None) => self.param_answered_at = Some(now),
+            (Some(id), Some(at)) => {
+                if id == self.param_claim && now.saturating_since(at) >= Mailbox::DEFAULT_TIMEOUT {
+                    self.param_claim = 0;
+                }
+            }
+        }
     }
 
     /// The answer to the last parameter request, once.
     pub fn take_parameter_response(&mut self) -> Option<(u16, Result<ParamValues, ParamError>)> {
         self.mailbox.take()
+    }
+
+    /// Claim the answer to request `id` (0: give up the claim of a request whose answer is
+    /// no longer wanted): [`Self::take_parameter_answer`] keeps it for the claimant.
+    pub fn claim_parameter(&mut self, id: u16) {
+        self.param_claim = id;
+    }
+
+    /// The answer to request `mine` (the caller's claim), once. An answer claimed by another
+    /// caller stays for it (the record-47 and the PKW caches share the mailbox: neither takes
+    /// the other's answer); an unclaimed one (its job ended) is dropped, so the mailbox is
+    /// free again.
+    pub fn take_parameter_answer(&mut self, mine: Option<u16>) -> Option<(u16, Result<ParamValues, ParamError>)> {
+        let id = self.mailbox.answered()?;
+        if Some(id) == mine {
+            if self.param_claim == id {
+                self.param_claim = 0;
+            }
+            return self.mailbox.take();
+        }
+        if id != self.param_claim {
+            self.mailbox.take();
+        }
+        None
     }
 
     /// The parameter mailbox (counters, busy).
@@ -402,7 +443,7 @@ impl Link {
         let mut update = NodeUpdate::new(self.telegram);
         self.supervise(now, dpm, &mut update);
         self.take_over_config(dp_state, dpm, &mut update);
-        self.mailbox.poll(now, dpm);
+        self.poll_parameter(now, dpm);
         match dpm.device_ident() {
             Ok((seq, d)) if seq != 0 && seq != self.device_seq => {
                 self.device_seq = seq;

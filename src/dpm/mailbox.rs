@@ -168,6 +168,11 @@ impl Mailbox {
         }
     }
 
+    /// The id of the answer waiting to be taken, if any.
+    pub fn answered(&self) -> Option<u16> {
+        self.done.map(|(id, _)| id)
+    }
+
     /// The answer to the last request, once (values, the drive's error, or the card's own
     /// timeout / drive-lost error).
     pub fn take(&mut self) -> Option<(u16, Result<ParamValues, ParamError>)> {

@@ -65,24 +65,32 @@ impl ParamCache {
         ParamCache { entries: heapless::Vec::new(), inflight: None }
     }
 
-    /// Forget every answer and the request in flight (its answer will be dropped).
-    pub fn clear(&mut self) {
+    /// Forget every answer and the request in flight (its answer will be dropped: the claim
+    /// on it is given up).
+    pub fn clear(&mut self, link: &mut Link) {
         self.entries.clear();
-        self.inflight = None;
+        if self.inflight.take().is_some() {
+            link.claim_parameter(0);
+        }
     }
 
-    /// Poll the mailbox and keep the answer to the request in flight.
+    /// Poll the mailbox and keep the answer to the request in flight (only that one: an
+    /// answer another cache claimed stays for it).
     pub fn collect(&mut self, now: Instant, link: &mut Link, dpm: &Dpm) {
         link.poll_parameter(now, dpm);
-        if let Some((id, outcome)) = link.take_parameter_response() {
-            if let Some((want, key)) = self.inflight {
-                if want == id {
-                    self.inflight = None;
-                    // Room was reserved when the request was sent.
-                    let _ = self.entries.push(Entry { key, outcome });
-                }
+        let mine = self.inflight.map(|(id, _)| id);
+        if let Some((_, outcome)) = link.take_parameter_answer(mine) {
+            if let Some((_, key)) = self.inflight.take() {
+                // Room was reserved when the request was sent.
+                let _ = self.entries.push(Entry { key, outcome });
             }
         }
+    }
+
+    /// Whether a request of this cache is in flight (its answer is claimed for it: take it
+    /// with [`Self::collect`], or no other request can be sent).
+    pub fn waiting(&self) -> bool {
+        self.inflight.is_some()
     }
 
     fn find(&self, key: Key) -> Option<Result<ParamValues, ParamError>> {
@@ -122,6 +130,7 @@ impl<'a> MailboxParams<'a> {
             // A busy mailbox (an earlier job's request) is tried again on the next pass.
             if let Ok(id) = self.link.submit_parameter(self.now, &req, self.dpm) {
                 cache.inflight = Some((id, key));
+                self.link.claim_parameter(id);
             }
         }
         self.pending = true;
@@ -158,7 +167,7 @@ impl ParameterAccess for MailboxParams<'_> {
     }
 
     fn start_job(&mut self) {
-        self.cache.clear();
+        self.cache.clear(self.link);
         self.pending = false;
     }
 }
@@ -173,5 +182,88 @@ fn put(values: &ParamValues, out: &mut ValueWriter<'_>) -> Result<(), ParamError
         }
         // Sizes that do not add up: the response builder reports 0x05.
         _ => out.push_raw(bytes),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dpm::MailboxServer;
+    use crate::profile::param::Format;
+    use crate::time::Duration;
+
+    /// The drive: answers every read with 0x0042 (PNU 100) or an error.
+    fn drive(server: &mut MailboxServer, dpm: &mut Dpm) -> Option<u16> {
+        let req = server.fetch(&dpm.host())?;
+        let outcome = if req.pnu == 100 {
+            Ok(ParamValues::new(Format::WORD, 1, &[0, 0x42]).unwrap())
+        } else {
+            Err(ParamError::from(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER))
+        };
+        MailboxServer::respond(&mut dpm.host(), req.id, outcome);
+        Some(req.id)
+    }
+
+    /// Issue 16 (d): the record-47 cache and the PKW cache share the mailbox; the one that
+    /// looks first never takes (and drops) the other's answer, and an answer whose job ended
+    /// does not keep the mailbox busy.
+    #[test]
+    fn the_record_47_and_pkw_caches_never_take_each_others_answers() {
+        let (mut link, mut dpm, mut server) = (Link::new(), Dpm::new(), MailboxServer::new());
+        let (mut rec47, mut pkw) = (ParamCache::new(), ParamCache::new());
+        let mut now = Instant::from_millis(0);
+        let req = MailboxRequest::read(1, 100, 0, 1);
+        {
+            let mut t = MailboxParams::new(now, &mut link, &mut dpm, &mut rec47);
+            assert_eq!(t.ask(req), Err(PENDING));
+        }
+        assert!(drive(&mut server, &mut dpm).is_some());
+        now = now + Duration::from_millis(1);
+        // The PKW cache looks first: the answer is not its own, it stays.
+        {
+            let t = MailboxParams::new(now, &mut link, &mut dpm, &mut pkw);
+            assert!(!t.pending());
+        }
+        assert!(pkw.entries.is_empty());
+        assert!(link.mailbox().is_busy(), "the record-47 answer still waits");
+        let mut t = MailboxParams::new(now, &mut link, &mut dpm, &mut rec47);
+        assert_eq!(t.ask(req), Ok(ParamValues::new(Format::WORD, 1, &[0, 0x42]).unwrap()));
+        drop(t);
+        assert!(!link.mailbox().is_busy());
+
+        // A job that ends with its request in flight: the answer is dropped by whoever looks
+        // next, and the mailbox is free for the other cache.
+        let other = MailboxRequest::read(1, 200, 0, 1);
+        {
+            let mut t = MailboxParams::new(now, &mut link, &mut dpm, &mut pkw);
+            assert_eq!(t.ask(other), Err(PENDING));
+            t.start_job();
+        }
+        assert!(drive(&mut server, &mut dpm).is_some());
+        now = now + Duration::from_millis(1);
+        let mut t = MailboxParams::new(now, &mut link, &mut dpm, &mut rec47);
+        t.start_job();
+        assert_eq!(t.ask(req), Err(PENDING), "sent: the orphan answer did not block the mailbox");
+        drop(t);
+        assert!(rec47.inflight.is_some());
+
+        // A claimant that never comes back (its job stopped without a new one): after the
+        // mailbox timeout its answer no longer blocks the other cache.
+        let (mut link, mut dpm) = (Link::new(), Dpm::new());
+        let mut server = MailboxServer::new();
+        let (mut rec47, mut pkw) = (ParamCache::new(), ParamCache::new());
+        {
+            let mut t = MailboxParams::new(now, &mut link, &mut dpm, &mut pkw);
+            assert_eq!(t.ask(other), Err(PENDING));
+        }
+        assert!(drive(&mut server, &mut dpm).is_some());
+        // (Seen first at +300 ms, given up at +900 ms: more than the 500 ms mailbox timeout.)
+        for _ in 0..3 {
+            now = now + Duration::from_millis(300);
+            let mut t = MailboxParams::new(now, &mut link, &mut dpm, &mut rec47);
+            t.start_job();
+            let _ = t.ask(req);
+        }
+        assert!(rec47.inflight.is_some(), "the stale claim was given up and the read sent");
     }
 }

@@ -114,19 +114,28 @@
 //! newest command). One transaction per drive cycle; when the MISO holds no reply to take
 //! (the first cycle, a block access came between, a late or damaged reply) the same request
 //! is sent once more, whose MISO is the reply to the first: two at most. The parameter
-//! mailbox rides along (the reference hosts): when the reply's events show MBX_REQ changed,
-//! the next request asks its fragment from offset 0 (32 bytes: every read, writes of up to
-//! 18 value bytes); an answer goes to MBX_RSP as two request fragments in ascending order —
-//! head and answer, then the tail — each sent until two exchanges in a row that carried it
-//! got their reply (so the tail, which makes the block consistent, is never applied before
-//! the rest). Longer requests and answers use READ / WRITE. The CYCLIC grammar follows at
-//! the end of this document.
+//! mailbox rides along (the reference hosts), in the bytes the telegram leaves of a 64-byte
+//! transaction each way (the host's budget; ST1 leaves 22 reply / 29 request bytes, PPO 5
+//! 6 / 9; at least 4, at most 32 bytes a fragment), one fragment each way per cycle. MBX_REQ:
+//! when the reply's events show it changed, the next request asks its fragment from offset 0
+//! (carrying SEQ_HEAD: the host's read of the block for the events), the next ones the
+//! following bytes up to the end of its values; a request that took more than one fragment
+//! is taken once a 2-byte fragment at SEQ_TAIL equals the head (each fragment is sent only
+//! while the block is consistent, and the counter only grows, so every fragment between
+//! came from that request); a reply whose events show MBX_REQ changed again restarts it at
+//! offset 0. MBX_RSP: the answer's head, fields and values in ascending fragments, one per
+//! cycle; a fragment counts as applied once the reply **to the request that carried it**
+//! came back OK (one-transaction cycle: the reply answers the previous cycle's request; two
+//! transactions: this cycle's), after a failed exchange the unconfirmed part goes again, and
+//! the tail, which makes the block consistent, goes only once everything before it is
+//! confirmed — so the card never takes a block with a stale middle. No block access. The
+//! CYCLIC grammar follows at the end of this document.
 //!
 //! **A host access** (what [`SpiHost`] does): the request in one transaction, and in the
 //! next a STATUS request padded to the expected reply, whose MISO is the reply; anything
 //! but the echoing reply sends the request again (three retries).
 
-use super::host::{Transport, TransportError};
+use super::host::{CyclicReceipt, Transport, TransportError};
 use super::layout::{self, Writer, BLOCKS};
 use super::{Dpm, IMAGE_SIZE};
 pub use pipeline::{PipelineStats, ReplyPipeline};
@@ -836,8 +845,11 @@ pub struct SpiHost<B: SpiBus> {
     cyclic_pending: Option<u8>,
     /// MBX_REQ fragment bytes the pending CYCLIC request asked (its reply is that much longer).
     cyclic_asked: usize,
-    /// DATA bytes of the last CYCLIC reply (the next transaction is clocked that long).
+    /// DATA bytes of the last CYCLIC reply without its MBX_REQ fragment (the next
+    /// transaction is clocked that long, plus the fragment asked).
     cyclic_reply_len: usize,
+    /// The last CYCLIC reply taken answered the previous call's request.
+    cyclic_previous: bool,
 }
 
 impl<B: SpiBus> SpiHost<B> {
@@ -855,7 +867,8 @@ impl<B: SpiBus> SpiHost<B> {
             bytes: 0,
             cyclic_pending: None,
             cyclic_asked: 0,
-            cyclic_reply_len: cyclic::MAX_REPLY_DATA,
+            cyclic_reply_len: cyclic::MAX_REPLY_DATA - cyclic::MAX_FRAGMENT,
+            cyclic_previous: false,
         }
     }
 
@@ -875,7 +888,10 @@ impl<B: SpiBus> SpiHost<B> {
         let k = req.encode(&mut d);
         let frame = REQUEST_HEADER + k + CRC_LEN;
         let asked = core::mem::replace(&mut self.cyclic_asked, usize::from(req.req.1));
-        let n = frame.max(REPLY_HEADER + self.cyclic_reply_len + asked + CRC_LEN).min(MAX_TRANSACTION);
+        // Clocked as long as the reply expected: the last one's length (without its
+        // fragment) and the fragment the answered request asked.
+        let expect = |len: usize, asked: usize| (REPLY_HEADER + len + asked + CRC_LEN).min(MAX_TRANSACTION);
+        let n = if prev.is_some() { frame.max(expect(self.cyclic_reply_len, asked)) } else { frame };
         let (tag, _) = self
             .codec
             .encode(Command::Cyclic, 0, k as u16, &d[..k], &mut self.mosi[..n])
@@ -884,32 +900,45 @@ impl<B: SpiBus> SpiHost<B> {
         if let Some(ptag) = prev {
             if let Some(r) = self.cyclic_reply(ptag, n) {
                 self.cyclic_pending = Some(tag);
+                self.cyclic_previous = true;
                 return Ok(&self.miso[REPLY_HEADER..REPLY_HEADER + r]);
             }
         }
-        // Fetch the reply to this request with the same request once more (its reply
-        // length unknown: the longest), which starts the chain for the next cycle; the card
-        // applies it again, with the same counters: no change.
-        let n = frame.max(REPLY_HEADER + cyclic::MAX_REPLY_DATA + CRC_LEN);
+        // Fetch the reply to this request with the same request once more, which starts the
+        // chain for the next cycle; the card applies it again, with the same counters: no
+        // change. Clocked for the longest command (the first attempt may have failed because
+        // the command grew: a new telegram), plus the fragment asked.
+        let n = frame.max(expect(cyclic::MAX_REPLY_DATA - cyclic::MAX_FRAGMENT, usize::from(req.req.1)));
         let (tag2, _) = self
             .codec
             .encode(Command::Cyclic, 0, k as u16, &d[..k], &mut self.mosi[..n])
             .ok_or(HostError::BadRequest)?;
         self.transfer(n)?;
+        self.cyclic_previous = false;
         match self.cyclic_reply(tag, n) {
             Some(r) => {
                 self.cyclic_pending = Some(tag2);
                 Ok(&self.miso[REPLY_HEADER..REPLY_HEADER + r])
             }
-            None => match SpiHostCodec::decode(&self.miso[..n]) {
-                Ok(r) if r.tag == tag && r.result != ResultCode::Ok => Err(HostError::Refused(r.result)),
-                _ => {
-                    // Perhaps the reply to the repeated request comes next cycle.
-                    self.cyclic_pending = Some(tag2);
-                    Err(HostError::NoReply)
+            None => {
+                self.cyclic_reply_len = cyclic::MAX_REPLY_DATA - cyclic::MAX_FRAGMENT;
+                match SpiHostCodec::decode(&self.miso[..n]) {
+                    Ok(r) if r.tag == tag && r.result != ResultCode::Ok => Err(HostError::Refused(r.result)),
+                    _ => {
+                        // Perhaps the reply to the repeated request comes next cycle.
+                        self.cyclic_pending = Some(tag2);
+                        Err(HostError::NoReply)
+                    }
                 }
-            },
+            }
         }
+    }
+
+    /// Whether the reply the last successful [`Self::cyclic`] returned answers the request
+    /// of the call before (one transaction: the board's pipeline) rather than that call's
+    /// own (two transactions).
+    pub fn cyclic_answered_previous(&self) -> bool {
+        self.cyclic_previous
     }
 
     /// The CYCLIC reply tagged `tag` in the MISO of the last transaction (`n` bytes): its
@@ -1088,11 +1117,12 @@ impl<B: SpiBus> Transport for SpiHost<B> {
         &mut self,
         req: &cyclic::CyclicRequest<'_>,
         out: &mut [u8; cyclic::MAX_REPLY_DATA],
-    ) -> Option<Result<usize, TransportError>> {
+    ) -> Option<Result<CyclicReceipt, TransportError>> {
         Some(match SpiHost::cyclic(self, req) {
             Ok(d) if d.len() <= out.len() => {
-                out[..d.len()].copy_from_slice(d);
-                Ok(d.len())
+                let len = d.len();
+                out[..len].copy_from_slice(d);
+                Ok(CyclicReceipt { len, previous: self.cyclic_previous })
             }
             Ok(_) => Err(TransportError::Corrupt),
             Err(e) => Err(e.into()),

@@ -3,16 +3,23 @@
 //! run it; `no_std`, allocation-free, time passed in.
 //!
 //! [`SimDrive::step`] talks to the card only through the host-side reference implementation
-//! ([`crate::dpm::host::Host`], issue 7 item 5) over any [`Transport`]: it reads DRIVE_CMD
-//! (the drive-neutral command of [`crate::profile::drive_if`]), runs the drive model
+//! ([`crate::dpm::host::Host`], issue 7 item 5) over any [`Transport`], on
+//! [`Host::cycle`](crate::dpm::host::Host::cycle) (issue 16): two exchanges a drive cycle —
+//! the first (CYCLIC over the SPI frames: one transaction in the steady state) brings the
+//! newest DRIVE_CMD (the drive-neutral command of [`crate::profile::drive_if`]), the card's
+//! heartbeat, events and communication state; the drive model runs
 //! ([`model::DriveModel`]: ramps, quick stop, coast, jog, faults, communication-loss
-//! reactions, current / torque / power), writes DRIVE_STATE, reports faults and warnings in
-//! the DRIVE block (with the GSD's device-related diagnosis block), keeps its heartbeat
-//! going, and serves the parameter mailbox from its parameter table ([`params`]).
+//! reactions, current / torque / power); the second delivers DRIVE_STATE computed from that
+//! command before the card's next step (one exchange a cycle would deliver the status of the
+//! previous command, a cycle late). It reports faults and warnings in the DRIVE block (with
+//! the GSD's device-related diagnosis block), keeps its heartbeat going, and serves the
+//! parameter mailbox from its parameter table ([`params`]) — with block accesses
+//! (`Options::cyclic_mailbox` off in `app::Application`: a job within one card step, as the
+//! card's parameter tests count; a drive maker's host carries it in the CYCLIC fragments).
 //!
 //! **Communication errors (WEG CFW500 §4 P0313 and §6, CFW-11 §3 P0313 and §5):** the drive
-//! watches the card through [`Host::poll`] (the `CARD.EVENTS` counters, the STATUS block's
-//! communication state, the card's heartbeat) and raises the manuals' alarms ([`CommAlarms`]):
+//! watches the card through [`Host::cycle`]'s poll (the `CARD.EVENTS` counters, the STATUS
+//! block's communication state, the card's heartbeat) and raises the manuals' alarms ([`CommAlarms`]):
 //!
 //! * **A138** "PROFIBUS DP interface in Clear mode" — event 0 (`CardEvent::ClearMode`) or the
 //!   STATUS state "Clear"; gone when the master leaves Clear (STATUS "online").
@@ -181,6 +188,9 @@ pub struct SimDrive {
     stats: SimStats,
     /// DPM DEVICE written (once after start).
     device_written: bool,
+    /// DRIVE_STATE as sent last (the first exchange of a step sends it again while it fetches
+    /// the newest command).
+    sent: DriveStateImage,
     /// VACON ID 733 as last applied to the model (module docs, "communication errors").
     id733_applied: i64,
     /// VACON PNU 10119 fault history, 8-bit codes, newest first (module docs, "fault history").
@@ -236,6 +246,7 @@ impl SimDrive {
             alarms: CommAlarms::empty(),
             stats: SimStats::default(),
             device_written: false,
+            sent: DriveStateImage::EMPTY,
             id733_applied: params::VACON_ID_TABLE.get(params::ID_FIELDBUS_FAULT_RESPONSE, 0).unwrap_or(4),
             history: [0; FAULT_HISTORY_LEN],
             trips_seen: 0,
@@ -309,15 +320,22 @@ impl SimDrive {
     /// One drive cycle at `now` through `host`.
     pub fn step<T: Transport>(&mut self, now: Instant, host: &mut Host<T>) {
         self.stats.steps = self.stats.steps.wrapping_add(1);
-        let poll = host.poll(now);
+        // Two exchanges per drive cycle through `Host::cycle` (issue 16; one CYCLIC
+        // transaction each in the steady state): the first fetches the newest command (the card
+        // refreshed the armed reply after its step), the second delivers the status computed
+        // from it before the card's next step, so the status is not a cycle late (one exchange
+        // per cycle would send the status of the previous command: the Anybus-style lag).
+        let first = host.cycle(now, &self.sent);
+        let poll = first.poll;
         if !self.device_written {
             self.device_written = host.write_device_ident(&SIM_DEVICE).is_ok();
         }
-        let comm = host.status().ok().map(|s| s.comm);
+        // A transport without CYCLIC: `cycle` ran the block accesses, STATUS included.
+        let comm = if first.cyclic { first.comm } else { host.status().ok().map(|s| s.comm) };
         self.track_alarms(&poll, comm);
-        match host.read_command() {
-            Ok((_, img)) => self.image = img,
-            Err(_) => self.stats.command_errors = self.stats.command_errors.wrapping_add(1),
+        match first.command {
+            Some((_, img)) => self.image = img,
+            None => self.stats.command_errors = self.stats.command_errors.wrapping_add(1),
         }
         let bypass = self.image.operate_mode == operate_mode::BYPASS;
         let invt = !bypass && matches!(self.image.telegram, Telegram::Vendor(Family::Invt, _));
@@ -361,9 +379,11 @@ impl SimDrive {
         };
         self.update_parameters(&extra);
         let state = DriveStateImage { status: self.status, inputs_seq: 0, extra };
-        if host.write_state(&state).is_err() {
+        let second = host.cycle(now, &state);
+        if second.poll.error.is_some() {
             self.stats.write_errors = self.stats.write_errors.wrapping_add(1);
         }
+        self.sent = state;
         if host.drive_report().fault_code != self.status.fault_code {
             host.set_fault(self.status.fault_code);
         }

@@ -138,7 +138,7 @@ impl Transport for Wire {
         &mut self,
         req: &CyclicRequest<'_>,
         out: &mut [u8; MAX_REPLY_DATA],
-    ) -> Option<Result<usize, TransportError>> {
+    ) -> Option<Result<pbcard::dpm::host::CyclicReceipt, TransportError>> {
         match self {
             Wire::Memory(m) => m.cyclic(req, out),
             Wire::Spi(s) => Transport::cyclic(&mut **s, req, out),

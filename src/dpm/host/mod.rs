@@ -28,7 +28,7 @@ use crate::dpm::{
 };
 use crate::profile::param::{ParamError, ParameterAccess};
 use crate::time::{Duration, Instant};
-pub use transport::{DpmTransport, MemoryTransport, Transport, TransportError};
+pub use transport::{CyclicReceipt, DpmTransport, MemoryTransport, Transport, TransportError};
 
 /// The longest block (the reader's buffer).
 const MAX_BLOCK: usize = {
@@ -63,6 +63,16 @@ pub struct Options {
     /// Capability bits ([`layout::cap`]) the drive cannot work without; [`Host::open`] refuses a
     /// card lacking one. Default none.
     pub required: u32,
+    /// Bytes one CYCLIC transaction may clock (`docs/SPI.md` "One drive cycle"): the mailbox
+    /// fragments are sized to what the telegram leaves of it, each way (at least
+    /// [`cyclic::MIN_FRAGMENT`], at most [`cyclic::MAX_FRAGMENT`] bytes). Default 64 (issue 16:
+    /// ≤ 64 bytes per drive cycle for ST1 and PPO 5).
+    pub cyclic_bytes: usize,
+    /// The parameter mailbox rides in the CYCLIC exchange's fragments (default). Off: a
+    /// [`Host::cycle`] drive fetches MBX_REQ and writes MBX_RSP with block accesses (a
+    /// request answered within one drive cycle, at the cost of extra transactions in the
+    /// cycles that carry one: the simulated drive, whose tests count card steps per job).
+    pub cyclic_mailbox: bool,
 }
 
 impl Default for Options {
@@ -72,8 +82,15 @@ impl Default for Options {
 }
 
 impl Options {
-    /// 200 ms card timeout, 8 read attempts, nothing required.
-    pub const DEFAULT: Options = Options { card_timeout: Duration::from_millis(200), read_attempts: 8, required: 0 };
+    /// 200 ms card timeout, 8 read attempts, nothing required, 64-byte CYCLIC transactions,
+    /// the mailbox in them.
+    pub const DEFAULT: Options = Options {
+        card_timeout: Duration::from_millis(200),
+        read_attempts: 8,
+        required: 0,
+        cyclic_bytes: 64,
+        cyclic_mailbox: true,
+    };
 }
 
 /// Why [`Host::open`] refused the image.
@@ -304,31 +321,86 @@ pub struct ProcessImage {
     pub outputs: ProcessData,
 }
 
-/// MBX_RSP written through the CYCLIC exchange (issue 16 item 5): the block as encoded, sent
-/// as two fragments in ascending order — head and the answer, then the tail — each repeated
-/// until two exchanges in a row that carried it succeeded (the reply of either answers a
-/// request that carried it, so it was applied), so the tail, which makes the block consistent
-/// for the card, never goes before the rest.
+/// MBX_RSP written through the CYCLIC exchange (issue 16 item 5): the block as encoded, its
+/// body (head, fields, values: `block[..len]`) streamed in ascending fragments sized to the
+/// cycle's spare bytes, one per cycle, then the tail. A fragment counts as applied once the
+/// reply **to the request that carried it** came back OK ([`CyclicReceipt::previous`] says
+/// which request a reply answers); after a failed exchange the unconfirmed part is sent again.
+/// The tail, which makes the block consistent for the card, goes only once the whole body is
+/// confirmed, so the card never takes a block with a stale middle.
 #[derive(Debug, Clone)]
 struct RspFragments {
     block: [u8; layout::mbx_rsp::LEN],
-    /// Bytes of the first fragment (head, fields, values).
+    /// Bytes of the body (head, fields, values).
     len: usize,
-    /// 0: the first fragment; 1: the tail.
-    phase: u8,
-    /// Successful exchanges in a row that carried the current fragment.
-    carried: u8,
+    /// Every body byte below this is confirmed applied.
+    confirmed: usize,
+    /// The next body byte to send.
+    next: usize,
 }
 
 impl RspFragments {
     const TAIL: usize = layout::mbx_rsp::SEQ_TAIL;
 
-    fn fragment(&self) -> (u8, &[u8]) {
-        match self.phase {
-            0 => (0, &self.block[..self.len]),
-            _ => (Self::TAIL as u8, &self.block[Self::TAIL..]),
+    /// The fragment of this cycle, at most `room` bytes (≥ 2): the next body bytes, or the
+    /// tail once the body is confirmed.
+    fn fragment(&mut self, room: usize) -> (u8, &[u8]) {
+        if self.confirmed >= self.len {
+            return (Self::TAIL as u8, &self.block[Self::TAIL..]);
+        }
+        if self.next >= self.len {
+            self.next = self.confirmed;
+        }
+        let at = self.next;
+        let n = room.min(self.len - at);
+        self.next += n;
+        (at as u8, &self.block[at..at + n])
+    }
+}
+
+/// MBX_REQ read through the CYCLIC exchange (issue 16 item 5): the fragments the replies
+/// carried, in ascending order from offset 0 (which carries `SEQ_HEAD`, and counts as the
+/// host's read of the block for the events). Each fragment is a copy of a consistent block
+/// (the card sends none while it writes the block); a request that took more than one fragment
+/// is taken only when a last 2-byte fragment at `SEQ_TAIL` equals the head: the counter only
+/// grows, so every fragment between came from the same request.
+#[derive(Debug, Clone)]
+struct ReqFragments {
+    block: [u8; layout::mbx_req::LEN],
+    /// Bytes `block[..have]` received.
+    have: usize,
+    /// Fragments they came in.
+    fragments: u8,
+}
+
+impl ReqFragments {
+    /// Bytes of the request from offset 0 (through its values), as far as known.
+    fn need(&self) -> usize {
+        use layout::mbx_req;
+        if self.have > mbx_req::VALUES_LEN {
+            mbx_req::VALUES + usize::from(self.block[mbx_req::VALUES_LEN]).min(layout::MBX_CAPACITY)
+        } else {
+            mbx_req::VALUES
         }
     }
+
+    /// The fragment to ask next, at most `room` bytes (≥ 2).
+    fn wanted(&self, room: usize) -> (u8, u8) {
+        let need = self.need();
+        if self.have < need {
+            (self.have as u8, room.min(need - self.have) as u8)
+        } else {
+            (layout::mbx_req::SEQ_TAIL as u8, 2)
+        }
+    }
+}
+
+/// The mailbox fragments one CYCLIC request carried: MBX_REQ asked (offset, bytes), MBX_RSP
+/// sent (offset, bytes).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+struct Carried {
+    req: (u8, u8),
+    rsp: (u8, u8),
 }
 
 /// Counters of the [`Host`].
@@ -394,12 +466,17 @@ pub struct Host<T> {
     report_written: Option<DriveReport>,
     /// From the last CYCLIC reply: whether MBX_REQ changed (`None`: unknown, look).
     mailbox_hint: Option<bool>,
-    /// A whole MBX_REQ carried by a CYCLIC reply's fragment (its counter and request), for
-    /// [`Self::fetch_request`]; `Err(())`: the request is longer than one fragment (read the
-    /// block).
-    fragment: Option<Result<(u16, Option<MailboxRequest>), ()>>,
+    /// A whole MBX_REQ assembled from CYCLIC replies' fragments (its counter and request),
+    /// for [`Self::fetch_request`].
+    fragment: Option<(u16, Option<MailboxRequest>)>,
+    /// MBX_REQ being assembled from fragments.
+    req_in: Option<ReqFragments>,
     /// A response on its way through the CYCLIC exchange's MBX_RSP fragments.
     rsp_out: Option<RspFragments>,
+    /// The fragments the last CYCLIC request carried (its reply may come with the next).
+    carried: Carried,
+    /// DRIVE_CMD bytes of the last CYCLIC reply (the reply's length without its fragment).
+    command_len: usize,
     request_seen: u16,
     /// `MBX_REQ.SEQ_HEAD` of the last consistent read of MBX_REQ (0 = none yet).
     request_block_seq: u16,
@@ -455,7 +532,10 @@ impl<T: Transport> Host<T> {
             report_written: None,
             mailbox_hint: None,
             fragment: None,
+            req_in: None,
             rsp_out: None,
+            carried: Carried::default(),
+            command_len: layout::drive_cmd::SEQ_TAIL - layout::drive_cmd::FLAGS,
             request_seen: 0,
             request_block_seq: 0,
             request_open: None,
@@ -570,6 +650,9 @@ impl<T: Transport> Host<T> {
         self.request_seen = 0;
         self.request_block_seq = 0;
         self.request_open = None;
+        self.req_in = None;
+        self.rsp_out = None;
+        self.fragment = None;
         if let Some(cfg) = self.last_config {
             self.write_config(&cfg)?;
         }
@@ -807,10 +890,11 @@ impl<T: Transport> Host<T> {
     /// to the telegram) in. Over the SPI frames this is the CYCLIC exchange: one transaction
     /// per cycle in the steady state, two at most (`docs/SPI.md`); a changed fault / warning
     /// report or extended diagnosis adds one DRIVE write. The mailbox rides along: when the
-    /// reply's events say MBX_REQ changed, the next request asks its first fragment, which
+    /// reply's events say MBX_REQ changed, the next requests ask its fragments, which
     /// [`Self::fetch_request`] / [`Self::serve_parameters`] take without a block access, and
-    /// an answer from [`Self::respond`] goes to MBX_RSP as two request fragments (a request
-    /// or answer longer than one fragment falls back to a block access). A transport without CYCLIC
+    /// an answer from [`Self::respond`] goes to MBX_RSP in request fragments, each sized to
+    /// what the telegram leaves of [`Options::cyclic_bytes`] (a request or answer longer than
+    /// one fragment takes several cycles, never a block access). A transport without CYCLIC
     /// (a dual-port RAM) does the same with block accesses ([`Self::poll`],
     /// [`Self::status`], [`Self::read_command`], [`Self::write_state`]).
     pub fn cycle(&mut self, now: Instant, state: &DriveStateImage) -> Cycle {
@@ -829,11 +913,13 @@ impl<T: Transport> Host<T> {
         }
         self.mailbox_hint = None;
         self.fragment = None;
+        self.req_in = None;
         Cycle { poll, command, comm, cyclic: false }
     }
 
     /// [`Self::cycle`] over a transport with CYCLIC (`None`: it has none).
     fn cycle_cyclic(&mut self, now: Instant, state: &DriveStateImage) -> Option<Cycle> {
+        use crate::dpm::spi::{CRC_LEN, REPLY_HEADER, REQUEST_HEADER};
         let mut error = None;
         let mut drive_seq = next_seq(self.seq_drive);
         self.heartbeat = next_seq(self.heartbeat);
@@ -853,19 +939,29 @@ impl<T: Transport> Host<T> {
         } else {
             layout::drive_state::EXTRA - layout::drive_state::FLAGS + 2 * words
         };
+        // The mailbox fragments get what the telegram leaves of the transaction, each way.
+        let room =
+            |used: usize| self.opts.cyclic_bytes.saturating_sub(used).clamp(cyclic::MIN_FRAGMENT, cyclic::MAX_FRAGMENT);
+        let rsp_room = room(REQUEST_HEADER + cyclic::REQUEST_FIXED + n + CRC_LEN);
+        let req_room = room(REPLY_HEADER + cyclic::REPLY_FIXED + self.command_len + CRC_LEN);
+        let req_asked = match &self.req_in {
+            Some(a) => a.wanted(req_room),
+            // MBX_REQ changed (or not known yet): its first fragment comes with the reply.
+            None if self.has(cap::MAILBOX) && self.opts.cyclic_mailbox && self.mailbox_hint != Some(false) => {
+                (0, req_room as u8)
+            }
+            None => (0, 0),
+        };
         let flags = layout::drive_state::FLAGS;
+        let rsp = self.rsp_out.as_mut().map_or((0, &[][..]), |r| r.fragment(rsp_room));
+        let sent = Carried { req: req_asked, rsp: (rsp.0, rsp.1.len() as u8) };
         let req = cyclic::CyclicRequest {
             heartbeat: self.heartbeat,
             drive_seq,
             state_seq,
             state: &blk[flags..flags + n],
-            rsp: self.rsp_out.as_ref().map_or((0, &[][..]), RspFragments::fragment),
-            // MBX_REQ changed (or not known yet): its first fragment comes with the reply.
-            req: if self.has(cap::MAILBOX) && self.mailbox_hint != Some(false) {
-                (0, cyclic::MAX_FRAGMENT as u8)
-            } else {
-                (0, 0)
-            },
+            rsp,
+            req: req_asked,
         };
         let mut out = [0u8; cyclic::MAX_REPLY_DATA];
         let r = self.transport.cyclic(&req, &mut out)?;
@@ -874,25 +970,28 @@ impl<T: Transport> Host<T> {
             self.seq_drive = drive_seq;
         }
         self.seq_state = state_seq;
-        let reply = match r {
-            Ok(k) => cyclic::CyclicReply::decode(&out[..k]),
+        let before = core::mem::replace(&mut self.carried, sent);
+        let (reply, answered) = match r {
+            Ok(k) => (cyclic::CyclicReply::decode(&out[..k.len]), if k.previous { before } else { sent }),
             Err(e) => {
                 error = error.or(Some(self.transport_error(e)));
-                None
+                (None, sent)
             }
         };
         let Some(reply) = reply else {
-            self.rsp_progress(false);
+            // Whatever was not confirmed goes again.
+            if let Some(r) = self.rsp_out.as_mut() {
+                r.next = r.confirmed;
+            }
             self.mailbox_hint = None;
             let poll = self.observe_card(now, None, None, error.or(Some(Error::Transport(TransportError::Corrupt))));
             return Some(Cycle { poll, command: None, comm: None, cyclic: true });
         };
-        let mbx_bit = 1u16 << MBX_REQ_BLOCK;
-        self.mailbox_hint = Some(reply.events & mbx_bit != 0);
-        self.rsp_progress(true);
-        if reply.request.len() == cyclic::MAX_FRAGMENT {
-            self.fragment = Some(Self::request_of_fragment(reply.request));
-        }
+        self.command_len = reply.command.len();
+        let changed = reply.events & (1u16 << MBX_REQ_BLOCK) != 0;
+        self.mailbox_hint = Some(changed);
+        self.rsp_confirmed(answered.rsp);
+        self.req_fragment(answered.req, reply.request, changed);
         let command = if reply.command_seq != 0 {
             let mut b = [0u8; layout::drive_cmd::LEN];
             let c = reply.command;
@@ -912,36 +1011,88 @@ impl<T: Transport> Host<T> {
     // -----------------------------------------------------------------------------------
     // Parameter mailbox
 
-    /// MBX_REQ from a CYCLIC reply's fragment (offset 0, [`cyclic::MAX_FRAGMENT`] bytes of a
-    /// block the card sent while consistent): the whole request when its values fit the
-    /// fragment (every read, writes of up to 18 bytes), else `Err(())`.
-    fn request_of_fragment(f: &[u8]) -> Result<(u16, Option<MailboxRequest>), ()> {
-        use layout::mbx_req;
-        let values = usize::from(f[mbx_req::VALUES_LEN]).min(layout::MBX_CAPACITY);
-        if mbx_req::VALUES + values > f.len() {
-            return Err(());
+    /// The reply to a request that carried the MBX_RSP fragment `(off, len)` came back OK: the
+    /// fragment is applied. The confirmed tail completes the response.
+    fn rsp_confirmed(&mut self, (off, len): (u8, u8)) {
+        let Some(r) = self.rsp_out.as_mut() else { return };
+        let (off, len) = (usize::from(off), usize::from(len));
+        if len == 0 {
+            return;
         }
-        let mut b = [0u8; mbx_req::LEN];
-        b[..f.len()].copy_from_slice(f);
+        if off == RspFragments::TAIL && r.confirmed >= r.len {
+            self.rsp_out = None;
+            self.stats.responses = self.stats.responses.wrapping_add(1);
+        } else if off <= r.confirmed && off + len <= r.len {
+            r.confirmed = r.confirmed.max(off + len);
+        }
+    }
+
+    /// A reply's MBX_REQ fragment `f` for the asked `(off, len)` (`changed`: the reply's
+    /// events say MBX_REQ changed since the host read its head). A fragment at offset 0
+    /// starts a request; the next ones extend it; a one-fragment request is whole, a longer
+    /// one once the tail fragment names its head.
+    fn req_fragment(&mut self, (off, len): (u8, u8), f: &[u8], changed: bool) {
+        use layout::mbx_req;
+        let (off, len) = (usize::from(off), usize::from(len));
+        if len == 0 || f.len() != len {
+            // Not asked, or the card was writing the block: ask again. A new request
+            // replaced the one being assembled: start again from offset 0.
+            if changed && self.req_in.as_ref().is_some_and(|a| a.have > 0) {
+                self.req_in = None;
+            }
+            return;
+        }
+        if off == 0 {
+            let mut a = ReqFragments { block: [0; mbx_req::LEN], have: len, fragments: 1 };
+            a.block[..len].copy_from_slice(f);
+            self.req_in = Some(a);
+        } else if changed {
+            // The head read with offset 0 is no longer the block's.
+            self.req_in = None;
+            return;
+        } else if let Some(a) = self.req_in.as_mut() {
+            if off == mbx_req::SEQ_TAIL && len == 2 && a.have >= a.need() {
+                if f != &a.block[..2] {
+                    // Fragments of two requests: read it again from offset 0.
+                    self.req_in = None;
+                    self.mailbox_hint = None;
+                    return;
+                }
+                a.fragments = 1;
+            } else if off == a.have && off + len <= mbx_req::SEQ_TAIL {
+                a.block[off..off + len].copy_from_slice(f);
+                a.have += len;
+                a.fragments = a.fragments.saturating_add(1);
+            }
+        }
+        let Some(a) = self.req_in.as_ref() else { return };
+        if a.have < mbx_req::VALUES || a.have < a.need() || a.fragments != 1 {
+            return;
+        }
+        let mut b = a.block;
         b.copy_within(mbx_req::SEQ_HEAD..mbx_req::SEQ_HEAD + 2, mbx_req::SEQ_TAIL);
-        codec::MBX_REQ.decode(&b).map_err(|_| ())
+        self.req_in = None;
+        match codec::MBX_REQ.decode(&b) {
+            Ok(r) => self.fragment = Some(r),
+            // Not a request this host understands: the block tells (a block read).
+            Err(_) => self.mailbox_hint = None,
+        }
     }
 
     /// A new request in MBX_REQ, once (`None`: none, or already taken). The answer goes back
     /// with [`Self::respond`]. After a [`Self::cycle`] over the CYCLIC exchange the request
     /// comes in a mailbox fragment of the exchange (issue 16 item 5): no block access; the
-    /// block is read only for a request whose values do not fit one fragment.
+    /// request may take several fragments (several cycles).
     pub fn fetch_request(&mut self) -> Result<Option<MailboxRequest>, Error> {
         self.require(cap::MAILBOX)?;
         match self.fragment.take() {
-            Some(Ok((seq, req))) => {
+            Some((seq, req)) => {
                 self.request_block_seq = seq;
                 return Ok(self.take_request(req));
             }
-            Some(Err(())) => {}
             // The last CYCLIC reply said MBX_REQ is unchanged since the host read it, or
-            // changed: its fragment comes with the next reply.
-            None if self.mailbox_hint.is_some() => return Ok(None),
+            // changed: its fragments come with the next replies.
+            None if self.mailbox_hint.is_some() && self.opts.cyclic_mailbox => return Ok(None),
             None => {}
         }
         // The card starts every write of MBX_REQ with a new SEQ_HEAD: while it is the value
@@ -985,7 +1136,12 @@ impl<T: Transport> Host<T> {
         self.require(cap::MAILBOX)?;
         // Over the CYCLIC exchange the last reply says whether MBX_REQ changed since the
         // request was taken; else (or when it did) the block tells.
-        let current = if self.mailbox_hint == Some(false) && self.fragment.is_none() && self.request_seen == id {
+        let current = if self.mailbox_hint == Some(false)
+            && self.opts.cyclic_mailbox
+            && self.fragment.is_none()
+            && self.req_in.is_none()
+            && self.request_seen == id
+        {
             id
         } else {
             let (_, req) = self.read(&codec::MBX_REQ)?;
@@ -999,15 +1155,15 @@ impl<T: Transport> Host<T> {
             return Err(Error::StaleResponse { id, current });
         }
         let rsp = MailboxResponse { id, outcome };
-        if self.mailbox_hint.is_some() {
-            // CYCLIC: through MBX_RSP fragments, if the answer fits one.
+        if self.mailbox_hint.is_some() && self.opts.cyclic_mailbox {
+            // CYCLIC: through MBX_RSP fragments.
             let mut block = [0u8; layout::mbx_rsp::LEN];
             let seq = next_seq(self.seq_rsp);
             let values = outcome.map_or(0, |v| v.bytes().len());
             let len = layout::mbx_rsp::VALUES + values;
-            if len <= cyclic::MAX_FRAGMENT && codec::MBX_RSP.encode(&rsp, seq, &mut block).is_ok() {
+            if codec::MBX_RSP.encode(&rsp, seq, &mut block).is_ok() {
                 self.seq_rsp = seq;
-                self.rsp_out = Some(RspFragments { block, len, phase: 0, carried: 0 });
+                self.rsp_out = Some(RspFragments { block, len, confirmed: 0, next: 0 });
                 self.request_open = None;
                 return Ok(());
             }
@@ -1020,26 +1176,6 @@ impl<T: Transport> Host<T> {
         self.request_open = None;
         self.stats.responses = self.stats.responses.wrapping_add(1);
         Ok(())
-    }
-
-    /// A CYCLIC exchange that carried the pending MBX_RSP fragment ended (`ok`: its reply was
-    /// taken): two in a row move to the next fragment; after the tail the response is done.
-    fn rsp_progress(&mut self, ok: bool) {
-        let Some(r) = self.rsp_out.as_mut() else { return };
-        if !ok {
-            r.carried = 0;
-            return;
-        }
-        r.carried += 1;
-        if r.carried < 2 {
-            return;
-        }
-        r.carried = 0;
-        r.phase += 1;
-        if r.phase > 1 {
-            self.rsp_out = None;
-            self.stats.responses = self.stats.responses.wrapping_add(1);
-        }
     }
 
     /// Fetch a new request and hand it to `server`; an immediate answer is written at once.

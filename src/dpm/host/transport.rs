@@ -36,6 +36,19 @@ impl core::fmt::Display for TransportError {
 
 impl core::error::Error for TransportError {}
 
+/// What one CYCLIC exchange of [`Transport::cyclic`] got back: the reply DATA's length, and
+/// which request the reply answers. Over the board's pipeline (`docs/SPI.md` "One drive
+/// cycle") a one-transaction cycle takes the reply to the **previous** call's request, a
+/// two-transaction cycle the reply to **this** call's; the host confirms the mailbox
+/// fragments a request carried by the reply to that request only.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct CyclicReceipt {
+    /// Bytes of reply DATA in `out`.
+    pub len: usize,
+    /// The reply answers the request of the previous `cyclic` call (else this call's).
+    pub previous: bool,
+}
+
 /// Byte-range access to the card's DPM image (offsets as in `docs/DPM.md`).
 ///
 /// Implement it for the board's link (SPI frames, a parallel dual-port RAM, …). Each call must
@@ -47,13 +60,13 @@ pub trait Transport {
     /// Write `data` at `offset`.
     fn write(&mut self, offset: u16, data: &[u8]) -> Result<(), TransportError>;
     /// One drive cycle's CYCLIC exchange (`docs/SPI.md`, protocol version 2): the reply DATA
-    /// into `out`, its length returned. `None`: this transport has none (a dual-port RAM);
+    /// into `out`, its length and the request it answers returned. `None`: this transport has none (a dual-port RAM);
     /// [`super::Host::cycle`] then uses the block accesses.
     fn cyclic(
         &mut self,
         req: &CyclicRequest<'_>,
         out: &mut [u8; MAX_REPLY_DATA],
-    ) -> Option<Result<usize, TransportError>> {
+    ) -> Option<Result<CyclicReceipt, TransportError>> {
         let _ = (req, out);
         None
     }
@@ -70,7 +83,7 @@ impl<T: Transport + ?Sized> Transport for &mut T {
         &mut self,
         req: &CyclicRequest<'_>,
         out: &mut [u8; MAX_REPLY_DATA],
-    ) -> Option<Result<usize, TransportError>> {
+    ) -> Option<Result<CyclicReceipt, TransportError>> {
         (**self).cyclic(req, out)
     }
 }

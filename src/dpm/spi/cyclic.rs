@@ -105,6 +105,9 @@ pub const STATE_BASE: usize = drive_state::INPUTS_SEQ - drive_state::FLAGS;
 pub const CMD_BASE: usize = drive_cmd::EXTRA - drive_cmd::FLAGS;
 /// Most bytes of a mailbox fragment.
 pub const MAX_FRAGMENT: usize = 32;
+/// Fewest bytes of a mailbox fragment the reference hosts use (a telegram that leaves less of
+/// the transaction budget gets this many: the cycle is that much longer).
+pub const MIN_FRAGMENT: usize = 4;
 /// The longest CYCLIC request DATA.
 pub const MAX_REQUEST_DATA: usize = REQUEST_FIXED + STATE_PAYLOAD + MAX_FRAGMENT;
 /// The longest CYCLIC reply DATA.

@@ -64,7 +64,7 @@ fn rig(m: &Module) -> CardRig {
     r.settle();
     r.app.host_mut().write_config(&HostConfig::DEFAULT).unwrap();
     r.settle();
-    r.bring_up(&SetPrm::CARD, m.cfg);
+    r.bring_up(&SetPrm::CARD.dpv1_status_1(0x80), m.cfg);
     r
 }
 
@@ -102,15 +102,48 @@ struct Figures {
     transactions: u32,
     bytes: u32,
     max_transactions: u32,
+    /// Most bytes of a one-transaction cycle.
     max_bytes: u32,
+    /// Cycles that took two transactions (the first: no reply pending yet).
+    two_transaction_cycles: u32,
+    /// Cycles longer than the idle cycle: they carried a mailbox fragment.
+    mailbox_cycles: u32,
+    /// Parameter requests the drive answered (the card's own reads after the selection and
+    /// the master's record-47 read and write).
+    served: u32,
+    /// Drive cycles from the record-47 write request to its answer at the master, and from
+    /// the read request to its answer.
+    record47_cycles: (u32, u32),
     latency_us: f64,
 }
 
+/// The drive's parameter PNU 100 (a word), served through the mailbox.
+const PNU: u16 = 100;
+
+impl CardRig {
+    /// One MSAC_C1 request to the card and the DP-V1 task over the mailbox-backed
+    /// parameters; the response PDU of the poll that follows.
+    fn c1(&mut self, pdu: &[u8]) -> Vec<u8> {
+        let f = self.master.request(MASTER, Some(51), Some(51), pdu, true);
+        assert_eq!(feed(&mut self.node, self.now, &f).as_deref(), Some(&[crate::fdl::telegram::SC][..]));
+        let now = self.now;
+        self.node.process_acyclic(now, &mut self.app.parameters(now));
+        let f = self.master.request(MASTER, Some(51), Some(51), &[], true);
+        let r = feed(&mut self.node, self.now, &f).expect("a response");
+        r[9..r.len() - 2].to_vec()
+    }
+}
+
 /// Run the drive at a 1 ms cycle with a new setpoint every 7.3 ms (all phases against the
-/// drive cycle): per cycle transactions and bytes (steady state), and the worst time from
-/// the Data_Exchange with a new setpoint until the drive holds another setpoint than before
-/// (the drive cycle it comes with, plus that cycle's transaction at 10 MHz).
+/// drive cycle): per cycle transactions and bytes (every cycle, from the first, the card's
+/// speed-reference reads after the selection included), a record-47 write and read of a
+/// drive parameter through the mailbox, and the worst time from the Data_Exchange with a
+/// new setpoint until the drive holds another setpoint than before (the drive cycle it comes
+/// with, plus that cycle's transaction at 10 MHz).
 fn run(m: &Module) -> Figures {
+    use crate::dpm::host::Answer;
+    use crate::dpm::{MailboxRequest, ParamValues, RequestKind};
+    use crate::profile::param::{ErrorValue, Format, ParamError};
     let mut r = rig(m);
     let mut last = DriveStateImage::EMPTY;
     let t0 = r.now;
@@ -122,6 +155,14 @@ fn run(m: &Module) -> Figures {
     // The setpoint the drive holds (a new Data_Exchange changes it: scaled per profile).
     let mut seen = 0i16;
     let mut prev = Cycle { poll: r.app.host_mut().poll(r.now), command: None, comm: None, cyclic: false };
+    let mut value = 0x0050u16;
+    // Record 47 (PROFIdrive parameter access): a write of PNU 100 at 10 ms, a read 5 ms after
+    // its answer.
+    let write = [0x11u8, 2, 1, 1, 0x10, 1, 0, PNU as u8, 0, 0, 0x42, 1, 0x12, 0x34];
+    let read = [0x12u8, 1, 1, 1, 0x10, 1, 0, PNU as u8, 0, 0];
+    let mut pending: Option<(u64, u8)> = None;
+    let mut read_at = u64::MAX;
+    let mut idle_bytes = u32::MAX;
     // Simulated time in µs from t0, in 100 µs steps: Data_Exchange + card step whenever due,
     // a drive cycle every DRIVE_CYCLE_US.
     for tick in 0..30_000u64 {
@@ -141,32 +182,68 @@ fn run(m: &Module) -> Figures {
         if us % 1000 == 500 {
             // The card's 1 ms housekeeping step, between drive cycles.
             r.app.step(now, &mut r.node);
+            // The master's record-47 requests and the poll for their answers.
+            if let Some((at, reference)) = pending {
+                let a = r.c1(&[0x5E, 0, 47, 240]);
+                if a[0] == 0x5E {
+                    let cycles = ((us - at) / DRIVE_CYCLE_US) as u32;
+                    if reference == write[0] {
+                        assert_eq!(a[4..], [0x11, 2, 1, 1], "write done");
+                        f.record47_cycles.0 = cycles;
+                        read_at = us + 5_000;
+                    } else {
+                        assert_eq!(a[4..], [0x12, 1, 1, 1, 0x42, 1, 0x12, 0x34], "PNU 100 read back");
+                        f.record47_cycles.1 = cycles;
+                    }
+                    pending = None;
+                }
+            } else if us == 10_500 || us == read_at {
+                let q: &[u8] = if us == 10_500 { &write } else { &read };
+                let w = r.c1(&[&[0x5F, 0, 47, q.len() as u8][..], q].concat());
+                assert_eq!(w, [0x5F, 0, 47, q.len() as u8]);
+                pending = Some((us, q[0]));
+            }
         }
         if us % DRIVE_CYCLE_US == 0 {
             let state = state_for(&prev, &mut last);
             let (t_before, b_before) = r.app.host().transport().traffic();
             let c = r.app.host_mut().cycle(now, &state);
-            // The drive serves its mailbox as a real one does (the card reads the speed
-            // references after the selection, issue 15 item 10): this drive has none of the
-            // parameters. A drive that never answers would have the card repeat the read after
-            // every mailbox timeout, a fragment each time.
-            let mut server = |_: &crate::dpm::MailboxRequest| {
-                crate::dpm::host::Answer::Now(Err(crate::profile::param::ParamError {
-                    value: crate::profile::param::ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER,
-                    additional_info: None,
-                }))
+            // The drive serves its mailbox as a real one does: PNU 100 a word; the card's
+            // speed-reference reads after the selection (issue 15 item 10) name parameters
+            // this drive does not have. A drive that never answers would have the card repeat
+            // the read after every mailbox timeout.
+            let mut server = |q: &MailboxRequest| {
+                f.served += 1;
+                if q.pnu != PNU {
+                    return Answer::Now(Err(ParamError {
+                        value: ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER,
+                        additional_info: None,
+                    }));
+                }
+                if q.kind == RequestKind::Write {
+                    value = u16::from_be_bytes([q.values.bytes()[0], q.values.bytes()[1]]);
+                    return Answer::Now(Ok(ParamValues::NONE));
+                }
+                Answer::Now(Ok(ParamValues::new(Format::WORD, 1, &value.to_be_bytes()).unwrap()))
             };
             r.app.host_mut().serve_parameters(&mut server).unwrap();
             let (t_after, b_after) = r.app.host().transport().traffic();
             let (dt, db) = (t_after - t_before, b_after - b_before);
-            if tick > 5_000 {
-                f.cycles += 1;
-                f.transactions += dt;
-                f.bytes += db;
-                f.max_transactions = f.max_transactions.max(dt);
+            f.cycles += 1;
+            f.transactions += dt;
+            f.bytes += db;
+            f.max_transactions = f.max_transactions.max(dt);
+            assert!(dt <= 2, "cycle {}: {dt} transactions", f.cycles);
+            if dt == 2 {
+                f.two_transaction_cycles += 1;
+            } else {
                 f.max_bytes = f.max_bytes.max(db);
-                assert!(c.cyclic && c.poll.error.is_none(), "{c:?}");
+                if db > idle_bytes {
+                    f.mailbox_cycles += 1;
+                }
+                idle_bytes = idle_bytes.min(db);
             }
+            assert!(c.cyclic && c.poll.error.is_none(), "{c:?}");
             if let (Some((at, want)), Some((_, cmd))) = (dx_at, c.command) {
                 if cmd.command.speed_setpoint != want {
                     let clock_us = u64::from(db) * 8 * 1_000_000 / SCK_HZ;
@@ -181,6 +258,8 @@ fn run(m: &Module) -> Figures {
         }
     }
     assert_eq!(r.app.host().stats().transport_errors, 0);
+    assert!(pending.is_none() && f.record47_cycles.0 > 0 && f.record47_cycles.1 > 0, "{f:?}");
+    assert_eq!(value, 0x1234, "the record-47 write reached the drive");
     // The drive's answer reached the master: the input image carries the echoed speed.
     let pdu = r.data_exchange(&outputs(m, sp));
     let at = if m.reference == 105 { 8 } else { 0 };
@@ -194,22 +273,32 @@ fn run(m: &Module) -> Figures {
 #[test]
 fn cyclic_exchange_figures() {
     let mut out = String::from(
-        "drive cycle over the SPI frames (Host::cycle → SpiHost → Loopback, board pipeline), 1 ms drive cycle, 10 MHz SCK\n\
-         | telegram | transactions / cycle (max) | bytes / cycle (max) | setpoint latency, worst |\n|---|---|---|---|\n",
+        "drive cycle over the SPI frames (Host::cycle → SpiHost → Loopback, board pipeline), 1 ms drive cycle, 10 MHz SCK, \
+         every cycle from the first (the card's speed-reference reads and a record-47 write and read through the mailbox included)\n\
+         | telegram | transactions / cycle (max) | bytes / cycle (max) | cycles with a mailbox fragment | record-47 write / read answered after | setpoint latency, worst |\n|---|---|---|---|---|---|\n",
     );
     for (name, reference) in [("ST1", 1u16), ("PPO 5", 105)] {
         let f = run(module(reference));
         let avg_t = f64::from(f.transactions) / f64::from(f.cycles);
         let avg_b = f64::from(f.bytes) / f64::from(f.cycles);
         out += &format!(
-            "| {name} | {avg_t:.2} ({}) | {avg_b:.1} ({}) | {:.0} µs |\n",
-            f.max_transactions, f.max_bytes, f.latency_us
+            "| {name} | {avg_t:.3} ({}, the first cycle only) | {avg_b:.1} ({}) | {} of {} ({} requests served) | {} / {} drive cycles | {:.0} µs |\n",
+            f.max_transactions,
+            f.max_bytes,
+            f.mailbox_cycles,
+            f.cycles,
+            f.served,
+            f.record47_cycles.0,
+            f.record47_cycles.1,
+            f.latency_us
         );
         assert!(f.max_transactions <= 2, "{name}: {f:?}");
+        assert_eq!(f.two_transaction_cycles, 1, "{name}: only the first cycle has no reply pending: {f:?}");
         assert!(f.max_bytes <= 64, "{name}: {f:?}");
+        assert!(f.mailbox_cycles > 0 && f.served >= 2, "{name}: the mailbox was exercised: {f:?}");
         assert!(f.latency_us <= (DRIVE_CYCLE_US + 500) as f64, "{name}: {f:?}");
     }
-    out += "| Anybus CompactCom 40 (issue 16) | 1 | ≈ 34 | ≈ 14 µs per transaction at 20 MHz |\n";
+    out += "| Anybus CompactCom 40 (issue 16) | 1 | ≈ 34 | – | – | ≈ 14 µs per transaction at 20 MHz |\n";
     println!("{out}");
 }
 
@@ -359,7 +448,7 @@ proptest! {
 }
 
 /// Issue 16 item 5: a drive on `Host::cycle` serves the parameter mailbox through the CYCLIC
-/// exchange's fragments (MBX_REQ in a reply, MBX_RSP in two request fragments): one
+/// exchange's fragments (MBX_REQ in a reply, MBX_RSP in request fragments): one
 /// transaction per drive cycle throughout, no block access; the card takes the answer.
 #[test]
 fn a_cycle_drive_serves_the_mailbox_through_fragments_only() {
@@ -413,4 +502,89 @@ fn a_cycle_drive_serves_the_mailbox_through_fragments_only() {
     let (t1, _) = host.transport().traffic();
     assert_eq!(t1 - t0, cycles, "one transaction per cycle: no block access for the mailbox");
     println!("mailbox through CYCLIC fragments: answer after {cycles} drive cycles");
+}
+
+/// One mailbox job through the CYCLIC fragments over a lossy pipeline: `faults[i]` is what
+/// happens in cycle i (0 nothing, 1 the reply late, 2 the card busy); returns what the host
+/// was asked and what the card took.
+#[allow(clippy::type_complexity)]
+fn lossy_job(
+    cyclic_bytes: usize,
+    request: crate::dpm::MailboxRequest,
+    answer: Result<crate::dpm::ParamValues, crate::profile::param::ParamError>,
+    faults: &[u8],
+) -> (
+    Vec<crate::dpm::MailboxRequest>,
+    Option<(u16, Result<crate::dpm::ParamValues, crate::profile::param::ParamError>)>,
+    u16,
+) {
+    use crate::dpm::host::Answer;
+    use crate::dpm::{Mailbox, MailboxRequest};
+    let (mut link, mut node) = (Link::new(), Node::new(DpSlave::new(SLAVE)));
+    let bus = Cut { card: Loopback::new(Dpm::new()), left: None };
+    let opts = Options { cyclic_bytes, ..Options::DEFAULT };
+    let mut host = Host::open(SpiHost::new(bus), opts).unwrap();
+    let mut now = Instant::from_millis(0);
+    for i in 0..3 {
+        now = now + Duration::from_millis(1);
+        card_step(&mut link, &mut node, &mut host, now);
+        host.cycle(now, &state(i));
+    }
+    let mut mbx = Mailbox::new(Duration::from_millis(10_000));
+    let id = mbx.submit(now, &request, false, &mut host.transport_mut().bus_mut().card.dpm_mut().card()).unwrap();
+    let mut seen = vec![];
+    for (i, &f) in faults.iter().chain(core::iter::repeat(&0).take(200)).enumerate() {
+        now = now + Duration::from_millis(1);
+        card_step(&mut link, &mut node, &mut host, now);
+        mbx.poll(now, host.transport().bus().card.dpm());
+        if let Some(a) = mbx.take() {
+            return (seen, Some(a), id);
+        }
+        match f {
+            1 => host.transport_mut().bus_mut().card.set_late(1),
+            2 => host.transport_mut().bus_mut().card.set_busy(1),
+            _ => {}
+        }
+        host.cycle(now, &state(i as i16));
+        let _ = host.serve_parameters(&mut |q: &MailboxRequest| {
+            seen.push(*q);
+            Answer::Now(answer)
+        });
+    }
+    (seen, None, id)
+}
+
+proptest! {
+    /// Issue 16 item 2 / 5: whatever the pipeline loses (late replies, a busy card) and
+    /// however small the fragments (the budget), the drive is asked exactly the card's request
+    /// and the card takes exactly the drive's answer — never a block with fragments of two
+    /// writes, never a stale middle.
+    #[test]
+    fn mailbox_fragments_survive_a_lossy_pipeline(
+        cyclic_bytes in 40usize..=80,
+        words in 0usize..=40,
+        answer_words in 0usize..=40,
+        error in any::<bool>(),
+        faults in proptest::collection::vec(prop_oneof![6 => Just(0u8), 1 => Just(1u8), 1 => Just(2u8)], 0..60),
+    ) {
+        use crate::dpm::{MailboxRequest, ParamValues};
+        use crate::profile::param::{ErrorValue, Format, ParamError};
+        let bytes: Vec<u8> = (0..2 * words).map(|i| i as u8 ^ 0x5A).collect();
+        let request = if words == 0 {
+            MailboxRequest::read(1, 0x1234, 3, 5)
+        } else {
+            MailboxRequest::write(1, 0x1234, 3, ParamValues::new(Format::WORD, words as u8, &bytes).unwrap())
+        };
+        let out: Vec<u8> = (0..2 * answer_words).map(|i| 0xA5 ^ i as u8).collect();
+        let answer = if error {
+            Err(ParamError { value: ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER, additional_info: Some(7) })
+        } else {
+            Ok(ParamValues::new(Format::WORD, answer_words as u8, &out).unwrap())
+        };
+        let (seen, taken, id) = lossy_job(cyclic_bytes, request, answer, &faults);
+        prop_assert_eq!(seen.len(), 1, "asked once: {:?}", seen);
+        let key = |q: &MailboxRequest| (q.id, q.kind, q.axis, q.pnu, q.subindex, q.count, q.values.bytes().to_vec());
+        prop_assert_eq!(key(&seen[0]), key(&MailboxRequest { id, ..request }));
+        prop_assert_eq!(taken, Some((id, answer)));
+    }
 }
