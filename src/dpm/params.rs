@@ -226,9 +226,10 @@ mod tests {
         }
         assert!(pkw.entries.is_empty());
         assert!(link.mailbox().is_busy(), "the record-47 answer still waits");
-        let mut t = MailboxParams::new(now, &mut link, &mut dpm, &mut rec47);
-        assert_eq!(t.ask(req), Ok(ParamValues::new(Format::WORD, 1, &[0, 0x42]).unwrap()));
-        drop(t);
+        {
+            let mut t = MailboxParams::new(now, &mut link, &mut dpm, &mut rec47);
+            assert_eq!(t.ask(req), Ok(ParamValues::new(Format::WORD, 1, &[0, 0x42]).unwrap()));
+        }
         assert!(!link.mailbox().is_busy());
 
         // A job that ends with its request in flight: the answer is dropped by whoever looks
@@ -241,10 +242,11 @@ mod tests {
         }
         assert!(drive(&mut server, &mut dpm).is_some());
         now = now + Duration::from_millis(1);
-        let mut t = MailboxParams::new(now, &mut link, &mut dpm, &mut rec47);
-        t.start_job();
-        assert_eq!(t.ask(req), Err(PENDING), "sent: the orphan answer did not block the mailbox");
-        drop(t);
+        {
+            let mut t = MailboxParams::new(now, &mut link, &mut dpm, &mut rec47);
+            t.start_job();
+            assert_eq!(t.ask(req), Err(PENDING), "sent: the orphan answer did not block the mailbox");
+        }
         assert!(rec47.inflight.is_some());
 
         // A claimant that never comes back (its job stopped without a new one): after the

@@ -533,7 +533,7 @@ fn lossy_job(
     let mut mbx = Mailbox::new(Duration::from_millis(10_000));
     let id = mbx.submit(now, &request, false, &mut host.transport_mut().bus_mut().card.dpm_mut().card()).unwrap();
     let mut seen = vec![];
-    for (i, &f) in faults.iter().chain(core::iter::repeat(&0).take(200)).enumerate() {
+    for (i, &f) in faults.iter().chain(core::iter::repeat_n(&0, 200)).enumerate() {
         now = now + Duration::from_millis(1);
         card_step(&mut link, &mut node, &mut host, now);
         mbx.poll(now, host.transport().bus().card.dpm());
