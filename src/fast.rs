@@ -64,6 +64,7 @@
 
 #[cfg(any(test, feature = "test-support"))]
 pub mod check;
+mod dpv1;
 
 use core::sync::atomic::{AtomicU32, Ordering};
 
@@ -207,7 +208,9 @@ const DX_AT: usize = 20;
 const DIAG_ROOM: usize = round4(card::MAX_DIAG_DATA_LEN + 11);
 const DIAG_AT: usize = DX_AT + round4(MAX_FRAME_LEN);
 const OUT_AT: usize = DIAG_AT + DIAG_ROOM;
-const STAGE_BYTES: usize = OUT_AT + round4(card::MAX_OUTPUT_LEN);
+/// The DP-V1 relations ([`dpv1`]).
+const DPV1_AT: usize = OUT_AT + round4(card::MAX_OUTPUT_LEN);
+const STAGE_BYTES: usize = DPV1_AT + dpv1::DPV1_BYTES;
 /// Words of one staging.
 pub const STAGE_WORDS: usize = STAGE_BYTES / 4;
 
@@ -231,6 +234,9 @@ pub struct Queued {
     pub at: Instant,
     /// The line did not answer: the core's answer goes back through the core → line queue.
     pub deferred: bool,
+    /// The line answered this DP-V1 request or poll with SC: the core hands out no response
+    /// on it ([`Node::on_frame_as`]), a ready one stays for the next poll.
+    pub held: bool,
     len: u16,
 }
 
@@ -307,6 +313,7 @@ impl Shared {
             seq: 0,
             judge_seq: 0,
             diag_consumed: None,
+            rel: [dpv1::RelLine::IDLE; dpv1::RELS],
             last: None,
             buf: [0; MAX_FRAME_LEN],
             sd1: [0; 6],
@@ -451,6 +458,8 @@ pub struct FastPath<'a> {
     /// The line answered the locking master's Slave_Diag while DH was staged (that read's
     /// sequence number): DH counts as consumed until the core worked on it.
     diag_consumed: Option<u32>,
+    /// The DP-V1 relations' frames in flight ([`dpv1`]).
+    rel: [dpv1::RelLine; dpv1::RELS],
     last: Option<Last>,
     buf: [u8; MAX_FRAME_LEN],
     sd1: [u8; 6],
@@ -537,6 +546,10 @@ impl<'a> FastPath<'a> {
     }
 
     fn queue(&mut self, now: Instant, frame: &[u8], deferred: bool) -> Option<u32> {
+        self.queue_as(now, frame, deferred, false)
+    }
+
+    fn queue_as(&mut self, now: Instant, frame: &[u8], deferred: bool, held: bool) -> Option<u32> {
         let seq = self.seq.wrapping_add(1);
         if !self.to_core.ready() {
             self.stats.queue_full = self.stats.queue_full.wrapping_add(1);
@@ -544,7 +557,7 @@ impl<'a> FastPath<'a> {
         }
         store_words(&self.slots[slot_of(seq)], frame);
         // The queue's index update is a release: the core sees the slot written.
-        match self.to_core.enqueue(Queued { seq, at: now, deferred, len: frame.len() as u16 }) {
+        match self.to_core.enqueue(Queued { seq, at: now, deferred, held, len: frame.len() as u16 }) {
             Ok(()) => {
                 self.seq = seq;
                 self.stats.queued = self.stats.queued.wrapping_add(1);
@@ -660,6 +673,13 @@ impl<'a> FastPath<'a> {
                     ),
                     _ => false,
                 };
+                if !staged {
+                    match self.dpv1(now, frame, &t) {
+                        dpv1::Dpv1::Core => {}
+                        dpv1::Dpv1::QueueFull => return Verdict::Silent,
+                        dpv1::Dpv1::Answer(n) => return self.answered(&t, fingerprint, own, n),
+                    }
+                }
                 let Some(seq) = self.queue(now, frame, !staged) else {
                     return Verdict::Silent;
                 };
@@ -701,6 +721,23 @@ impl<'a> FastPath<'a> {
                 Verdict::Answer(&self.buf[..n as usize])
             }
         }
+    }
+
+    /// The line answered `t` with `buf[..n]`: remember it for FCB retries, hand it out.
+    fn answered(
+        &mut self,
+        t: &telegram::DataTelegram<'_>,
+        request: (Option<u8>, Option<u8>, usize, u8),
+        own: u8,
+        n: u16,
+    ) -> Verdict<'_> {
+        let last = Last { sa: t.sa, fcb: t.fc.fcb(), request, own, epoch: self.st.epoch, answer: Some(n) };
+        self.last = if t.fc.fcv() || t.fc.fcb() { Some(last) } else { None };
+        if n == 0 {
+            return Verdict::Silent;
+        }
+        self.stats.answered = self.stats.answered.wrapping_add(1);
+        Verdict::Answer(&self.buf[..n as usize])
     }
 
     /// An SD1 status answer to `da` in `buf`; its length.
@@ -892,7 +929,7 @@ impl CoreLink<'_> {
         load_words(&self.slots[slot_of(q.seq)], &mut self.frame[..len]);
         let _ = self.from_line.dequeue();
         let dx_before = node.slave().stats().data_exchanges;
-        let answer_len = node.on_frame(q.at, &self.frame[..len]).map(|a| {
+        let answer_len = node.on_frame_as(q.at, &self.frame[..len], !q.held).map(|a| {
             let n = a.len().min(MAX_FRAME_LEN);
             self.answer[..n].copy_from_slice(&a[..n]);
             n
@@ -983,6 +1020,7 @@ impl CoreLink<'_> {
         self.staging.write(0, &s[..DX_AT + dx_len]);
         self.staging.write(DIAG_AT / 4, &s[DIAG_AT..DIAG_AT + diag_len]);
         self.staging.write(OUT_AT / 4, &s[OUT_AT..OUT_AT + out_len]);
+        self.stage_dpv1(node);
         self.staging.publish();
         self.stats.publications = self.stats.publications.wrapping_add(1);
     }
