@@ -363,6 +363,8 @@ pub struct FastStats {
     pub deferred: u32,
     /// Slave_Diag answered in the not-ready window.
     pub not_ready_diag: u32,
+    /// DP-V1 frames (SAP 51, 49, connection SAPs) answered from the staging.
+    pub dpv1: u32,
 }
 
 /// Counters of the core half.
@@ -1078,9 +1080,13 @@ mod tests {
             sum.not_ready_diags += c.not_ready_diags;
             sum.deferred += c.deferred;
             sum.retries += c.retries;
+            sum.dpv1_line += c.dpv1_line;
+            sum.dpv1_responses += c.dpv1_responses;
+            sum.held_repolls += c.held_repolls;
         }
         std::eprintln!("coverage {sum:?}");
-        assert!(sum.data_exchanges > 0 && sum.not_ready_diags > 0 && sum.deferred > 0 && sum.retries > 0, "{sum:?}");
+        assert!(sum.data_exchanges > 0 && sum.not_ready_diags > 0 && sum.retries > 0, "{sum:?}");
+        assert!(sum.dpv1_line > 0 && sum.dpv1_responses > 0 && sum.held_repolls > 0, "{sum:?}");
     }
 
     /// The previous build's fuzz crash (Station_Status_1 = 0x10 from the split, 0x00 from the

@@ -266,6 +266,7 @@ impl FastPath<'_> {
                 self.pdu_frame(t, own, c2::HIGHEST_SAP - i as u8, &Response::Abort(a))
             }
         };
+        self.stats.dpv1 = self.stats.dpv1.wrapping_add(1);
         Dpv1::Answer(n)
     }
 
