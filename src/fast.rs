@@ -44,12 +44,31 @@
 //! Wait_Prm), SDN (Global_Control) and broadcasts (queued, never answered), SDA / MSRD /
 //! Ident / LSAP status (RS), and FCB/FCV retries byte for byte from its own stored last answer.
 //!
-//! **What still goes through the core**: DP-V1 (MSAC_C1 SAP 51, the MSAC_C2 resource manager
-//! SAP 49 and connection SAPs, their polls) and any other SAP: [`Verdict::Core`] — the
-//! line waits for the core's answer ([`FastPath::take_deferred`]), as the card did before
-//! the split. A retry of such a request also goes to the core, whose station resends its
-//! stored answer. Staging the RM immediate PDU and the poll answers is not built.
+//! **DP-V1 on the line** ([`dpv1`]): MSAC_C1 (SAP 51), the MSAC_C2 resource manager (SAP
+//! 49) and the connection SAPs are answered from the staged relations (open or not, for
+//! which master and SAPs, timers, the ready response frame; the RM's Poll_Timeout): a request
+//! PDU → SC, a poll → the staged response or SC, an Initiate.req on SAP 49 → the RM PDU
+//! naming the connection the core will reserve (or RR), refusals → RS, a slave-side abort →
+//! the Abort PDU. A poll the line answered SC is queued with [`Queued::held`], and the core
+//! hands out nothing on it ([`Node::on_frame_as`]): a response finished meanwhile stays
+//! for the next poll — never lost, never delivered twice except as an FCB retry.
 //!
+//! **What still goes through the core**: [`Verdict::Core`] — the line waits for the core's
+//! answer ([`FastPath::take_deferred`]), as the card did before the split — for SAP 51 in the
+//! not-ready window (a queued Set_Prm / Chk_Cfg decides whether MSAC_C1 is open at all), for
+//! an Initiate.req on SAP 49 while another MSAC_C2 frame is in flight (which connection the
+//! RM names depends on states the line cannot see yet), and for any other SAP (the DP
+//! slave's RS) or SAP combination the line does not stage. A retry of such a request also
+//! goes to the core, whose station resends its stored answer.
+//!
+//! **DP-V1 "not ready yet"**: a relation with a queued frame the core has not judged yet is
+//! *in flight*; the line answers further polls on it SC although the core alone (having run
+//! the request at once) might already hand out the response — likewise a poll answered SC
+//! because the core's newer staging (after `Node::process_acyclic`) was not published yet.
+//! The response goes out on a later poll (`split_answers_equal_the_core` in `check`'s lag mode:
+//! the next poll must deliver exactly the core alone's response). Timers are foreseen from
+//! the staged deadlines; a core more than a Send_Timeout (≥ 1 s) behind the line is not.
+
 //! **The not-ready window**: from a queued Set_Prm or Chk_Cfg until the core has judged it
 //! (the staging carries the sequence number of the last telegram the core worked on), the
 //! line answers Slave_Diag with the staged diagnosis and Station_Not_Ready (octet 1 bit 1)

@@ -9,7 +9,7 @@
 //! lock table, short, wrong ident, Sync/Freeze requests, DP-V1 status), Chk_Cfg (every
 //! module, mangled), Data_Exchange of any length, Slave_Diag, Get_Cfg, Rd_Inp / Rd_Outp,
 //! Global_Control (Clear / Sync / Unsync / Freeze / Unfreeze, to us or broadcast),
-//! Set_Slave_Add, FDL_Status, SDA and other function codes, DP-V1 requests (SAP 51, 49, 48),
+//! Set_Slave_Add, FDL_Status, SDA and other function codes, DP-V1 (below),
 //! FCB retries, other stations' traffic, mangled sources (SA 127, SA = own address, FC bit
 //! 7), raw bytes, time steps (the watchdog) and application changes (inputs, extended
 //! diagnosis, Stat_Diag, drive fault, the start-up gate).
@@ -25,6 +25,17 @@
 //!   staged diagnosis with Station_Not_Ready set (a valid diagnosis answer to the requester
 //!   with octet 1 bit 1); every other answer must be equal. An FCB retry must repeat the
 //!   split's own earlier answer byte for byte (equal to the core alone's outside the window).
+//!   DP-V1: after a request PDU the core may stay behind while the master polls, and a run
+//!   of the DP-V1 task may find the split's core behind; a poll the split answers SC where
+//!   the core alone delivered a response (or an Abort PDU) is the documented "not ready yet"
+//!   difference — the master's next poll (after the core caught up) must then deliver
+//!   exactly the core alone's frame, so a response is neither lost nor doubled.
+//!
+//! The DP-V1 operations: the DP-V1 start-up (Set_Prm with DPV1_Enable, Chk_Cfg), MSAC_C1
+//! Read / Write / Data_Transport / Alarm_Ack / raw PDUs and polls (right and wrong SSAP, any
+//! master), MSAC_C2 RM Initiate.req (good, malformed, no SSAP) followed by the Initiate.req on
+//! the granted SAP, requests / Idle / Abort / polls on the connection SAPs, a second master,
+//! and runs of `Node::process_acyclic` over the simulated drive's parameters.
 
 use heapless::Vec;
 
