@@ -1214,6 +1214,63 @@ mod tests {
         assert_eq!(node.slave().outputs(), &[9, 8, 7, 6]);
     }
 
+    /// DP-V1 from the staging: the line answers SC to a request and to a poll whose response
+    /// the core finished but has not published yet; the core keeps that response (the poll was
+    /// held) and the next poll gets it from the line, once; the RM answers before the core ran.
+    #[test]
+    fn dpv1_held_poll_keeps_the_response() {
+        use crate::dpv1::c2;
+        let mut node = Node::new(DpSlave::new(8));
+        let mut shared = Shared::new();
+        let (mut fast, mut core) = shared.split(&mut node);
+        let mut m = ScriptedMaster::new(2, 8);
+        let now = Instant::from_micros(100);
+        let prm = SetPrm::CARD.dpv1_status_1(0x80).pdu();
+        assert_eq!(fast.on_frame(now, &m.srd(Some(61), &prm)), Verdict::Answer(&[telegram::SC]));
+        assert_eq!(fast.on_frame(now, &m.srd(Some(62), card::MODULES[0].cfg)), Verdict::Answer(&[telegram::SC]));
+        core.run(&mut node);
+        let c1 = |m: &mut ScriptedMaster, pdu: &[u8]| m.request(2, Some(51), Some(51), pdu, true);
+        // I&M0 read.
+        assert_eq!(fast.on_frame(now, &c1(&mut m, &[0x5E, 0, 255, 64])), Verdict::Answer(&[telegram::SC]));
+        core.run(&mut node);
+        let mut params = crate::drive::params::SIM_DRIVE_TABLE;
+        node.process_acyclic(now, &mut params);
+        assert!(node.c1().ready_frame().is_some());
+        // Not published yet: the line says "not ready", the core holds the response.
+        assert_eq!(fast.on_frame(now, &c1(&mut m, &[])), Verdict::Answer(&[telegram::SC]));
+        core.run(&mut node);
+        let want = node.c1().ready_frame().expect("held, not spent").to_vec();
+        core.publish(&mut node);
+        let Verdict::Answer(a) = fast.on_frame(now, &c1(&mut m, &[])) else { panic!() };
+        assert_eq!(a, &want[..]);
+        core.run(&mut node);
+        assert!(node.c1().ready_frame().is_none());
+        assert_eq!(fast.on_frame(now, &c1(&mut m, &[])), Verdict::Answer(&[telegram::SC]));
+        core.run(&mut node);
+        // MSAC_C2: the RM names SAP 48 with the core not run.
+        let mut init = [0u8; 64];
+        let req = crate::dpv1::pdu::InitiateRequest {
+            send_timeout: 300,
+            features_supported: [1, 0],
+            profile_features_supported: [0, 0],
+            profile_ident_number: 0,
+            source: crate::dpv1::pdu::AddressBlock { kind: 0, bytes: &[0, 0] },
+            destination: crate::dpv1::pdu::AddressBlock { kind: 0, bytes: &[0, 0] },
+        };
+        let n = req.emit(&mut init).unwrap();
+        let mut c2f = |sap: u8, pdu: &[u8]| m.request(3, Some(sap), Some(40), pdu, true);
+        let Verdict::Answer(rm) = fast.on_frame(now, &c2f(c2::RM_SAP, &init[..n])) else { panic!() };
+        assert_eq!(parts(rm).1, [0x56, 48, 0, c2::DEFAULT_MIN_SEND_TIMEOUT as u8]);
+        assert_eq!(fast.on_frame(now, &c2f(48, &init[..n])), Verdict::Answer(&[telegram::SC]));
+        // In flight: "not ready" although the core alone would have the Initiate.res.
+        assert_eq!(fast.on_frame(now, &c2f(48, &[])), Verdict::Answer(&[telegram::SC]));
+        core.run(&mut node);
+        let Verdict::Answer(res) = fast.on_frame(now, &c2f(48, &[])) else { panic!() };
+        assert_eq!(parts(res).1[0], 0x57, "Initiate.res");
+        core.run(&mut node);
+        assert_eq!(fast.stats().deferred, 0);
+    }
+
     /// The benchmark's sequence: after every core run the line sees the core idle.
     #[test]
     fn core_idle_after_every_run() {

@@ -319,7 +319,7 @@ fn next_action(src: &mut Src<'_>, rig: &mut Rig, alone: &Node) -> Action {
 /// A DP-V1 poll (SRD without data on SAP 51 or a connection SAP).
 fn poll_of(f: &[u8]) -> bool {
     matches!(telegram::decode(f), Decoded::Frame(Telegram::Data(t), _)
-        if t.pdu.is_empty() && t.dsap.is_some_and(|d| d == c1::SAP || (d <= c2::HIGHEST_SAP && d >= c2::HIGHEST_SAP - 1)))
+        if t.pdu.is_empty() && t.dsap.is_some_and(|d| d == c1::SAP || (c2::HIGHEST_SAP + 1 - card::C2_MAX_COUNT_CHANNELS as u8..=c2::HIGHEST_SAP).contains(&d)))
 }
 
 /// The connection SAP and master SAP the core alone holds for master `m`.
