@@ -659,7 +659,9 @@ impl<'a> FastPath<'a> {
                 };
             }
             RequestFunction::SdnLow | RequestFunction::SdnHigh => {
-                self.queue(now, frame, false);
+                if let Some(seq) = self.queue(now, frame, false) {
+                    self.dpv1_sdn(now, seq, &t);
+                }
                 return Verdict::Silent;
             }
             RequestFunction::SrdLow | RequestFunction::SrdHigh => {

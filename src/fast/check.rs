@@ -439,7 +439,8 @@ fn dpv1_action(src: &mut Src<'_>, rig: &mut Rig, alone: &Node, da: u8, m: u8) ->
                 1 => initiate(u16::from(src.u8()), 2, 0),
                 _ => dpv1_pdu(src),
             };
-            let f = rig.request(da, m, Some(sap), Some(ssap), &pdu, srd);
+            let function = if src.u8() < 24 { 0x06 } else { srd };
+            let f = rig.request(da, m, Some(sap), Some(ssap), &pdu, function);
             if !pdu.is_empty() {
                 rig.next = Some(rig.request(da, m, Some(sap), Some(ssap), &[], srd));
                 rig.last = Some(f.clone());

@@ -270,6 +270,17 @@ impl FastPath<'_> {
         Dpv1::Answer(n)
     }
 
+    /// A queued SDN (`seq`): the master's Abort PDU on its connection SAP closes the
+    /// connection (unanswered), so the relation is in flight, closed.
+    pub(super) fn dpv1_sdn(&mut self, now: Instant, seq: u32, t: &DataTelegram<'_>) {
+        let Some(r) = t.dsap.and_then(conn_of).map(|i| 1 + i) else { return };
+        let v = self.view(r, now);
+        let mine = v.kind != K_CLOSED && v.master == t.sa && t.ssap == Some(v.ssap);
+        if mine && matches!(crate::dpv1::pdu::parse(t.pdu), Ok(crate::dpv1::pdu::Request::Abort(_))) {
+            self.rel[r] = RelLine { seq, set: true, open: None };
+        }
+    }
+
     /// A 4-byte response PDU to `t` from `our_sap` in `buf` (as `C2::emit_scratch`).
     fn pdu_frame(&mut self, t: &DataTelegram<'_>, own: u8, our_sap: u8, resp: &Response<'_>) -> u16 {
         let mut pdu = [0u8; 4];
