@@ -44,7 +44,7 @@
 //! Wait_Prm), SDN (Global_Control) and broadcasts (queued, never answered), SDA / MSRD /
 //! Ident / LSAP status (RS), and FCB/FCV retries byte for byte from its own stored last answer.
 //!
-//! **DP-V1 on the line** ([`dpv1`]): MSAC_C1 (SAP 51), the MSAC_C2 resource manager (SAP
+//! **DP-V1 on the line** (`fast/dpv1.rs`): MSAC_C1 (SAP 51), the MSAC_C2 resource manager (SAP
 //! 49) and the connection SAPs are answered from the staged relations (open or not, for
 //! which master and SAPs, timers, the ready response frame; the RM's Poll_Timeout): a request
 //! PDU → SC, a poll → the staged response or SC, an Initiate.req on SAP 49 → the RM PDU

@@ -3,7 +3,7 @@
 //!
 //! DP-V1 is built for this split (reference §4.3): a request PDU is acknowledged with SC at
 //! once and worked on later; the master polls (SRD without data) and gets SC until the
-//! response is there. The staging ([`CoreLink::publish`]) therefore carries, per relation
+//! response is there. The staging ([`CoreLink::publish`](super::CoreLink::publish)) therefore carries, per relation
 //! (MSAC_C1 and each of the [`card::C2_MAX_COUNT_CHANNELS`] MSAC_C2 connections), whether it
 //! is open, for which master and SAP, its timer and its ready response frame; and the RM's
 //! Poll_Timeout. The line answers:
@@ -30,12 +30,12 @@
 //! RM reservation, a fetched response, an Abort) is *in flight*: the line knows only that it
 //! is open for that master (or closed, after an Abort) and answers every further frame on it
 //! with SC — "not ready yet" — until the core has caught up. A poll answered SC travels to
-//! the core with [`Queued::held`]: the core then hands out nothing on it
-//! ([`Node::on_frame_as`]) — a response the core finished meanwhile (or a pending Abort
+//! the core with [`Queued::held`](super::Queued::held): the core then hands out nothing on it
+//! ([`Node::on_frame_as`](crate::node::Node::on_frame_as)) — a response the core finished meanwhile (or a pending Abort
 //! PDU) stays for the next poll, so a response is never lost and never delivered twice
 //! (except as the FCB retry the station and the line both repeat byte for byte).
 //!
-//! **Deferred to the core** ([`Verdict::Core`], the line waits as before the split):
+//! **Deferred to the core** ([`Verdict::Core`](super::Verdict::Core), the line waits as before the split):
 //! * SAP 51 in the not-ready window (a queued Set_Prm / Chk_Cfg decides whether MSAC_C1 is
 //!   open at all);
 //! * SAP 49 while any MSAC_C2 connection is in flight: which connection the RM names (or
