@@ -44,12 +44,31 @@
 //! Wait_Prm), SDN (Global_Control) and broadcasts (queued, never answered), SDA / MSRD /
 //! Ident / LSAP status (RS), and FCB/FCV retries byte for byte from its own stored last answer.
 //!
-//! **What still goes through the core**: DP-V1 (MSAC_C1 SAP 51, the MSAC_C2 resource manager
-//! SAP 49 and connection SAPs, their polls) and any other SAP: [`Verdict::Core`] — the
-//! line waits for the core's answer ([`FastPath::take_deferred`]), as the card did before
-//! the split. A retry of such a request also goes to the core, whose station resends its
-//! stored answer. Staging the RM immediate PDU and the poll answers is not built.
+//! **DP-V1 on the line** (`fast/dpv1.rs`): MSAC_C1 (SAP 51), the MSAC_C2 resource manager (SAP
+//! 49) and the connection SAPs are answered from the staged relations (open or not, for
+//! which master and SAPs, timers, the ready response frame; the RM's Poll_Timeout): a request
+//! PDU → SC, a poll → the staged response or SC, an Initiate.req on SAP 49 → the RM PDU
+//! naming the connection the core will reserve (or RR), refusals → RS, a slave-side abort →
+//! the Abort PDU. A poll the line answered SC is queued with [`Queued::held`], and the core
+//! hands out nothing on it ([`Node::on_frame_as`]): a response finished meanwhile stays
+//! for the next poll — never lost, never delivered twice except as an FCB retry.
 //!
+//! **What still goes through the core**: [`Verdict::Core`] — the line waits for the core's
+//! answer ([`FastPath::take_deferred`]), as the card did before the split — for SAP 51 in the
+//! not-ready window (a queued Set_Prm / Chk_Cfg decides whether MSAC_C1 is open at all), for
+//! an Initiate.req on SAP 49 while another MSAC_C2 frame is in flight (which connection the
+//! RM names depends on states the line cannot see yet), and for any other SAP (the DP
+//! slave's RS) or SAP combination the line does not stage. A retry of such a request also
+//! goes to the core, whose station resends its stored answer.
+//!
+//! **DP-V1 "not ready yet"**: a relation with a queued frame the core has not judged yet is
+//! *in flight*; the line answers further polls on it SC although the core alone (having run
+//! the request at once) might already hand out the response — likewise a poll answered SC
+//! because the core's newer staging (after `Node::process_acyclic`) was not published yet.
+//! The response goes out on a later poll (`split_answers_equal_the_core` in `check`'s lag mode:
+//! the next poll must deliver exactly the core alone's response). Timers are foreseen from
+//! the staged deadlines; a core more than a Send_Timeout (≥ 1 s) behind the line is not.
+
 //! **The not-ready window**: from a queued Set_Prm or Chk_Cfg until the core has judged it
 //! (the staging carries the sequence number of the last telegram the core worked on), the
 //! line answers Slave_Diag with the staged diagnosis and Station_Not_Ready (octet 1 bit 1)
@@ -64,6 +83,7 @@
 
 #[cfg(any(test, feature = "test-support"))]
 pub mod check;
+mod dpv1;
 
 use core::sync::atomic::{AtomicU32, Ordering};
 
@@ -207,7 +227,9 @@ const DX_AT: usize = 20;
 const DIAG_ROOM: usize = round4(card::MAX_DIAG_DATA_LEN + 11);
 const DIAG_AT: usize = DX_AT + round4(MAX_FRAME_LEN);
 const OUT_AT: usize = DIAG_AT + DIAG_ROOM;
-const STAGE_BYTES: usize = OUT_AT + round4(card::MAX_OUTPUT_LEN);
+/// The DP-V1 relations ([`dpv1`]).
+const DPV1_AT: usize = OUT_AT + round4(card::MAX_OUTPUT_LEN);
+const STAGE_BYTES: usize = DPV1_AT + dpv1::DPV1_BYTES;
 /// Words of one staging.
 pub const STAGE_WORDS: usize = STAGE_BYTES / 4;
 
@@ -231,6 +253,9 @@ pub struct Queued {
     pub at: Instant,
     /// The line did not answer: the core's answer goes back through the core → line queue.
     pub deferred: bool,
+    /// The line answered this DP-V1 request or poll with SC: the core hands out no response
+    /// on it ([`Node::on_frame_as`]), a ready one stays for the next poll.
+    pub held: bool,
     len: u16,
 }
 
@@ -307,6 +332,7 @@ impl Shared {
             seq: 0,
             judge_seq: 0,
             diag_consumed: None,
+            rel: [dpv1::RelLine::IDLE; dpv1::RELS],
             last: None,
             buf: [0; MAX_FRAME_LEN],
             sd1: [0; 6],
@@ -356,6 +382,8 @@ pub struct FastStats {
     pub deferred: u32,
     /// Slave_Diag answered in the not-ready window.
     pub not_ready_diag: u32,
+    /// DP-V1 frames (SAP 51, 49, connection SAPs) answered from the staging.
+    pub dpv1: u32,
 }
 
 /// Counters of the core half.
@@ -451,6 +479,8 @@ pub struct FastPath<'a> {
     /// The line answered the locking master's Slave_Diag while DH was staged (that read's
     /// sequence number): DH counts as consumed until the core worked on it.
     diag_consumed: Option<u32>,
+    /// The DP-V1 relations' frames in flight ([`dpv1`]).
+    rel: [dpv1::RelLine; dpv1::RELS],
     last: Option<Last>,
     buf: [u8; MAX_FRAME_LEN],
     sd1: [u8; 6],
@@ -537,6 +567,10 @@ impl<'a> FastPath<'a> {
     }
 
     fn queue(&mut self, now: Instant, frame: &[u8], deferred: bool) -> Option<u32> {
+        self.queue_as(now, frame, deferred, false)
+    }
+
+    fn queue_as(&mut self, now: Instant, frame: &[u8], deferred: bool, held: bool) -> Option<u32> {
         let seq = self.seq.wrapping_add(1);
         if !self.to_core.ready() {
             self.stats.queue_full = self.stats.queue_full.wrapping_add(1);
@@ -544,7 +578,7 @@ impl<'a> FastPath<'a> {
         }
         store_words(&self.slots[slot_of(seq)], frame);
         // The queue's index update is a release: the core sees the slot written.
-        match self.to_core.enqueue(Queued { seq, at: now, deferred, len: frame.len() as u16 }) {
+        match self.to_core.enqueue(Queued { seq, at: now, deferred, held, len: frame.len() as u16 }) {
             Ok(()) => {
                 self.seq = seq;
                 self.stats.queued = self.stats.queued.wrapping_add(1);
@@ -625,7 +659,9 @@ impl<'a> FastPath<'a> {
                 };
             }
             RequestFunction::SdnLow | RequestFunction::SdnHigh => {
-                self.queue(now, frame, false);
+                if let Some(seq) = self.queue(now, frame, false) {
+                    self.dpv1_sdn(now, seq, &t);
+                }
                 return Verdict::Silent;
             }
             RequestFunction::SrdLow | RequestFunction::SrdHigh => {
@@ -660,6 +696,13 @@ impl<'a> FastPath<'a> {
                     ),
                     _ => false,
                 };
+                if !staged {
+                    match self.dpv1(now, frame, &t) {
+                        dpv1::Dpv1::Core => {}
+                        dpv1::Dpv1::QueueFull => return Verdict::Silent,
+                        dpv1::Dpv1::Answer(n) => return self.answered(&t, fingerprint, own, n),
+                    }
+                }
                 let Some(seq) = self.queue(now, frame, !staged) else {
                     return Verdict::Silent;
                 };
@@ -701,6 +744,23 @@ impl<'a> FastPath<'a> {
                 Verdict::Answer(&self.buf[..n as usize])
             }
         }
+    }
+
+    /// The line answered `t` with `buf[..n]`: remember it for FCB retries, hand it out.
+    fn answered(
+        &mut self,
+        t: &telegram::DataTelegram<'_>,
+        request: (Option<u8>, Option<u8>, usize, u8),
+        own: u8,
+        n: u16,
+    ) -> Verdict<'_> {
+        let last = Last { sa: t.sa, fcb: t.fc.fcb(), request, own, epoch: self.st.epoch, answer: Some(n) };
+        self.last = if t.fc.fcv() || t.fc.fcb() { Some(last) } else { None };
+        if n == 0 {
+            return Verdict::Silent;
+        }
+        self.stats.answered = self.stats.answered.wrapping_add(1);
+        Verdict::Answer(&self.buf[..n as usize])
     }
 
     /// An SD1 status answer to `da` in `buf`; its length.
@@ -892,7 +952,7 @@ impl CoreLink<'_> {
         load_words(&self.slots[slot_of(q.seq)], &mut self.frame[..len]);
         let _ = self.from_line.dequeue();
         let dx_before = node.slave().stats().data_exchanges;
-        let answer_len = node.on_frame(q.at, &self.frame[..len]).map(|a| {
+        let answer_len = node.on_frame_as(q.at, &self.frame[..len], !q.held).map(|a| {
             let n = a.len().min(MAX_FRAME_LEN);
             self.answer[..n].copy_from_slice(&a[..n]);
             n
@@ -983,6 +1043,7 @@ impl CoreLink<'_> {
         self.staging.write(0, &s[..DX_AT + dx_len]);
         self.staging.write(DIAG_AT / 4, &s[DIAG_AT..DIAG_AT + diag_len]);
         self.staging.write(OUT_AT / 4, &s[OUT_AT..OUT_AT + out_len]);
+        self.stage_dpv1(node);
         self.staging.publish();
         self.stats.publications = self.stats.publications.wrapping_add(1);
     }
@@ -1040,9 +1101,13 @@ mod tests {
             sum.not_ready_diags += c.not_ready_diags;
             sum.deferred += c.deferred;
             sum.retries += c.retries;
+            sum.dpv1_line += c.dpv1_line;
+            sum.dpv1_responses += c.dpv1_responses;
+            sum.held_repolls += c.held_repolls;
         }
         std::eprintln!("coverage {sum:?}");
-        assert!(sum.data_exchanges > 0 && sum.not_ready_diags > 0 && sum.deferred > 0 && sum.retries > 0, "{sum:?}");
+        assert!(sum.data_exchanges > 0 && sum.not_ready_diags > 0 && sum.retries > 0, "{sum:?}");
+        assert!(sum.dpv1_line > 0 && sum.dpv1_responses > 0 && sum.held_repolls > 0, "{sum:?}");
     }
 
     /// The previous build's fuzz crash (Station_Status_1 = 0x10 from the split, 0x00 from the
@@ -1149,6 +1214,63 @@ mod tests {
         assert_eq!(parts(dx).0, ResponseStatus::Dl as u8);
         core.run(&mut node);
         assert_eq!(node.slave().outputs(), &[9, 8, 7, 6]);
+    }
+
+    /// DP-V1 from the staging: the line answers SC to a request and to a poll whose response
+    /// the core finished but has not published yet; the core keeps that response (the poll was
+    /// held) and the next poll gets it from the line, once; the RM answers before the core ran.
+    #[test]
+    fn dpv1_held_poll_keeps_the_response() {
+        use crate::dpv1::c2;
+        let mut node = Node::new(DpSlave::new(8));
+        let mut shared = Shared::new();
+        let (mut fast, mut core) = shared.split(&mut node);
+        let mut m = ScriptedMaster::new(2, 8);
+        let now = Instant::from_micros(100);
+        let prm = SetPrm::CARD.dpv1_status_1(0x80).pdu();
+        assert_eq!(fast.on_frame(now, &m.srd(Some(61), &prm)), Verdict::Answer(&[telegram::SC]));
+        assert_eq!(fast.on_frame(now, &m.srd(Some(62), card::MODULES[0].cfg)), Verdict::Answer(&[telegram::SC]));
+        core.run(&mut node);
+        let c1 = |m: &mut ScriptedMaster, pdu: &[u8]| m.request(2, Some(51), Some(51), pdu, true);
+        // I&M0 read.
+        assert_eq!(fast.on_frame(now, &c1(&mut m, &[0x5E, 0, 255, 64])), Verdict::Answer(&[telegram::SC]));
+        core.run(&mut node);
+        let mut params = crate::drive::params::SIM_DRIVE_TABLE;
+        node.process_acyclic(now, &mut params);
+        assert!(node.c1().ready_frame().is_some());
+        // Not published yet: the line says "not ready", the core holds the response.
+        assert_eq!(fast.on_frame(now, &c1(&mut m, &[])), Verdict::Answer(&[telegram::SC]));
+        core.run(&mut node);
+        let want = node.c1().ready_frame().expect("held, not spent").to_vec();
+        core.publish(&mut node);
+        let Verdict::Answer(a) = fast.on_frame(now, &c1(&mut m, &[])) else { panic!() };
+        assert_eq!(a, &want[..]);
+        core.run(&mut node);
+        assert!(node.c1().ready_frame().is_none());
+        assert_eq!(fast.on_frame(now, &c1(&mut m, &[])), Verdict::Answer(&[telegram::SC]));
+        core.run(&mut node);
+        // MSAC_C2: the RM names SAP 48 with the core not run.
+        let mut init = [0u8; 64];
+        let req = crate::dpv1::pdu::InitiateRequest {
+            send_timeout: 300,
+            features_supported: [1, 0],
+            profile_features_supported: [0, 0],
+            profile_ident_number: 0,
+            source: crate::dpv1::pdu::AddressBlock { kind: 0, bytes: &[0, 0] },
+            destination: crate::dpv1::pdu::AddressBlock { kind: 0, bytes: &[0, 0] },
+        };
+        let n = req.emit(&mut init).unwrap();
+        let mut c2f = |sap: u8, pdu: &[u8]| m.request(3, Some(sap), Some(40), pdu, true);
+        let Verdict::Answer(rm) = fast.on_frame(now, &c2f(c2::RM_SAP, &init[..n])) else { panic!() };
+        assert_eq!(parts(rm).1, [0x56, 48, 0, c2::DEFAULT_MIN_SEND_TIMEOUT as u8]);
+        assert_eq!(fast.on_frame(now, &c2f(48, &init[..n])), Verdict::Answer(&[telegram::SC]));
+        // In flight: "not ready" although the core alone would have the Initiate.res.
+        assert_eq!(fast.on_frame(now, &c2f(48, &[])), Verdict::Answer(&[telegram::SC]));
+        core.run(&mut node);
+        let Verdict::Answer(res) = fast.on_frame(now, &c2f(48, &[])) else { panic!() };
+        assert_eq!(parts(res).1[0], 0x57, "Initiate.res");
+        core.run(&mut node);
+        assert_eq!(fast.stats().deferred, 0);
     }
 
     /// The benchmark's sequence: after every core run the line sees the core idle.

@@ -57,6 +57,8 @@ struct Router<'a> {
     dp: &'a mut DpSlave,
     c1: &'a mut C1,
     c2: &'a mut C2<{ card::C2_MAX_COUNT_CHANNELS }>,
+    /// False: the fast path already answered this DP-V1 frame with SC (hand out nothing).
+    deliver: bool,
 }
 
 impl FdlApplication for Router<'_> {
@@ -74,17 +76,19 @@ impl FdlApplication for Router<'_> {
             Some(c1::SAP) => {
                 // Any request of the locking master keeps the DP watchdog running.
                 self.dp.on_retry(now, req);
-                match self.c1.on_request(req, self.dp) {
+                match self.c1.on_request_as(req, self.dp, self.deliver) {
                     None => Reply::Status(ResponseStatus::Rs),
                     Some(Answer::NotReady) => Reply::ShortAck,
                     Some(Answer::Frame(len)) => Reply::Frame { id: C1_FRAME, len },
                 }
             }
             // MSAC_C2: independent of the cyclic state and of the master lock.
-            Some(sap) if self.c2.owns_sap(sap) => match self.c2.on_request(now, self.dp.address(), req) {
-                C2Answer::Frame { id, len } => Reply::Frame { id: C2_FRAMES + id, len },
-                other => other.into(),
-            },
+            Some(sap) if self.c2.owns_sap(sap) => {
+                match self.c2.on_request_as(now, self.dp.address(), req, self.deliver) {
+                    C2Answer::Frame { id, len } => Reply::Frame { id: C2_FRAMES + id, len },
+                    other => other.into(),
+                }
+            }
             _ => {
                 let reply = self.dp.on_request(now, req);
                 // A DP service may have ended the MSAC_C1 session (Set_Prm, Chk_Cfg).
@@ -140,7 +144,7 @@ impl Node {
     pub fn on_byte(&mut self, now: Instant, byte: u8) -> Option<&[u8]> {
         match self.framer.push(byte) {
             Push::Frame(_) => {
-                let mut router = Router { dp: &mut self.slave, c1: &mut self.c1, c2: &mut self.c2 };
+                let mut router = Router { dp: &mut self.slave, c1: &mut self.c1, c2: &mut self.c2, deliver: true };
                 let tx = self.station.decide(now, self.framer.frame(), &mut router)?;
                 self.track_relations();
                 Some(self.bytes(tx))
@@ -151,7 +155,16 @@ impl Node {
 
     /// A whole received telegram at once (a DMA receiver that delimited it itself).
     pub fn on_frame(&mut self, now: Instant, frame: &[u8]) -> Option<&[u8]> {
-        let mut router = Router { dp: &mut self.slave, c1: &mut self.c1, c2: &mut self.c2 };
+        self.on_frame_as(now, frame, true)
+    }
+
+    /// [`on_frame`](Self::on_frame) for a telegram the fast path ([`crate::fast`]) already
+    /// answered: `deliver` false when it answered a DP-V1 request or poll with SC ("not
+    /// ready"), so the MSAC_C1 / MSAC_C2 channel keeps a response that became ready meanwhile
+    /// (or a pending Abort PDU) for the master's next poll instead of spending it on this
+    /// frame — a response is never lost.
+    pub fn on_frame_as(&mut self, now: Instant, frame: &[u8], deliver: bool) -> Option<&[u8]> {
+        let mut router = Router { dp: &mut self.slave, c1: &mut self.c1, c2: &mut self.c2, deliver };
         let tx = self.station.decide(now, frame, &mut router)?;
         self.track_relations();
         Some(self.bytes(tx))
@@ -299,6 +312,14 @@ impl Node {
     /// The DP slave, mutable (inputs, extended diagnosis).
     pub fn slave_mut(&mut self) -> &mut DpSlave {
         &mut self.slave
+    }
+    /// The MSAC_C1 service (state, the ready response).
+    pub fn c1(&self) -> &C1 {
+        &self.c1
+    }
+    /// The MSAC_C2 connections (states, timers, ready responses).
+    pub fn c2(&self) -> &C2<{ card::C2_MAX_COUNT_CHANNELS }> {
+        &self.c2
     }
     /// The FDL station (counters).
     pub fn station(&self) -> &Station {

@@ -4,9 +4,12 @@
 //! where a Slave_Diag may only be the older staged diagnosis with Station_Not_Ready set),
 //! the rest is the operation sequence of `pbcard::fast::check` (two masters and a third
 //! requester, Set_Prm in many forms, Chk_Cfg, Data_Exchange of any length, Slave_Diag,
-//! Get_Cfg, Rd_Inp / Rd_Outp, Global_Control, Set_Slave_Add, FDL_Status, SDA, DP-V1,
-//! retries, other stations' traffic, mangled sources, raw bytes, time, application changes).
-//! Any difference outside the documented window panics with both answers.
+//! Get_Cfg, Rd_Inp / Rd_Outp, Global_Control, Set_Slave_Add, FDL_Status, SDA, DP-V1 —
+//! MSAC_C1 read / write / poll, MSAC_C2 RM / Initiate / transport / Idle / Abort / poll, the
+//! DP-V1 task — retries, other stations' traffic, mangled sources, raw bytes, time,
+//! application changes). Any difference outside the documented windows (the not-ready
+//! diagnosis; a DP-V1 poll answered "not ready" whose response the next poll delivers)
+//! panics with both answers.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;

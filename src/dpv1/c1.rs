@@ -49,12 +49,18 @@ impl C1 {
 
     /// A request or poll on SAP 51. `None` = refuse with RS.
     pub fn on_request(&mut self, req: &DataTelegram<'_>, dp: &DpSlave) -> Option<Answer> {
+        self.on_request_as(req, dp, true)
+    }
+
+    /// [`on_request`](Self::on_request); `deliver` false: the line already answered this
+    /// frame with SC ([`Channel::on_request_as`]).
+    pub fn on_request_as(&mut self, req: &DataTelegram<'_>, dp: &DpSlave, deliver: bool) -> Option<Answer> {
         self.track(dp);
         if !self.open || dp.master_address() != Some(req.sa) || req.ssap != Some(SAP) {
             self.stats.refused = self.stats.refused.wrapping_add(1);
             return None;
         }
-        Some(self.channel.on_request(req.sa, SAP, dp.address(), SAP, req.pdu))
+        Some(self.channel.on_request_as(req.sa, SAP, dp.address(), SAP, req.pdu, deliver))
     }
 
     /// Work on a pending request (the middle-priority task; host: every poll). An Alarm_Ack
@@ -74,6 +80,11 @@ impl C1 {
     /// Whether a request waits for [`process`](Self::process).
     pub fn has_pending(&self) -> bool {
         self.channel.pending().is_some()
+    }
+
+    /// The response frame the next poll of the locking master gets, if one is ready.
+    pub fn ready_frame(&self) -> Option<&[u8]> {
+        self.channel.ready_frame()
     }
 
     /// The response frame handed out by [`on_request`](Self::on_request).

@@ -338,6 +338,19 @@ impl<const N: usize> C2<N> {
         })
     }
 
+    /// Connection `index`'s timer: the Send_Timeout deadline (Open), the reservation's
+    /// (Reserved) or the pending Abort's (Aborting) — what the fast path needs to foresee
+    /// the expiry [`poll`](Self::poll) would apply at a later frame.
+    pub fn deadline(&self, index: usize) -> Option<Instant> {
+        self.conns.get(index).map(|c| c.deadline)
+    }
+
+    /// The response frame the next poll on connection `index` gets (an Open connection's
+    /// ready response), if any.
+    pub fn ready_frame(&self, index: usize) -> Option<&[u8]> {
+        self.conns.get(index).filter(|c| c.state == ConnectionState::Open).and_then(|c| c.channel.ready_frame())
+    }
+
     /// Close every connection without telling the masters (bus lost, address changed).
     pub fn reset(&mut self) {
         self.conns.iter_mut().for_each(Conn::close);
@@ -371,6 +384,13 @@ impl<const N: usize> C2<N> {
     /// A request whose DSAP [`owns_sap`](Self::owns_sap) says is ours, addressed to this
     /// station (`own`). Cheap: never calls the record handler; at most copies one PDU.
     pub fn on_request(&mut self, now: Instant, own: u8, req: &DataTelegram<'_>) -> C2Answer {
+        self.on_request_as(now, own, req, true)
+    }
+
+    /// [`on_request`](Self::on_request); `deliver` false: the line already answered this
+    /// frame with SC ([`crate::fast`]), so no response frame is handed out on it — a ready
+    /// response or a slave-side Abort PDU stays for the master's next frame on the SAP.
+    pub fn on_request_as(&mut self, now: Instant, own: u8, req: &DataTelegram<'_>, deliver: bool) -> C2Answer {
         if req.da == telegram::BROADCAST {
             return C2Answer::Silent;
         }
@@ -378,7 +398,7 @@ impl<const N: usize> C2<N> {
         match req.dsap {
             Some(RM_SAP) => self.on_rm(now, own, req, srd),
             Some(sap) => match Self::index_of(sap) {
-                Some(i) => self.on_connection(now, own, i, req, srd),
+                Some(i) => self.on_connection(now, own, i, req, srd, deliver),
                 None => no_service(srd),
             },
             None => no_service(srd),
@@ -478,7 +498,15 @@ impl<const N: usize> C2<N> {
         self.emit_scratch(own, req, RM_SAP, &rm)
     }
 
-    fn on_connection(&mut self, now: Instant, own: u8, i: usize, req: &DataTelegram<'_>, srd: bool) -> C2Answer {
+    fn on_connection(
+        &mut self,
+        now: Instant,
+        own: u8,
+        i: usize,
+        req: &DataTelegram<'_>,
+        srd: bool,
+        deliver: bool,
+    ) -> C2Answer {
         self.expire(i, now);
         let sap = Self::sap_of(i);
         let c = &mut self.conns[i];
@@ -503,6 +531,11 @@ impl<const N: usize> C2<N> {
         }
         let reason = match (c.state, parsed) {
             (ConnectionState::Closed, _) => return no_service(srd),
+            (ConnectionState::Aborting(_), _) if !deliver => {
+                // The line answered SC: the Abort PDU waits for the next frame.
+                c.deadline = now + units(c.send_timeout);
+                return C2Answer::NotReady;
+            }
             (ConnectionState::Aborting(reason), _) => {
                 c.close();
                 self.stats.aborts_sent = self.stats.aborts_sent.wrapping_add(1);
@@ -530,7 +563,7 @@ impl<const N: usize> C2<N> {
                 c.deadline = now + units(c.send_timeout);
                 match parsed {
                     None => {
-                        return match c.channel.on_request(req.sa, c.master_sap, own, sap, &[]) {
+                        return match c.channel.on_request_as(req.sa, c.master_sap, own, sap, &[], deliver) {
                             channel::Answer::NotReady => C2Answer::NotReady,
                             channel::Answer::Frame(len) => C2Answer::Frame { id: i as u8, len },
                         };

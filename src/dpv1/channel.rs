@@ -105,14 +105,29 @@ impl Channel {
     /// A request (`pdu` not empty) or a poll (`pdu` empty) from `master` (its SSAP
     /// `master_sap`) to our `own` address and SAP `our_sap`.
     pub fn on_request(&mut self, master: u8, master_sap: u8, own: u8, our_sap: u8, pdu: &[u8]) -> Answer {
+        self.on_request_as(master, master_sap, own, our_sap, pdu, true)
+    }
+
+    /// [`on_request`](Self::on_request), where `deliver` false means the line already
+    /// answered this poll "not ready" (SC, [`crate::fast`]): a ready response stays for the
+    /// next poll instead of being handed out on a frame nobody sees.
+    pub fn on_request_as(
+        &mut self,
+        master: u8,
+        master_sap: u8,
+        own: u8,
+        our_sap: u8,
+        pdu: &[u8],
+        deliver: bool,
+    ) -> Answer {
         if pdu.is_empty() {
             return match self.state {
-                ChannelState::Ready => {
+                ChannelState::Ready if deliver => {
                     self.state = ChannelState::Idle;
                     self.stats.responses = self.stats.responses.wrapping_add(1);
                     Answer::Frame(self.frame_len)
                 }
-                ChannelState::Pending | ChannelState::Idle => {
+                ChannelState::Ready | ChannelState::Pending | ChannelState::Idle => {
                     self.stats.polls_not_ready = self.stats.polls_not_ready.wrapping_add(1);
                     Answer::NotReady
                 }
@@ -156,6 +171,11 @@ impl Channel {
         }
         self.frame_len = telegram::emit(&mut self.frame, &hdr, &pdu[..n]).unwrap_or(0) as u16;
         self.state = ChannelState::Ready;
+    }
+
+    /// The response frame the next poll hands out, if one is ready (the fast path stages it).
+    pub fn ready_frame(&self) -> Option<&[u8]> {
+        (self.state == ChannelState::Ready).then(|| &self.frame[..(self.frame_len as usize).min(MAX_FRAME_LEN)])
     }
 
     /// The response frame.

@@ -9,7 +9,7 @@
 //! lock table, short, wrong ident, Sync/Freeze requests, DP-V1 status), Chk_Cfg (every
 //! module, mangled), Data_Exchange of any length, Slave_Diag, Get_Cfg, Rd_Inp / Rd_Outp,
 //! Global_Control (Clear / Sync / Unsync / Freeze / Unfreeze, to us or broadcast),
-//! Set_Slave_Add, FDL_Status, SDA and other function codes, DP-V1 requests (SAP 51, 49, 48),
+//! Set_Slave_Add, FDL_Status, SDA and other function codes, DP-V1 (below),
 //! FCB retries, other stations' traffic, mangled sources (SA 127, SA = own address, FC bit
 //! 7), raw bytes, time steps (the watchdog) and application changes (inputs, extended
 //! diagnosis, Stat_Diag, drive fault, the start-up gate).
@@ -25,12 +25,27 @@
 //!   staged diagnosis with Station_Not_Ready set (a valid diagnosis answer to the requester
 //!   with octet 1 bit 1); every other answer must be equal. An FCB retry must repeat the
 //!   split's own earlier answer byte for byte (equal to the core alone's outside the window).
+//!   DP-V1: after a request PDU the core may stay behind while the master polls, and a run
+//!   of the DP-V1 task may find the split's core behind; a poll the split answers SC where
+//!   the core alone delivered a response (or an Abort PDU) is the documented "not ready yet"
+//!   difference — the master's next poll (after the core caught up) must then deliver
+//!   exactly the core alone's frame, so a response is neither lost nor doubled.
+//!
+//! The DP-V1 operations: the DP-V1 start-up (Set_Prm with DPV1_Enable, Chk_Cfg), MSAC_C1
+//! Read / Write / Data_Transport / Alarm_Ack / raw PDUs and polls (right and wrong SSAP, any
+//! master), MSAC_C2 RM Initiate.req (good, malformed, no SSAP) followed by the Initiate.req on
+//! the granted SAP, requests / Idle / Abort / polls on the connection SAPs, a second master,
+//! and runs of `Node::process_acyclic` over the simulated drive's parameters.
 
 use heapless::Vec;
 
 use super::{CoreLink, FastPath, Shared, Verdict};
 use crate::card;
 use crate::dp::DpSlave;
+use crate::dpv1::c1;
+use crate::dpv1::c2::{self, ConnectionState};
+use crate::dpv1::pdu::{AddressBlock, InitiateRequest};
+use crate::drive::params::{DriveTable, SIM_DRIVE_TABLE};
 use crate::fdl::telegram::{
     self, Decoded, FunctionCode, Header, RequestFunction, ResponseStatus, Telegram, MAX_FRAME_LEN,
 };
@@ -97,8 +112,12 @@ fn frame_of(bytes: &[u8]) -> Frame {
 
 /// What an operation does.
 enum Action {
-    /// A telegram on the line; `holdable`: the core may stay behind for it in [`Mode::Lag`].
-    Telegram { frame: Frame, holdable: bool, diag: bool },
+    /// A telegram on the line; `holdable`: the core may stay behind for it in [`Mode::Lag`];
+    /// `lag`: in [`Mode::Lag`] the core may stay behind after it (a DP-V1 request PDU).
+    Telegram { frame: Frame, holdable: bool, diag: bool, lag: bool },
+    /// `Node::process_acyclic` on both cards (DP-V1 responses); `split_behind`: in
+    /// [`Mode::Lag`] the split's core does not catch up first.
+    Process { split_behind: bool },
     /// Time passes: both nodes' timers.
     Tick(u64),
     /// An application change, applied to both nodes.
@@ -109,6 +128,8 @@ struct Rig {
     fcb: [bool; 128],
     next: Option<Frame>,
     last: Option<Frame>,
+    /// After an RM request: the Initiate.req on the granted SAP (master, its SAP, the PDU).
+    initiate: Option<(u8, u8, Vec<u8, 64>)>,
 }
 
 impl Rig {
@@ -145,7 +166,16 @@ fn set_prm(src: &mut Src<'_>) -> Vec<u8, 64> {
 fn next_action(src: &mut Src<'_>, rig: &mut Rig, alone: &Node) -> Action {
     if let Some(f) = rig.next.take() {
         rig.last = Some(f.clone());
-        return Action::Telegram { frame: f, holdable: false, diag: false };
+        let holdable = poll_of(&f);
+        return Action::Telegram { frame: f, holdable, diag: false, lag: false };
+    }
+    if let Some((m, ssap, init)) = rig.initiate.take() {
+        // The Initiate.req on the SAP the RM named (as the core alone reserved it).
+        let sap = conn_of(alone, m).map_or(c2::HIGHEST_SAP, |(sap, _)| sap);
+        let f = rig.request(alone.slave().address(), m, Some(sap), Some(ssap), &init, 0x0D);
+        rig.next = Some(rig.request(alone.slave().address(), m, Some(sap), Some(ssap), &[], 0x0D));
+        rig.last = Some(f.clone());
+        return Action::Telegram { frame: f, holdable: false, diag: false, lag: true };
     }
     let op = src.u8();
     let da = alone.slave().address();
@@ -193,7 +223,7 @@ fn next_action(src: &mut Src<'_>, rig: &mut Rig, alone: &Node) -> Action {
         }
         3 => {
             let diag = rig.request(da, m, Some(60), Some(62), &[], srd);
-            return Action::Telegram { frame: diag, holdable: true, diag: true };
+            return Action::Telegram { frame: diag, holdable: true, diag: true, lag: false };
         }
         4 => rig.request(da, m, Some(59), Some(62), &[], srd),
         5 => {
@@ -211,14 +241,14 @@ fn next_action(src: &mut Src<'_>, rig: &mut Rig, alone: &Node) -> Action {
         7 => match rig.last.clone() {
             Some(l) => {
                 let diag = matches!(telegram::decode(&l), Decoded::Frame(Telegram::Data(t), _) if t.dsap == Some(60));
-                return Action::Telegram { frame: l, holdable: diag, diag };
+                return Action::Telegram { frame: l, holdable: diag, diag, lag: false };
             }
             None => Frame::new(),
         },
         8 => {
             let to = if da == OTHER { OTHER + 1 } else { OTHER };
             let other = rig.request(to, m, None, None, src.bytes(4), srd);
-            return Action::Telegram { frame: other, holdable: true, diag: false };
+            return Action::Telegram { frame: other, holdable: true, diag: false, lag: false };
         }
         9 => {
             let how = src.u8() % 3;
@@ -236,12 +266,12 @@ fn next_action(src: &mut Src<'_>, rig: &mut Rig, alone: &Node) -> Action {
                 let start = if f[0] == telegram::SD2 { 4 } else { 1 };
                 f[n - 2] = telegram::fcs(&f[start..n - 2]);
             }
-            return Action::Telegram { frame: f, holdable: true, diag: false };
+            return Action::Telegram { frame: f, holdable: true, diag: false, lag: false };
         }
         10 => {
             let hdr = Header { da, sa: m, fc: FunctionCode::request(0x09, false, false), dsap: None, ssap: None };
             let f = crate::testkit::frame(&hdr, &[]);
-            return Action::Telegram { frame: f, holdable: true, diag: false };
+            return Action::Telegram { frame: f, holdable: true, diag: false, lag: false };
         }
         11 => {
             let new = src.u8() % 130;
@@ -271,12 +301,7 @@ fn next_action(src: &mut Src<'_>, rig: &mut Rig, alone: &Node) -> Action {
             }
             f
         }
-        15 => {
-            let sap = [51u8, 49, 48][usize::from(src.u8() % 3)];
-            let n = usize::from(src.u8()) % 12;
-            let pdu = src.bytes(n);
-            rig.request(da, m, Some(sap), Some(sap.min(50)), pdu, srd)
-        }
+        15 => return dpv1_action(src, rig, alone, da, m),
         16 => {
             let function = src.u8() & 0x0F;
             rig.request(da, m, Some(60), Some(62), &[], function)
@@ -288,7 +313,146 @@ fn next_action(src: &mut Src<'_>, rig: &mut Rig, alone: &Node) -> Action {
         }
     };
     rig.last = Some(f.clone());
-    Action::Telegram { frame: f, holdable: false, diag: false }
+    Action::Telegram { frame: f, holdable: false, diag: false, lag: false }
+}
+
+/// A DP-V1 poll (SRD without data on SAP 51 or a connection SAP).
+fn poll_of(f: &[u8]) -> bool {
+    matches!(telegram::decode(f), Decoded::Frame(Telegram::Data(t), _)
+        if t.pdu.is_empty() && t.dsap.is_some_and(|d| d == c1::SAP || (c2::HIGHEST_SAP + 1 - card::C2_MAX_COUNT_CHANNELS as u8..=c2::HIGHEST_SAP).contains(&d)))
+}
+
+/// The connection SAP and master SAP the core alone holds for master `m`.
+fn conn_of(alone: &Node, m: u8) -> Option<(u8, u8)> {
+    (0..card::C2_MAX_COUNT_CHANNELS)
+        .filter_map(|i| alone.c2().connection(i))
+        .find(|c| c.state != ConnectionState::Closed && c.master == m)
+        .map(|c| (c.sap, c.master_sap))
+}
+
+/// An MSAC_C2 Initiate.req PDU (S and D address blocks of type 0).
+fn initiate(send_timeout: u16, s_len: u8, api: u8) -> Vec<u8, 64> {
+    let req = InitiateRequest {
+        send_timeout,
+        features_supported: [1, 0],
+        profile_features_supported: [0, 0],
+        profile_ident_number: 0,
+        source: AddressBlock { kind: 0, bytes: &[0, 0] },
+        destination: AddressBlock { kind: 0, bytes: &[api, 0] },
+    };
+    let mut out = [0u8; 64];
+    let n = req.emit(&mut out).unwrap_or(0);
+    if n > 13 {
+        out[13] = s_len;
+    }
+    let mut v = Vec::new();
+    let _ = v.extend_from_slice(&out[..n]);
+    v
+}
+
+/// A DP-V1 data PDU: Read / Write / Data_Transport of a record at slot 0 (PROFIdrive 47,
+/// WEG 48, I&M 255, a missing one), Idle, Abort, Alarm_Ack, or raw bytes.
+fn dpv1_pdu(src: &mut Src<'_>) -> Vec<u8, 64> {
+    let mut v: Vec<u8, 64> = Vec::new();
+    let index = [47u8, 48, 255, 1][usize::from(src.u8() % 4)];
+    match src.u8() % 9 {
+        0 | 1 => {
+            let _ = v.extend_from_slice(&[0x5E, 0, index, src.u8() % 250]);
+        }
+        2 | 3 => {
+            let n = usize::from(src.u8()) % 24;
+            let data = src.bytes(n);
+            let _ = v.extend_from_slice(&[0x5F, 0, index, data.len() as u8]);
+            let _ = v.extend_from_slice(data);
+        }
+        4 => {
+            let n = 1 + usize::from(src.u8()) % 12;
+            let data = src.bytes(n);
+            let _ = v.extend_from_slice(&[0x51, 0, index, data.len() as u8]);
+            let _ = v.extend_from_slice(data);
+        }
+        5 => {
+            let _ = v.extend_from_slice(&[0x48, 0]);
+        }
+        6 => {
+            let _ = v.extend_from_slice(&[0x58, 0, 0x20, 0]);
+        }
+        7 => {
+            let _ = v.extend_from_slice(&[0x5C, 1, 1, 0]);
+        }
+        _ => {
+            let n = usize::from(src.u8()) % 12;
+            let _ = v.extend_from_slice(src.bytes(n));
+        }
+    }
+    v
+}
+
+/// A DP-V1 operation: the DP-V1 start-up, MSAC_C1 requests and polls, MSAC_C2 RM /
+/// Initiate / requests / polls / Abort, or a run of the DP-V1 task.
+fn dpv1_action(src: &mut Src<'_>, rig: &mut Rig, alone: &Node, da: u8, m: u8) -> Action {
+    let srd = 0x0D;
+    let f = match src.u8() % 10 {
+        0 => {
+            // Set_Prm with DPV1_Enable, then Chk_Cfg: MSAC_C1 opens.
+            let pdu = SetPrm::CARD.dpv1_status_1(0x80).pdu();
+            rig.next = Some(rig.request(da, m, Some(62), Some(62), card::MODULES[0].cfg, srd));
+            rig.request(da, m, Some(61), Some(62), &pdu, srd)
+        }
+        1..=3 => {
+            let ssap = if src.u8() < 240 { c1::SAP } else { 50 };
+            let pdu = if src.u8() & 1 == 0 { dpv1_pdu(src) } else { Vec::new() };
+            let f = rig.request(da, m, Some(c1::SAP), Some(ssap), &pdu, srd);
+            if !pdu.is_empty() {
+                rig.next = Some(rig.request(da, m, Some(c1::SAP), Some(ssap), &[], srd));
+                rig.last = Some(f.clone());
+                return Action::Telegram { frame: f, holdable: false, diag: false, lag: true };
+            }
+            rig.last = Some(f.clone());
+            return Action::Telegram { frame: f, holdable: true, diag: false, lag: false };
+        }
+        4 => {
+            let ssap = 40 + (src.u8() & 1);
+            let st = u16::from(src.u8()) * 2;
+            let how = src.u8();
+            let init = match how % 8 {
+                0 => initiate(st, 3, 0),
+                1 => initiate(st, 2, 1),
+                2 => {
+                    let mut v = Vec::new();
+                    let _ = v.extend_from_slice(&[0x57, 0]);
+                    v
+                }
+                _ => initiate(st, 2, 0),
+            };
+            let ssap_field = if how & 0xF0 == 0xF0 { None } else { Some(ssap) };
+            if how & 0x08 == 0 {
+                rig.initiate = Some((m, ssap, init.clone()));
+            }
+            rig.request(da, m, Some(c2::RM_SAP), ssap_field, &init, srd)
+        }
+        5..=8 => {
+            let (sap, ssap) = conn_of(alone, m).unwrap_or((c2::HIGHEST_SAP - (src.u8() & 1), 40 + (src.u8() & 1)));
+            let ssap = if src.u8() < 240 { ssap } else { ssap ^ 1 };
+            let pdu = match src.u8() % 4 {
+                0 => Vec::new(),
+                1 => initiate(u16::from(src.u8()), 2, 0),
+                _ => dpv1_pdu(src),
+            };
+            let function = if src.u8() < 24 { 0x06 } else { srd };
+            let f = rig.request(da, m, Some(sap), Some(ssap), &pdu, function);
+            if !pdu.is_empty() {
+                rig.next = Some(rig.request(da, m, Some(sap), Some(ssap), &[], srd));
+                rig.last = Some(f.clone());
+                return Action::Telegram { frame: f, holdable: false, diag: false, lag: true };
+            }
+            rig.last = Some(f.clone());
+            return Action::Telegram { frame: f, holdable: true, diag: false, lag: false };
+        }
+        _ => return Action::Process { split_behind: src.u8() & 1 == 0 },
+    };
+    rig.last = Some(f.clone());
+    Action::Telegram { frame: f, holdable: false, diag: false, lag: false }
 }
 
 fn apply(node: &mut Node, what: u8, data: &[u8]) {
@@ -358,6 +522,13 @@ pub struct Coverage {
     pub deferred: u32,
     /// FCB retries the line answered.
     pub retries: u32,
+    /// DP-V1 frames the line answered from the staging.
+    pub dpv1_line: u32,
+    /// DP-V1 polls answered with a response frame by the split.
+    pub dpv1_responses: u32,
+    /// Polls the split answered "not ready" while the core alone delivered, delivered on the
+    /// next poll ([`Mode::Lag`]).
+    pub held_repolls: u32,
 }
 
 /// Run the operations `data` encodes (at most `max_ops`) on both cards; what was reached,
@@ -370,14 +541,57 @@ pub fn run(data: &[u8], mode: Mode, max_ops: usize) -> Result<Coverage, Mismatch
     let mut split = Node::new(DpSlave::new(ME));
     let mut shared = Shared::new();
     let (mut fast, mut core) = shared.split(&mut split);
-    let mut rig = Rig { fcb: [false; 128], next: None, last: None };
+    let mut rig = Rig { fcb: [false; 128], next: None, last: None, initiate: None };
     let mut now = 0u64;
     // The split's answer to the request the station stored last (what a retry repeats).
     let mut stored: Option<Option<Frame>> = None;
+    // The DP-V1 task's parameters of each card.
+    let mut pa_alone: DriveTable = SIM_DRIVE_TABLE;
+    let mut pa_split: DriveTable = SIM_DRIVE_TABLE;
+    // A DP-V1 poll the split answered "not ready" while the core alone delivered: the core
+    // alone's answer and the master's next poll, which must deliver exactly that.
+    let mut owed: Option<(Frame, Frame)> = None;
+    let mut cov = Coverage::default();
     let mut step = 0;
     while !src.0.is_empty() && step < max_ops {
         step += 1;
+        if let Some((want, req)) = owed.take() {
+            // The master polls again once the card had time: the held response goes out now.
+            core.run(&mut split);
+            let t = Instant::from_micros(now);
+            alone.process_acyclic(t, &mut pa_alone);
+            split.process_acyclic(t, &mut pa_split);
+            core.publish(&mut split);
+            now += 150;
+            let t = Instant::from_micros(now);
+            let _ = alone.on_frame(t, &req);
+            let s = split_answer(&mut fast, &mut core, &mut split, t, &req);
+            core.run(&mut split);
+            if s.as_ref() != Some(&want) {
+                return Err(Mismatch {
+                    step,
+                    request: req,
+                    alone: Some(want),
+                    split: s,
+                    why: "a DP-V1 response the line answered \"not ready\" did not come on the next poll",
+                });
+            }
+            cov.held_repolls += 1;
+            stored = Some(s);
+            rig.last = Some(req);
+            continue;
+        }
+        let mut lag_after = false;
         match next_action(&mut src, &mut rig, &alone) {
+            Action::Process { split_behind } => {
+                let t = Instant::from_micros(now);
+                alone.process_acyclic(t, &mut pa_alone);
+                if mode == Mode::Sync || !split_behind {
+                    core.run(&mut split);
+                }
+                split.process_acyclic(t, &mut pa_split);
+                core.publish(&mut split);
+            }
             Action::Tick(us) => {
                 core.run(&mut split);
                 now += us;
@@ -391,7 +605,8 @@ pub fn run(data: &[u8], mode: Mode, max_ops: usize) -> Result<Coverage, Mismatch
                 apply(&mut split, what, &data);
                 core.publish(&mut split);
             }
-            Action::Telegram { frame, holdable, diag } => {
+            Action::Telegram { frame, holdable, diag, lag } => {
+                lag_after = lag && mode == Mode::Lag;
                 if mode == Mode::Sync || !holdable || fast.queue_free() < 2 {
                     core.run(&mut split);
                 }
@@ -429,14 +644,29 @@ pub fn run(data: &[u8], mode: Mode, max_ops: usize) -> Result<Coverage, Mismatch
                         if !s.as_deref().is_some_and(|b| not_ready_diag(b, own, sa)) {
                             return Err(mismatch("not-ready window: not a Station_Not_Ready diagnosis"));
                         }
+                    } else if mode == Mode::Lag
+                        && poll_of(&frame)
+                        && s.as_deref() == Some(&[telegram::SC][..])
+                        && a.as_ref().is_some_and(|a| a.len() > 1)
+                    {
+                        // The core was behind: "not ready yet"; the next poll must deliver.
+                        let Decoded::Frame(Telegram::Data(t), _) = telegram::decode(&frame) else {
+                            return Err(mismatch("a poll that does not decode"));
+                        };
+                        let (sa, dsap, ssap) = (t.sa, t.dsap, t.ssap);
+                        let again = rig.request(own, sa, dsap, ssap, &[], 0x0D);
+                        owed = a.clone().map(|a| (a, again));
                     } else if a != s {
                         return Err(mismatch("the split answered differently"));
+                    }
+                    if poll_of(&frame) && s.as_ref().is_some_and(|s| s.len() > 1) {
+                        cov.dpv1_responses += 1;
                     }
                 }
             }
         }
         // The node states never differ: the core sees every telegram in order.
-        if mode == Mode::Sync || !fast.in_window() {
+        if mode == Mode::Sync || (!fast.in_window() && !lag_after) {
             core.run(&mut split);
             if alone.slave().state() != split.slave().state() || alone.slave().outputs() != split.slave().outputs() {
                 return Err(Mismatch {
@@ -456,5 +686,7 @@ pub fn run(data: &[u8], mode: Mode, max_ops: usize) -> Result<Coverage, Mismatch
         not_ready_diags: fs.not_ready_diag,
         deferred: fs.deferred,
         retries: fs.retries,
+        dpv1_line: fs.dpv1,
+        ..cov
     })
 }

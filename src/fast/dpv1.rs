@@ -1,0 +1,339 @@
+//! DP-V1 on the line (issue 11 item 1): MSAC_C1 (SAP 51), the MSAC_C2 resource manager
+//! (SAP 49) and the connection SAPs answered from staged state, the core judging afterwards.
+//!
+//! DP-V1 is built for this split (reference §4.3): a request PDU is acknowledged with SC at
+//! once and worked on later; the master polls (SRD without data) and gets SC until the
+//! response is there. The staging ([`CoreLink::publish`](super::CoreLink::publish)) therefore carries, per relation
+//! (MSAC_C1 and each of the [`card::C2_MAX_COUNT_CHANNELS`] MSAC_C2 connections), whether it
+//! is open, for which master and SAP, its timer and its ready response frame; and the RM's
+//! Poll_Timeout. The line answers:
+//!
+//! | frame | line's answer |
+//! |---|---|
+//! | SAP 51, C1 closed, not the locking master, SSAP ≠ 51 | RS (as `C1::on_request`) |
+//! | SAP 51, request PDU | SC |
+//! | SAP 51 / connection SAP, poll, response staged | the staged response frame |
+//! | SAP 51 / connection SAP, poll, nothing staged | SC ("not ready") |
+//! | SAP 49, not an Initiate.req or no SSAP | RS |
+//! | SAP 49, Initiate.req | the RM PDU naming the connection the core will reserve, or RR |
+//! | connection SAP, closed or another master / SSAP | RS |
+//! | connection SAP, the master's Abort PDU | SC |
+//! | connection SAP, aborted by the slave | the Abort PDU (built from the staged reason) |
+//! | connection SAP, any other request PDU | SC |
+//!
+//! Timers are foreseen: a staged connection whose reservation, Send_Timeout or pending Abort
+//! expired by the frame's arrival is treated as `C2` will treat it at that frame
+//! (`C2::expire`).
+//!
+//! **Frames in flight.** The staging shows the core after the last telegram it worked on.
+//! A relation with a queued, not yet judged frame that changes its state (a request PDU, an
+//! RM reservation, a fetched response, an Abort) is *in flight*: the line knows only that it
+//! is open for that master (or closed, after an Abort) and answers every further frame on it
+//! with SC — "not ready yet" — until the core has caught up. A poll answered SC travels to
+//! the core with [`Queued::held`](super::Queued::held): the core then hands out nothing on it
+//! ([`Node::on_frame_as`](crate::node::Node::on_frame_as)) — a response the core finished meanwhile (or a pending Abort
+//! PDU) stays for the next poll, so a response is never lost and never delivered twice
+//! (except as the FCB retry the station and the line both repeat byte for byte).
+//!
+//! **Deferred to the core** ([`Verdict::Core`](super::Verdict::Core), the line waits as before the split):
+//! * SAP 51 in the not-ready window (a queued Set_Prm / Chk_Cfg decides whether MSAC_C1 is
+//!   open at all);
+//! * SAP 49 while any MSAC_C2 connection is in flight: which connection the RM names (or
+//!   whether it answers RR) depends on states the line cannot see yet — an honest immediate
+//!   answer is impossible there. A class-2 master opens one connection at a time, so this is
+//!   a second master's Initiate racing the first one's.
+
+use super::{after, round4, CoreLink, FastPath, DPV1_AT, QUEUE_LEN};
+use crate::card;
+use crate::dpv1::c1;
+use crate::dpv1::c2::{self, ConnectionState};
+use crate::dpv1::pdu::{Abort, AbortReason, Function, Instance, Response, Subnet};
+use crate::fdl::telegram::{self, DataTelegram, FunctionCode, Header, ResponseStatus, MAX_FRAME_LEN};
+use crate::node::Node;
+use crate::time::Instant;
+
+/// Relations: MSAC_C1, then the MSAC_C2 connections (connection `i` = relation `1 + i`).
+pub(super) const RELS: usize = 1 + card::C2_MAX_COUNT_CHANNELS;
+/// Per relation: `[kind, master, master SAP, abort reason]`, `[frame length u16, Send_Timeout
+/// u16]`, the timer's deadline (µs, u64), then the ready response frame.
+const REL_HDR: usize = 16;
+const REL_ROOM: usize = REL_HDR + round4(MAX_FRAME_LEN);
+/// Bytes of the DP-V1 staging: the RM word (Poll_Timeout u16) and the relations.
+pub(super) const DPV1_BYTES: usize = 4 + RELS * REL_ROOM;
+
+const fn rel_at(r: usize) -> usize {
+    DPV1_AT + 4 + r * REL_ROOM
+}
+
+const K_CLOSED: u8 = 0;
+const K_RESERVED: u8 = 1;
+const K_OPEN: u8 = 2;
+const K_ABORTING: u8 = 3;
+/// The line's own view: a frame in flight, the relation open for its master.
+const K_FLIGHT: u8 = 4;
+
+/// The line's knowledge of one relation beyond the staging.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct RelLine {
+    /// The last queued frame that changes the relation's state.
+    seq: u32,
+    /// Whether `seq` was ever set.
+    set: bool,
+    /// After it: open for (master, master SAP), or closed.
+    open: Option<(u8, u8)>,
+}
+
+impl RelLine {
+    pub(super) const IDLE: RelLine = RelLine { seq: 0, set: false, open: None };
+}
+
+/// One relation as the line sees it at a frame's arrival.
+#[derive(Debug, Clone, Copy)]
+struct View {
+    kind: u8,
+    master: u8,
+    ssap: u8,
+    reason: u8,
+    frame_len: u16,
+}
+
+/// What the line answers (built into `buf` once the frame is queued).
+#[derive(Debug, Clone, Copy)]
+enum Plan {
+    Status(ResponseStatus),
+    /// SC; the core hands out nothing on this frame.
+    Sc,
+    /// The staged response frame of relation `r`.
+    Ready(usize),
+    /// The RM PDU naming connection `i`.
+    Rm(usize),
+    /// The Abort PDU of connection `i` (reason code).
+    Abort(usize, u8),
+}
+
+/// The line's decision on a DP-V1 SRD.
+pub(super) enum Dpv1 {
+    /// Not DP-V1, or deferred: the core answers.
+    Core,
+    /// The core queue is full: no answer (the master retries).
+    QueueFull,
+    /// `buf[..n]` is the answer (0: none).
+    Answer(u16),
+}
+
+/// Connection index of a connection SAP (48, 47, …).
+fn conn_of(sap: u8) -> Option<usize> {
+    let i = usize::from(c2::HIGHEST_SAP.checked_sub(sap)?);
+    (i < card::C2_MAX_COUNT_CHANNELS).then_some(i)
+}
+
+impl FastPath<'_> {
+    /// Relation `r` has a frame the core has not judged yet (the core is at most
+    /// [`QUEUE_LEN`] telegrams behind the line, so an older one is judged: no wrap-around).
+    fn in_flight(&self, r: usize) -> bool {
+        let l = self.rel[r];
+        l.set && self.seq.wrapping_sub(l.seq) < QUEUE_LEN as u32 && after(l.seq, self.st.done_seq)
+    }
+
+    /// Relation `r` from the staging, its timer run up to `now` as `C2::expire` would.
+    fn staged_view(&self, r: usize, now: Instant) -> View {
+        let w = rel_at(r) / 4;
+        let [kind, master, ssap, reason] = self.staging.word(w).to_le_bytes();
+        let lens = self.staging.word(w + 1);
+        let mut v = View { kind, master, ssap, reason, frame_len: lens as u16 };
+        let send_timeout = u64::from(lens >> 16) * 10_000;
+        let mut deadline = u64::from(self.staging.word(w + 2)) | u64::from(self.staging.word(w + 3)) << 32;
+        if r > 0 {
+            while now.as_micros() >= deadline {
+                v.kind = match v.kind {
+                    K_RESERVED | K_ABORTING => K_CLOSED,
+                    K_OPEN => {
+                        v.reason = AbortReason::Timeout.bits();
+                        v.frame_len = 0;
+                        deadline = deadline.saturating_add(send_timeout);
+                        K_ABORTING
+                    }
+                    _ => break,
+                };
+            }
+        }
+        v
+    }
+
+    /// Relation `r` at `now`: the line's own view while in flight, else the staging's.
+    fn view(&self, r: usize, now: Instant) -> View {
+        if self.in_flight(r) {
+            let (kind, (master, ssap)) = match self.rel[r].open {
+                Some(o) => (K_FLIGHT, o),
+                None => (K_CLOSED, (0, 0)),
+            };
+            return View { kind, master, ssap, reason: 0, frame_len: 0 };
+        }
+        self.staged_view(r, now)
+    }
+
+    /// The plan for a DP-V1 SRD, and the relation it puts in flight (with its view after
+    /// the frame). `None`: not DP-V1, or the core must answer.
+    #[allow(clippy::type_complexity)]
+    fn plan(&self, now: Instant, t: &DataTelegram<'_>) -> Option<(Plan, Option<(usize, Option<(u8, u8)>)>)> {
+        let dsap = t.dsap?;
+        let poll = t.pdu.is_empty();
+        if dsap == c1::SAP {
+            if after(self.judge_seq, self.st.done_seq) {
+                return None;
+            }
+            let v = self.staged_view(0, now);
+            if v.kind != K_OPEN || v.master != t.sa || t.ssap != Some(c1::SAP) {
+                return Some((Plan::Status(ResponseStatus::Rs), None));
+            }
+            let open = Some((0, Some((t.sa, c1::SAP))));
+            let ready = poll && v.frame_len > 0 && !self.in_flight(0);
+            return Some((if ready { Plan::Ready(0) } else { Plan::Sc }, open));
+        }
+        if dsap == c2::RM_SAP {
+            let initiate = t.pdu.first() == Some(&Function::Initiate.code());
+            let (true, Some(ssap)) = (initiate, t.ssap) else {
+                return Some((Plan::Status(ResponseStatus::Rs), None));
+            };
+            if (1..RELS).any(|r| self.in_flight(r)) {
+                return None;
+            }
+            let mut same = None;
+            let mut free = None;
+            for i in 0..card::C2_MAX_COUNT_CHANNELS {
+                let v = self.staged_view(1 + i, now);
+                if v.kind == K_CLOSED {
+                    free = free.or(Some(i));
+                } else if (v.master, v.ssap) == (t.sa, ssap) {
+                    same = same.or(Some(i));
+                }
+            }
+            return Some(match same.or(free) {
+                Some(i) => (Plan::Rm(i), Some((1 + i, Some((t.sa, ssap))))),
+                None => (Plan::Status(ResponseStatus::Rr), None),
+            });
+        }
+        let i = conn_of(dsap)?;
+        let r = 1 + i;
+        let v = self.view(r, now);
+        if v.kind == K_CLOSED || v.master != t.sa || t.ssap != Some(v.ssap) {
+            return Some((Plan::Status(ResponseStatus::Rs), None));
+        }
+        let open = Some((r, Some((t.sa, v.ssap))));
+        if t.pdu.first() == Some(&Function::Abort.code())
+            && matches!(crate::dpv1::pdu::parse(t.pdu), Ok(crate::dpv1::pdu::Request::Abort(_)))
+        {
+            return Some((Plan::Sc, Some((r, None))));
+        }
+        // Every frame from the master restarts the connection's timer: in flight.
+        Some(match v.kind {
+            K_ABORTING => (Plan::Abort(i, v.reason), Some((r, None))),
+            K_OPEN if poll && v.frame_len > 0 => (Plan::Ready(r), open),
+            _ => (Plan::Sc, open),
+        })
+    }
+
+    /// A DP-V1 SRD (SAP 51, 49, a connection SAP): answered from the staging and queued, or
+    /// left to the core (see the module docs).
+    pub(super) fn dpv1(&mut self, now: Instant, frame: &[u8], t: &DataTelegram<'_>) -> Dpv1 {
+        let Some((plan, flight)) = self.plan(now, t) else { return Dpv1::Core };
+        let held = matches!(plan, Plan::Sc);
+        let Some(seq) = self.queue_as(now, frame, false, held) else { return Dpv1::QueueFull };
+        if let Some((r, open)) = flight {
+            self.rel[r] = RelLine { seq, set: true, open };
+        }
+        let own = self.st.address;
+        let n = match plan {
+            Plan::Status(s) => self.status(t.sa, s),
+            Plan::Sc => self.sc(),
+            Plan::Ready(r) => {
+                let len = usize::from(self.staged_view(r, now).frame_len).min(MAX_FRAME_LEN);
+                self.staging.read(rel_at(r) + REL_HDR, &mut self.buf[..len]);
+                len as u16
+            }
+            Plan::Rm(i) => {
+                let poll_timeout = self.staging.word(DPV1_AT / 4) as u16;
+                let rm = Response::ResourceManager { server_sap: c2::HIGHEST_SAP - i as u8, poll_timeout };
+                self.pdu_frame(t, own, c2::RM_SAP, &rm)
+            }
+            Plan::Abort(i, reason) => {
+                let a = Abort {
+                    subnet: Subnet::None,
+                    instance: Instance::MsacC2,
+                    reason: AbortReason::from_bits(reason),
+                    detail: Some(0),
+                };
+                self.pdu_frame(t, own, c2::HIGHEST_SAP - i as u8, &Response::Abort(a))
+            }
+        };
+        self.stats.dpv1 = self.stats.dpv1.wrapping_add(1);
+        Dpv1::Answer(n)
+    }
+
+    /// A queued SDN (`seq`): the master's Abort PDU on its connection SAP closes the
+    /// connection (unanswered), so the relation is in flight, closed.
+    pub(super) fn dpv1_sdn(&mut self, now: Instant, seq: u32, t: &DataTelegram<'_>) {
+        let Some(r) = t.dsap.and_then(conn_of).map(|i| 1 + i) else { return };
+        let v = self.view(r, now);
+        let mine = v.kind != K_CLOSED && v.master == t.sa && t.ssap == Some(v.ssap);
+        if mine && matches!(crate::dpv1::pdu::parse(t.pdu), Ok(crate::dpv1::pdu::Request::Abort(_))) {
+            self.rel[r] = RelLine { seq, set: true, open: None };
+        }
+    }
+
+    /// A 4-byte response PDU to `t` from `our_sap` in `buf` (as `C2::emit_scratch`).
+    fn pdu_frame(&mut self, t: &DataTelegram<'_>, own: u8, our_sap: u8, resp: &Response<'_>) -> u16 {
+        let mut pdu = [0u8; 4];
+        let n = resp.emit(&mut pdu).unwrap_or(0);
+        let hdr = Header {
+            da: t.sa,
+            sa: own,
+            fc: FunctionCode::response(ResponseStatus::Dl),
+            dsap: t.ssap,
+            ssap: Some(our_sap),
+        };
+        match telegram::emit(&mut self.buf, &hdr, &pdu[..n]) {
+            Ok(len) => len as u16,
+            Err(_) => self.status(t.sa, ResponseStatus::Rr),
+        }
+    }
+}
+
+impl CoreLink<'_> {
+    /// Stage the DP-V1 relations of `node` into the scratch and the back slot (part of
+    /// [`CoreLink::publish`]).
+    pub(super) fn stage_dpv1(&mut self, node: &Node) {
+        let s = &mut self.scratch;
+        s[DPV1_AT..DPV1_AT + 4].copy_from_slice(&u32::from(node.c2().min_send_timeout()).to_le_bytes());
+        self.staging.write(DPV1_AT / 4, &s[DPV1_AT..DPV1_AT + 4]);
+        let slave = node.slave();
+        for r in 0..RELS {
+            let (kind, master, ssap, reason, send_timeout, deadline, frame) = if r == 0 {
+                let open = c1::C1::is_open(slave);
+                let kind = if open { K_OPEN } else { K_CLOSED };
+                let frame = node.c1().ready_frame().filter(|_| open);
+                (kind, slave.master_address().unwrap_or(0xFF), c1::SAP, 0, 0, 0, frame)
+            } else {
+                let i = r - 1;
+                let Some(c) = node.c2().connection(i) else { continue };
+                let (kind, reason) = match c.state {
+                    ConnectionState::Closed => (K_CLOSED, 0),
+                    ConnectionState::Reserved => (K_RESERVED, 0),
+                    ConnectionState::Open => (K_OPEN, 0),
+                    ConnectionState::Aborting(why) => (K_ABORTING, why.bits()),
+                };
+                let deadline = node.c2().deadline(i).map_or(0, Instant::as_micros);
+                (kind, c.master, c.master_sap, reason, c.send_timeout, deadline, node.c2().ready_frame(i))
+            };
+            let at = rel_at(r);
+            let frame = frame.unwrap_or(&[]);
+            let n = frame.len().min(MAX_FRAME_LEN);
+            s[at..at + 4].copy_from_slice(&[kind, master, ssap, reason]);
+            s[at + 4..at + 6].copy_from_slice(&(n as u16).to_le_bytes());
+            s[at + 6..at + 8].copy_from_slice(&send_timeout.to_le_bytes());
+            s[at + 8..at + 16].copy_from_slice(&deadline.to_le_bytes());
+            s[at + REL_HDR..at + REL_HDR + n].copy_from_slice(&frame[..n]);
+            self.staging.write(at / 4, &s[at..at + REL_HDR + n]);
+        }
+    }
+}
