@@ -20,9 +20,9 @@ pub const MAX_STATION_ADDRESS: u8 = 126;
 /// The worst line-path instruction count of any request the shipped GSD allows, measured by
 /// `qemu_bench` (its `worst shipped card: N instructions` line; `qemu_bench` fails when a run
 /// exceeds this). On this branch DP-V1 (MSAC_C2 Initiate) is still answered through the core:
-/// 9212 instructions (`cargo run -q -p host-tests --bin qemu_bench --target
+/// 9359 instructions, the highest of three runs (9212, 9202, 9359; `cargo run -q -p host-tests --bin qemu_bench --target
 /// x86_64-unknown-linux-gnu`, worst over the non-bench rows).
-pub const LINE_BUDGET_INSTRUCTIONS: u32 = 9212;
+pub const LINE_BUDGET_INSTRUCTIONS: u32 = 9359;
 
 /// Core clock of the F411 build (HCLK = 96 MHz, `src/bsp/f411.rs`), cycles per second.
 pub const CPU_HZ: u32 = 96_000_000;
