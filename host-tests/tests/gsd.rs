@@ -110,6 +110,22 @@ fn every_rate_supported_with_card_max_tsdr() {
     assert_eq!(gsd.supported_speeds, all, "only the ten RS-485 rates may be declared");
 }
 
+/// The GSD's MaxTsdr follow from the cycle model (`card::modelled_tsdr` of the measured
+/// `card::LINE_BUDGET_INSTRUCTIONS`, capped by the customary value), and none is below the
+/// model's floor (IDLE detection after min_TSDR).
+#[test]
+fn gsd_max_tsdr_follows_from_the_cycle_model() {
+    let gsd = parse();
+    for rate in Baudrate::ALL {
+        let (_, name) = gsd_rate(rate);
+        let declared = u32::from(gsd_max_tsdr(&gsd, rate));
+        let model = card::modelled_tsdr(rate, card::LINE_BUDGET_INSTRUCTIONS);
+        let ceiling = u32::from(card::customary_max_tsdr(rate));
+        assert_eq!(declared, model.min(ceiling), "MaxTsdr_{name}: model {model}, ceiling {ceiling}");
+        assert!(declared >= card::MAX_TSDR_FLOOR, "MaxTsdr_{name} = {declared} below the floor");
+    }
+}
+
 #[test]
 fn services_match_card() {
     let gsd = parse();

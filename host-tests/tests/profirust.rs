@@ -264,6 +264,9 @@ fn i_min_tsdr_from_set_prm() {
     let rate = Baudrate::B187500;
     let mut m = MasterConfig::new(rate).watchdog_ms(200);
     m.min_tsdr_bits = Some(40);
+    // A min_TSDR above the card's MaxTsdr is a configuration the slave cannot meet (it may not
+    // answer before min_TSDR nor after MaxTsdr): the rate must leave room for 40 + the path.
+    assert!(40 + 4 <= card::max_tsdr(rate), "MaxTsdr at {rate:?} leaves no room for min_TSDR 40");
     let mut bus =
         SimBus::new(m, &[PeripheralConfig::card(SLAVE, &card::MODULES[0], rate)], vec![(SLAVE, EchoApp::default())]);
     bus.bring_up(SLAVE, Duration::from_millis(1_000));

@@ -356,4 +356,24 @@ fn main() {
         .max_by_key(|r| r.0)
         .unwrap_or_else(|| fail("no fast-path answer"));
     println!("\nworst fast path: {} instructions ({})", worst.0, worst.1);
+    // The budget card::max_tsdr is derived from: the worst request the shipped GSD allows
+    // (modules ≤ 36/36 bytes, no bench-only module), whichever path answers it.
+    let shipped = |label: &str| {
+        let outputs = label.strip_prefix("Data_Exchange ").and_then(|r| r.split(' ').next()?.parse::<usize>().ok());
+        !label.contains("bench build only") && outputs.is_none_or(|n| n <= 36)
+    };
+    let worst_shipped = rows
+        .iter()
+        .filter(|r| shipped(&r.0))
+        .map(|r| (*r.3.iter().max().unwrap(), &r.0))
+        .max_by_key(|r| r.0)
+        .unwrap_or_else(|| fail("no shipped request measured"));
+    if worst_shipped.0 > card::LINE_BUDGET_INSTRUCTIONS {
+        fail(&format!(
+            "worst shipped card {} instructions ({}) exceeds card::LINE_BUDGET_INSTRUCTIONS = {}",
+            worst_shipped.0,
+            worst_shipped.1,
+            card::LINE_BUDGET_INSTRUCTIONS
+        ));
+    }
 }
