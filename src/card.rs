@@ -83,14 +83,23 @@ pub const fn modelled_tsdr(rate: Baudrate, instructions: u32) -> u32 {
     }
 }
 
+/// Whether the GSD's MaxTsdr follow the cycle model ([`modelled_tsdr`]). **`false` while the
+/// F411 does not run the fast-path split** (issue 11): [`LINE_BUDGET_INSTRUCTIONS`] is measured
+/// on the QEMU build, whose line runs `fast::FastPath`; the shipped F411 still decides in its
+/// `decide` task through the whole `Node`, behind the node lock lower tasks hold, a path the
+/// benchmark no longer measures — declaring the model's values would promise a timing the
+/// board does not have. Until then the GSD declares [`customary_max_tsdr`].
+pub const GSD_FROM_MODEL: bool = false;
+
 /// GSD `MaxTsdr_<rate>`: the latest a response starts after the request's last stop bit, in
-/// bit times, per rate: [`modelled_tsdr`] of [`LINE_BUDGET_INSTRUCTIONS`], never above
-/// [`customary_max_tsdr`] (README "Board budget"). The host simulator holds every response to
-/// them; the line drops a response later than this (`TxDrop::TooLate`).
+/// bit times, per rate: with [`GSD_FROM_MODEL`], [`modelled_tsdr`] of
+/// [`LINE_BUDGET_INSTRUCTIONS`], never above [`customary_max_tsdr`]; without it (today), the
+/// customary value (README "Board budget"). The host simulator holds every response to them;
+/// the line drops a response later than this (`TxDrop::TooLate`).
 pub const fn max_tsdr(rate: Baudrate) -> u16 {
     let ceiling = customary_max_tsdr(rate);
     let m = modelled_tsdr(rate, LINE_BUDGET_INSTRUCTIONS);
-    if m > ceiling as u32 {
+    if !GSD_FROM_MODEL || m > ceiling as u32 {
         ceiling
     } else {
         m as u16
@@ -489,6 +498,7 @@ mod max_tsdr_model {
     fn max_tsdr_is_the_model_capped_by_the_customary_value() {
         for rate in RATES {
             let v = u32::from(max_tsdr(rate));
+            let model = modelled_tsdr(rate, LINE_BUDGET_INSTRUCTIONS);
             println!("{rate:?}: model {} → MaxTsdr {v}", modelled_tsdr(rate, LINE_BUDGET_INSTRUCTIONS));
             assert!(
                 v >= MAX_TSDR_FLOOR && v > crate::time::BitTimes::MIN_TSDR_DEFAULT.0,
@@ -501,8 +511,14 @@ mod max_tsdr_model {
                 + f64::from(COPY_CYCLES_PER_BYTE * COPY_MAX_BYTES)
                 + f64::from(DMA_START_CYCLES);
             let bits = f64::from(IDLE_DETECT_BITS) + (cycles * f64::from(rate.bits_per_second()) / 96e6).ceil();
-            let expect = ((bits * 1.2).ceil() as u32).max(MAX_TSDR_FLOOR).min(u32::from(customary_max_tsdr(rate)));
-            assert_eq!(v, expect, "{rate:?}");
+            let expect = ((bits * 1.2).ceil() as u32).max(MAX_TSDR_FLOOR);
+            assert_eq!(model, expect, "{rate:?}: the model");
+            let declared = if GSD_FROM_MODEL {
+                expect.min(u32::from(customary_max_tsdr(rate)))
+            } else {
+                u32::from(customary_max_tsdr(rate))
+            };
+            assert_eq!(v, declared, "{rate:?}");
         }
     }
 
