@@ -460,6 +460,17 @@ struct Last {
     answer: Option<u16>,
 }
 
+/// `telegram::fcs` of the last `pdu_len` bytes before the FCS of a decoded (checksum-verified)
+/// data frame, from its own FCS byte: the FCS minus the header bytes it covers (DA, SA, FC,
+/// DAE, SAE) — the station's retry fingerprint without a pass over the PDU.
+fn pdu_sum(frame: &[u8], pdu_len: usize) -> u8 {
+    let n = frame.len();
+    let start = if frame.first() == Some(&telegram::SD2) { 4 } else { 1 };
+    let end = n.saturating_sub(2 + pdu_len).max(start);
+    let fcs = frame.get(n.wrapping_sub(2)).copied().unwrap_or(0);
+    fcs.wrapping_sub(telegram::fcs(frame.get(start..end).unwrap_or(&[])))
+}
+
 /// `a` is after `b` (sequence numbers, wrapping).
 fn after(a: u32, b: u32) -> bool {
     (a.wrapping_sub(b) as i32) > 0
@@ -640,7 +651,7 @@ impl<'a> FastPath<'a> {
             }
             return Verdict::Silent;
         }
-        let fingerprint = (t.dsap, t.ssap, t.pdu.len(), telegram::fcs(t.pdu));
+        let fingerprint = (t.dsap, t.ssap, t.pdu.len(), pdu_sum(frame, t.pdu.len()));
         let answer: Option<u16> = match function {
             RequestFunction::FdlStatus => {
                 let hdr = Header {

@@ -302,7 +302,7 @@ fn main() {
     for (label, req, resp, v, path) in &rows {
         let (lo, hi) = (v.iter().min().unwrap(), v.iter().max().unwrap());
         let instr = if lo == hi { format!("{lo}") } else { format!("{lo} – {hi}") };
-        let by = if path == "core" { "core (DP-V1, through the line)" } else { "fast path" };
+        let by = if path == "core" { "via core (DP-V1, through the line)" } else { "fast path" };
         println!("| {label} | {by} | {req} → {resp} | {instr} | {} | {:.1} |", v.len(), *hi as f64 / 96.0);
     }
     println!("\n(the core's work per queued telegram, after the answer: `CoreLink::step` = `Node::on_frame` + republishing the staging)\n");
@@ -349,31 +349,36 @@ fn main() {
         let us = max as f64 / 96.0;
         println!("| {task} | {max} | {us:.1} | {:.1} |", us / (11.0 / 1.5));
     }
+    // The shipped card: every row but the bench build's own modules (their Chk_Cfg and
+    // Data_Exchange); the line or the core answering. A Data_Exchange of 244 bytes to PPO 5
+    // (RS) is a request the shipped card can get, so it counts.
+    let bench_only = |l: &str| {
+        l.contains("bench build only")
+            || l.starts_with("Data_Exchange 32 out / 32 in")
+            || l.starts_with("Data_Exchange 244 out / 244 in")
+    };
+    let shipped = rows
+        .iter()
+        .filter(|r| !bench_only(&r.0))
+        .map(|r| (*r.3.iter().max().unwrap(), &r.0))
+        .max_by_key(|r| r.0)
+        .unwrap_or_else(|| fail("no answer"));
+    println!("\nworst shipped card: {} instructions ({})", shipped.0, shipped.1);
     let worst = rows
         .iter()
         .filter(|r| r.4 != "core")
         .map(|r| (*r.3.iter().max().unwrap(), &r.0))
         .max_by_key(|r| r.0)
         .unwrap_or_else(|| fail("no fast-path answer"));
-    println!("\nworst fast path: {} instructions ({})", worst.0, worst.1);
-    // The budget card::max_tsdr is derived from: the worst request the shipped GSD allows
-    // (modules ≤ 36/36 bytes, no bench-only module), whichever path answers it.
-    let shipped = |label: &str| {
-        let outputs = label.strip_prefix("Data_Exchange ").and_then(|r| r.split(' ').next()?.parse::<usize>().ok());
-        !label.contains("bench build only") && outputs.is_none_or(|n| n <= 36)
-    };
-    let worst_shipped = rows
-        .iter()
-        .filter(|r| shipped(&r.0))
-        .map(|r| (*r.3.iter().max().unwrap(), &r.0))
-        .max_by_key(|r| r.0)
-        .unwrap_or_else(|| fail("no shipped request measured"));
-    if worst_shipped.0 > card::LINE_BUDGET_INSTRUCTIONS {
+    // The budget card::max_tsdr is derived from (card::LINE_BUDGET_INSTRUCTIONS): the worst
+    // request the shipped card can get, whichever path answers it.
+    if shipped.0 > card::LINE_BUDGET_INSTRUCTIONS {
         fail(&format!(
             "worst shipped card {} instructions ({}) exceeds card::LINE_BUDGET_INSTRUCTIONS = {}",
-            worst_shipped.0,
-            worst_shipped.1,
+            shipped.0,
+            shipped.1,
             card::LINE_BUDGET_INSTRUCTIONS
         ));
     }
+    println!("worst fast path: {} instructions ({})", worst.0, worst.1);
 }
