@@ -13,7 +13,7 @@
 //! | priority | task | does |
 //! |---|---|---|
 //! | 16 (highest) | F411: `line_usart1` (USART1: IDLE, PE/FE/NF/ORE, TC), `line_tim5` (TIM5 compares: T_SYN proof, delayed response start) | the DMA line (`bsp/f411.rs`): cut telegrams into the queue, release DE on TC; never touches the `Node` |
-//! | 16 | QEMU: `usart1` (USART1 interrupt per character) | the per-byte line (`phy::line::answer` → `Node::on_frame`) → response; after a Data_Exchange spawns `app_step`, after a DP-V1 request `acyclic` |
+//! | 16 | QEMU: `usart1` (USART1 interrupt per character) | the per-byte line (`node::answer` → `Node::on_frame`) → response; after a Data_Exchange spawns `app_step`, after a DP-V1 request `acyclic` |
 //! | 15 | F411: `decide` (bound to the unused SDIO interrupt, pended by `line_usart1`) | per telegram: `Node::on_frame` → `DmaLine::respond` (min_TSDR by TIM5 compare); autobaud frame accounting; spawns as above |
 //! | 11 | F411: `spi_frame` (software task, spawned by `spi_nss` at 12 on NSS rising) | one DPM SPI transaction against its own image (`dpm::spi::WireImage`), the reply armed for the next one |
 //! | 8 | `acyclic` (software task) | `Node::process_acyclic`: DP-V1 records at slot 0, PROFIdrive parameter access (card PNUs, then the drive's through the DPM parameter mailbox, `Application::parameters`; a job waiting for the drive is retried on the next spawn) |
@@ -115,8 +115,6 @@ mod app {
     use crate::LINE_RATE;
     #[cfg(feature = "board-f411")]
     use pbcard::phy::autobaud::Autobaud;
-    #[cfg(feature = "board-f411")]
-    use pbcard::phy::line as phy_line;
 
     /// What the log reports after a step, read while the node was locked.
     struct NodeView {
@@ -627,7 +625,7 @@ mod app {
                 let min_tsdr = n.min_tsdr();
                 let dx_before = n.slave().stats().data_exchanges;
                 // The library decides (own valid request, rate locked); the line obeys.
-                if let Some(resp) = phy_line::answer(n, b, now, frame) {
+                if let Some(resp) = pbcard::node::answer(n, b, now, frame) {
                     line.lock(|l| {
                         let _ = l.respond(&meta, resp, min_tsdr, max_tsdr);
                     });

@@ -21,6 +21,7 @@ use crate::dpv1::records::{relation_c2, RELATION_C1};
 use crate::fdl::framer::{Framer, Push};
 use crate::fdl::station::{FdlApplication, Reply, Station, Tx};
 use crate::fdl::telegram::{DataTelegram, RequestFunction, ResponseStatus};
+use crate::phy::line::{classify, RateControl};
 use crate::profile::param::ParameterAccess;
 use crate::profile::pnu::{CardInfo, CardTable, ProcessView, FAULT_BUFFER_LEN};
 use crate::profile::records::DriveRecords;
@@ -328,5 +329,31 @@ impl Node {
     /// The framer (counters).
     pub fn framer(&self) -> &Framer {
         &self.framer
+    }
+}
+
+/// The decision for one telegram the line delimited, as the F411 firmware's decision task runs
+/// (moved here from `phy::line`, which no longer names the node: the line is below it)
+/// it: the node decides ([`Node::on_frame`]: no answer for other stations, broadcasts,
+/// tokens, corrupt frames); an answered request is a valid SD1/SD2/SD3 telegram to us, which
+/// locks the search and retriggers Baud_Control; every other telegram is classified for the
+/// rate control ([`crate::phy::line::classify`]). The answer is returned only while the rate is locked — the
+/// driver sends exactly that, after min_TSDR ([`crate::phy::line::tx_plan`]).
+pub fn answer<'n>(node: &'n mut Node, rate: &mut impl RateControl, now: Instant, frame: &[u8]) -> Option<&'n [u8]> {
+    let own = node.slave().address();
+    match node.on_frame(now, frame) {
+        Some(resp) => {
+            rate.on_frame(now, true, true);
+            rate.detected().map(|_| resp)
+        }
+        None => {
+            let c = classify(frame, own);
+            if c.invalid {
+                rate.on_garbage(now);
+            } else {
+                rate.on_frame(now, c.ok_sd123, c.to_us);
+            }
+            None
+        }
     }
 }

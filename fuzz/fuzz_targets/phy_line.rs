@@ -1,6 +1,6 @@
 //! The DMA receiver's telegram cutter (`pbcard::phy::line::Receiver`) on an arbitrary stream
 //! of IDLE-delimited segments, character errors, T_SYN gaps and restarts, with every
-//! telegram it hands on answered by a whole `Node` through `phy::line::answer` (the decision
+//! telegram it hands on answered by a whole `Node` through `node::answer` (the decision
 //! the firmware's task makes).
 //!
 //! Input: a sequence of operations, each a control byte `c`:
@@ -25,8 +25,8 @@ mod src;
 use libfuzzer_sys::fuzz_target;
 use pbcard::dp::DpSlave;
 use pbcard::fdl::telegram::{self, Decoded, FunctionCode, Header, Telegram};
-use pbcard::node::Node;
-use pbcard::phy::line::{answer, expected_len, Expect, RateControl, Receiver, RxStats, SegmentEnd};
+use pbcard::node::{answer, Node};
+use pbcard::phy::line::{expected_len, Expect, RateControl, Receiver, RxStats, SegmentEnd};
 use pbcard::testkit;
 use pbcard::time::{Baudrate, Instant};
 use src::Src;

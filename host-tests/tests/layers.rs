@@ -53,7 +53,6 @@ const KNOWN_DEBT: &[(&str, &str)] = &[
     ("node", "card"),
     ("node", "dpm"),
     ("node", "profile"),
-    ("phy", "node"),
     ("profile", "card"),
 ];
 

@@ -36,7 +36,6 @@
 
 use super::autobaud::Autobaud;
 use crate::fdl::telegram::{self, Decoded, Telegram};
-use crate::node::Node;
 use crate::time::{Baudrate, BitTimes, Instant};
 
 /// Bit times of idle line after the last stop bit at which the USART raises IDLE (one idle
@@ -353,35 +352,11 @@ impl RateControl for Autobaud {
     }
 }
 
-/// The decision for one telegram the line delimited, as the firmware's decision task runs
-/// it: the node decides ([`Node::on_frame`]: no answer for other stations, broadcasts,
-/// tokens, corrupt frames); an answered request is a valid SD1/SD2/SD3 telegram to us, which
-/// locks the search and retriggers Baud_Control; every other telegram is classified for the
-/// rate control ([`classify`]). The answer is returned only while the rate is locked — the
-/// driver sends exactly that, after min_TSDR ([`tx_plan`]).
-pub fn answer<'n>(node: &'n mut Node, rate: &mut impl RateControl, now: Instant, frame: &[u8]) -> Option<&'n [u8]> {
-    let own = node.slave().address();
-    match node.on_frame(now, frame) {
-        Some(resp) => {
-            rate.on_frame(now, true, true);
-            rate.detected().map(|_| resp)
-        }
-        None => {
-            let c = classify(frame, own);
-            if c.invalid {
-                rate.on_garbage(now);
-            } else {
-                rate.on_frame(now, c.ok_sd123, c.to_us);
-            }
-            None
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::fdl::telegram::{emit, FunctionCode, Header, MAX_FRAME_LEN, SC, SD1, SD2, SD3, SD4};
+    use crate::node::{answer, Node};
     use proptest::prelude::*;
     use std::vec::Vec;
 
