@@ -194,6 +194,10 @@ pub fn open_all(opts: &crate::Options, stations: &mut [crate::Station]) -> io::R
     for st in stations.iter_mut() {
         let mut f = StateFile::open(path_for(base, st.config.address, several))?;
         let msg = f.restore(&mut st.node, st.config.module);
+        // The line answers from the staging the station published when it was built (the
+        // configured address): republish it now, or a request to the restored address that
+        // comes before the first application step is dropped by the fast path's DA filter.
+        st.publish(pbcard::dp::Events::ADDRESS_CHANGED);
         log.push(format!("{} {msg}", st.prefix()));
         files.push(f);
     }
