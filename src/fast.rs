@@ -221,7 +221,7 @@ const ST_EPOCH: usize = 1;
 const ST_ID: usize = 2;
 /// Word 3: input length, output length, Real_Cfg module index, diagnosis frame length.
 const ST_LENS: usize = 3;
-/// Word 4: Data_Exchange frame length (u16).
+/// Word 4: Data_Exchange frame length (u16), min_TSDR in bit times (u16, upper half).
 const ST_DXLEN: usize = 4;
 const DX_AT: usize = 20;
 const DIAG_ROOM: usize = round4(card::MAX_DIAG_DATA_LEN + 11);
@@ -412,6 +412,8 @@ struct Staged {
     module: u8,
     diag_len: u8,
     dx_len: u16,
+    /// min_TSDR in force (bit times).
+    min_tsdr: u16,
 }
 
 impl Staged {
@@ -427,6 +429,7 @@ impl Staged {
         module: 0,
         diag_len: 0,
         dx_len: 0,
+        min_tsdr: crate::time::BitTimes::MIN_TSDR_DEFAULT.0 as u16,
     };
     fn state(&self) -> DpState {
         match self.state {
@@ -525,6 +528,13 @@ impl<'a> FastPath<'a> {
         self.st.address
     }
 
+    /// min_TSDR of the newest staging (the node's [`Node::min_tsdr`] as of its last step):
+    /// the line's wait after a request's last stop bit before an answer it sends now.
+    pub fn min_tsdr(&mut self) -> crate::time::BitTimes {
+        self.refresh();
+        crate::time::BitTimes(u32::from(self.st.min_tsdr))
+    }
+
     /// Whether a queued Set_Prm / Chk_Cfg waits for the core (the not-ready window).
     pub fn in_window(&mut self) -> bool {
         self.refresh();
@@ -561,6 +571,7 @@ impl<'a> FastPath<'a> {
             module: lens[2],
             diag_len: lens[3],
             dx_len: self.staging.word(ST_DXLEN) as u16,
+            min_tsdr: (self.staging.word(ST_DXLEN) >> 16) as u16,
         };
         if self.diag_consumed.is_some_and(|s| !after(s, self.st.done_seq)) {
             self.diag_consumed = None;
@@ -1049,7 +1060,8 @@ impl CoreLink<'_> {
             flags,
         ]);
         s[12..16].copy_from_slice(&[slave.input_len() as u8, out_len as u8, module as u8, diag_len as u8]);
-        s[16..20].copy_from_slice(&(dx_len as u32).to_le_bytes());
+        let min_tsdr = node.min_tsdr().0.min(u32::from(u16::MAX));
+        s[16..20].copy_from_slice(&(dx_len as u32 | (min_tsdr << 16)).to_le_bytes());
         // Only what this staging uses: the header words and the three frames.
         self.staging.write(0, &s[..DX_AT + dx_len]);
         self.staging.write(DIAG_AT / 4, &s[DIAG_AT..DIAG_AT + diag_len]);
@@ -1225,6 +1237,22 @@ mod tests {
         assert_eq!(parts(dx).0, ResponseStatus::Dl as u8);
         core.run(&mut node);
         assert_eq!(node.slave().outputs(), &[9, 8, 7, 6]);
+    }
+
+    /// min_TSDR travels in the staging: the node's value after the core judged a Set_Prm.
+    #[test]
+    fn min_tsdr_is_staged() {
+        let mut node = Node::new(DpSlave::new(8));
+        let mut shared = Shared::new();
+        let (mut fast, mut core) = shared.split(&mut node);
+        assert_eq!(fast.min_tsdr(), node.min_tsdr());
+        let mut m = ScriptedMaster::new(2, 8);
+        let now = Instant::from_micros(100);
+        let prm = SetPrm { min_tsdr: 200, ..SetPrm::CARD };
+        assert_eq!(fast.on_frame(now, &m.srd(Some(61), &prm.pdu())), Verdict::Answer(&[telegram::SC]));
+        core.run(&mut node);
+        assert_eq!(node.min_tsdr(), crate::time::BitTimes(200));
+        assert_eq!(fast.min_tsdr(), crate::time::BitTimes(200));
     }
 
     /// DP-V1 from the staging: the line answers SC to a request and to a poll whose response

@@ -115,6 +115,8 @@ mod app {
     use crate::LINE_RATE;
     #[cfg(feature = "board-f411")]
     use pbcard::phy::autobaud::Autobaud;
+    #[cfg(feature = "board-f411")]
+    use pbcard::phy::rate_link::RateLink;
 
     /// What the log reports after a step, read while the node was locked.
     struct NodeView {
@@ -236,15 +238,12 @@ mod app {
             });
             let events = snap.events;
             v.events = events;
-            // QEMU: the node changed (timers, diagnosis, inputs): the core task republishes
-            // the fast path's staging now.
-            #[cfg(feature = "qemu")]
-            {
-                if events.contains(Events::ADDRESS_CHANGED) {
-                    ADDRESS_CHANGES.fetch_add(1, core::sync::atomic::Ordering::Relaxed);
-                }
-                rtic::pend(CORE_IRQ);
+            // The node changed (timers, diagnosis, inputs): the core task republishes the fast
+            // path's staging now.
+            if events.contains(Events::ADDRESS_CHANGED) {
+                ADDRESS_CHANGES.fetch_add(1, core::sync::atomic::Ordering::Relaxed);
             }
+            rtic::pend(CORE_IRQ);
             #[cfg(feature = "bench")]
             {
                 // Each part's own maximum: the two locked parts and the unlocked middle.
@@ -367,7 +366,8 @@ mod app {
         drive: Drive,
         /// The PROFIBUS line (F411: USART1 + DMA2 + TIM5; QEMU: USART1 per byte + framer).
         line: board::Line,
-        /// The rate control (F411: autobaud; QEMU: fixed).
+        /// The rate control (F411: autobaud, the keeper half of `pbcard::phy::rate_link`, used by
+        /// the housekeeping task alone; QEMU: fixed).
         baud: board::Baud,
         // DPM SPI transport: see the block "DPM SPI transport" below.
         spi: DpmSpiPort,
@@ -378,15 +378,9 @@ mod app {
 
     #[local]
     struct Local {
-        /// QEMU: the core half of the split, in the core task.
-        #[cfg(feature = "qemu")]
+        /// The core half of the split, in the core task.
         core_link: pbcard::fast::CoreLink<'static>,
         acyclic_clock: SysTickClock,
-        #[cfg(feature = "board-f411")]
-        decide_clock: SysTickClock,
-        /// The telegram the decision works on (copied out of the line's queue).
-        #[cfg(feature = "board-f411")]
-        decide_buf: [u8; pbcard::fdl::telegram::MAX_FRAME_LEN],
         supervisor: board::Supervisor,
     }
 
@@ -470,22 +464,26 @@ mod app {
         if recovered {
             drive.app.report_recovered_fault();
         }
-        // The Baud_Search starts now (the SysTick clock starts at 0 in `board::init`).
-        let baud = Autobaud::new(b.clock.now());
+        // The split's queues and triple buffers, once, for the life of the firmware (as QEMU).
+        let Some(split) = cortex_m::singleton!(: pbcard::fast::Shared = pbcard::fast::Shared::new()) else {
+            defmt::panic!("fast path initialised twice");
+        };
+        let (fast, core_link) = split.split(&mut node);
+        // The Baud_Search starts now (the SysTick clock starts at 0 in `board::init`); the
+        // line classifies and gates, housekeeping searches and switches (`phy::rate_link`).
+        let Some(rate_link) = cortex_m::singleton!(: RateLink = RateLink::new()) else {
+            defmt::panic!("rate link initialised twice");
+        };
+        let (rate_tap, baud) = rate_link.split(Autobaud::new(b.clock.now()));
+        let mut line = b.line;
+        // The line halves go to the line interrupts, which alone use `line`.
+        line.attach(fast, rate_tap);
         housekeeping::spawn().ok();
         (
-            Shared {
-                node,
-                drive,
-                line: b.line,
-                baud,
-                spi: start_dpm_spi(b.spi),
-                spi_wire: pbcard::dpm::spi::WireImage::new(),
-            },
+            Shared { node, drive, line, baud, spi: start_dpm_spi(b.spi), spi_wire: pbcard::dpm::spi::WireImage::new() },
             Local {
+                core_link,
                 acyclic_clock: b.clock,
-                decide_clock: b.clock,
-                decide_buf: [0; 255],
                 supervisor: board::Supervisor::new(b.leds, store, b.iwdg, (address, no_add_chg)),
             },
         )
@@ -511,21 +509,23 @@ mod app {
     // The line: the interrupt(s) at the top priority, the decision one below
     // =========================================================================================
 
-    /// USART1. F411: IDLE (a segment is complete → telegrams queued), character errors, TC
-    /// (DE off). QEMU: one interrupt per character into the framer, and the response's next
-    /// character. Pends the decision when telegrams are queued; never touches the `Node`.
+    /// USART1. F411: IDLE (a segment is complete → its telegrams through the fast path),
+    /// character errors, TC (DE off). QEMU: one interrupt per character into the framer, and
+    /// the response's next character. Never touches the `Node`.
     ///
-    /// QEMU: the fast path (`pbcard::fast::FastPath`, owned by the line): every telegram into
-    /// the fast path, which answers from the staged frames at once or leaves it to the core
-    /// (DP-V1: the core task pends this interrupt when its answer is back). On QEMU no other
-    /// task locks `line` (they read `board::LineView`'s atomics), so this lock is free and
-    /// nothing masks the fast path; the core is reached through the split's queues and
-    /// triple buffers only.
+    /// Both boards: the fast path (`pbcard::fast::FastPath`, owned by the line): every
+    /// telegram into the fast path, which answers from the staged frames at once or leaves it
+    /// to the core (DP-V1: the core task pends this interrupt when its answer is back); the
+    /// core task is pended when telegrams were queued. No task below 16 locks `line` (they
+    /// read the line's atomics: F411 `board::monitor`, QEMU `board::LineView`; the F411's
+    /// rate switches and flash silences go through its command mailbox, `board::control`),
+    /// so this lock is free and nothing masks the fast path; the core is reached through the
+    /// split's queues and triple buffers only, the rate control through `phy::rate_link`.
     #[task(binds = USART1, priority = 16, shared = [line])]
     fn usart1(mut cx: usart1::Context) {
         #[cfg(feature = "board-f411")]
         if cx.shared.line.lock(|l| l.on_usart()) {
-            rtic::pend(stm32f4xx_hal::pac::Interrupt::SDIO);
+            rtic::pend(CORE_IRQ);
         }
         #[cfg(feature = "qemu")]
         if cx.shared.line.lock(|l| l.on_usart_fast()) {
@@ -533,22 +533,21 @@ mod app {
         }
     }
 
-    /// QEMU: the interrupt the core task is bound to (I2C1 event: unused by the card, and
-    /// no device of QEMU's netduinoplus2 drives it — an EXTI line is driven by QEMU's EXTI
+    /// The interrupt the core task is bound to (I2C1 event: unused by the card on both boards,
+    /// and no device of QEMU's netduinoplus2 drives it — an EXTI line is driven by QEMU's EXTI
     /// model and its software pend was not taken under `-icount`).
-    #[cfg(feature = "qemu")]
     const CORE_IRQ: stm32f4xx_hal::pac::Interrupt = stm32f4xx_hal::pac::Interrupt::I2C1_EV;
 
-    /// QEMU: address changes the housekeeping step saw (`Node::poll` reset the station's
-    /// FCB memory): the core task tells the fast path (`CoreLink::note_events`).
-    #[cfg(feature = "qemu")]
+    /// Address changes the housekeeping step saw (`Node::poll` reset the station's FCB
+    /// memory): the core task tells the fast path (`CoreLink::note_events`).
     static ADDRESS_CHANGES: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(0);
 
-    /// QEMU: the protocol core behind the fast path (bound to I2C1_EV, pended by `usart1` and by
-    /// every lower task that changed the node): republish the staging, then every queued
-    /// telegram through `Node::on_frame` (`CoreLink::step`), the staging republished after
-    /// each; a deferred (DP-V1) answer goes back to the line by pending USART1.
-    #[cfg(feature = "qemu")]
+    /// The protocol core behind the fast path, both boards (bound to I2C1_EV, pended by
+    /// `usart1` and by every lower task that changed the node): republish the staging, then
+    /// every queued telegram through `Node::on_frame` (`CoreLink::step`), the staging
+    /// republished after each; a deferred (DP-V1) answer goes back to the line by pending
+    /// USART1 (F411: `DmaLine::on_usart` sends it as `respond` decides, min_TSDR / max_TSDR by
+    /// TIM5).
     #[task(binds = I2C1_EV, priority = 15, shared = [node], local = [core_link, seen_address_changes: u32 = 0])]
     fn core_step(mut cx: core_step::Context) {
         let link = cx.local.core_link;
@@ -584,12 +583,15 @@ mod app {
                     }
                 }
             });
-            // The line takes the characters it held once the core has caught up (QEMU's line
-            // holds them, `bsp::qemu`): USART1 preempts here, and what it queued meanwhile is
-            // worked on in this activation.
-            rtic::pend(stm32f4xx_hal::pac::Interrupt::USART1);
-            cortex_m::asm::dsb();
-            cortex_m::asm::isb();
+            // QEMU: the line takes the characters it held once the core has caught up (QEMU's
+            // line holds them, `bsp::qemu`): USART1 preempts here, and what it queued
+            // meanwhile is worked on in this activation. (The F411's DMA line holds nothing.)
+            #[cfg(feature = "qemu")]
+            {
+                rtic::pend(stm32f4xx_hal::pac::Interrupt::USART1);
+                cortex_m::asm::dsb();
+                cortex_m::asm::isb();
+            }
             if !link.pending() {
                 break;
             }
@@ -601,46 +603,6 @@ mod app {
     #[task(binds = TIM5, priority = 16, shared = [line])]
     fn tim5(mut cx: tim5::Context) {
         cx.shared.line.lock(|l| l.on_timer());
-    }
-
-    /// The FDL/DP decision for every telegram the line delimited (bound to SDIO, which the
-    /// card does not use, pended by `usart1`): `Node::on_frame` on each; a response goes to
-    /// the line's `respond` (F411: keeps min_TSDR / max_TSDR by TIM5 and drops it when the
-    /// line moved on) only while the rate is locked; every telegram is accounted to the rate
-    /// control (autobaud: lock, Baud_Control, garbage).
-    #[cfg(feature = "board-f411")]
-    #[task(binds = SDIO, priority = 15, shared = [line, node, baud], local = [decide_clock, decide_buf])]
-    fn decide(cx: decide::Context) {
-        let decide::SharedResources { mut line, mut node, mut baud, .. } = cx.shared;
-        let clock = cx.local.decide_clock;
-        let buf = cx.local.decide_buf;
-        while let Some((len, meta)) = line.lock(|l| l.take_frame(buf)) {
-            let frame = &buf[..len];
-            let now = clock.now();
-            let rate = line.lock(|l| l.baud());
-            let max_tsdr = pbcard::time::BitTimes(u32::from(pbcard::card::max_tsdr(rate)));
-            (&mut node, &mut baud).lock(|n, b| {
-                // min_TSDR as it was before this request (a Set_Prm that changes it applies
-                // from the next response on).
-                let min_tsdr = n.min_tsdr();
-                let dx_before = n.slave().stats().data_exchanges;
-                // The library decides (own valid request, rate locked); the line obeys.
-                if let Some(resp) = pbcard::node::answer(n, b, now, frame) {
-                    line.lock(|l| {
-                        let _ = l.respond(&meta, resp, min_tsdr, max_tsdr);
-                    });
-                }
-                // A DP-V1 request was acknowledged; the middle-priority task works on it (if it
-                // is still running, the spawn fails and the next housekeeping step spawns it).
-                if n.has_acyclic_work() {
-                    acyclic::spawn().ok();
-                }
-                if n.slave().stats().data_exchanges != dx_before {
-                    // New outputs: the drive sees them now, not at the next millisecond.
-                    app_step::spawn().ok();
-                }
-            });
-        }
     }
 
     // =========================================================================================
@@ -671,18 +633,17 @@ mod app {
             });
         });
         ACYCLIC_RUNS.fetch_add(1, core::sync::atomic::Ordering::Relaxed);
-        // QEMU: republish the staging (the DP-V1 work may change the node's answers).
-        #[cfg(feature = "qemu")]
+        // Republish the staging (the DP-V1 work may change the node's answers).
         rtic::pend(CORE_IRQ);
         #[cfg(feature = "bench")]
         defmt::info!("LOCK process_acyclic {=u32} instructions", instr);
     }
 
     /// One application step right after a Data_Exchange.
-    #[task(priority = 1, shared = [node, drive, line])]
+    #[task(priority = 1, shared = [node, drive])]
     async fn app_step(cx: app_step::Context) {
-        let app_step::SharedResources { mut node, mut drive, mut line, .. } = cx.shared;
-        let line_errors = line_errors(&mut line);
+        let app_step::SharedResources { mut node, mut drive, .. } = cx.shared;
+        let line_errors = line_errors();
         // Same priority as housekeeping: this lock costs nothing.
         drive.lock(|d| {
             d.step(&mut node, line_errors);
@@ -692,32 +653,32 @@ mod app {
     // The line's counters for the lower tasks, never under a lock shared with the line
     // interrupts (issue 11 3c): F411, the atomics its line interrupts publish and read-only
     // register reads (`board::monitor`); QEMU, the atomics the fast path's interrupt
-    // publishes (`board::LineView`).
+    // publishes (`board::LineView`). No task below 16 shares `line`.
     /// The line's lost-telegram count (STATUS.CORRUPT_FRAMES).
     #[cfg(feature = "board-f411")]
-    fn line_errors(_line: &mut impl Mutex<T = board::Line>) -> u32 {
+    fn line_errors() -> u32 {
         board::monitor::corrupt_frames()
     }
     /// The line hardware runs (IWDG supervision).
     #[cfg(feature = "board-f411")]
-    fn line_healthy(_line: &mut impl Mutex<T = board::Line>) -> bool {
+    fn line_healthy() -> bool {
         board::monitor::is_healthy()
     }
     /// The line's statistics for the log.
     #[cfg(feature = "board-f411")]
-    fn line_stats(_line: &mut impl Mutex<T = board::Line>) -> (board::LineStats, pbcard::phy::line::RxStats) {
+    fn line_stats() -> (board::LineStats, pbcard::phy::line::RxStats) {
         board::monitor::stats()
     }
     #[cfg(feature = "qemu")]
-    fn line_errors(_line: &mut impl Mutex<T = board::Line>) -> u32 {
+    fn line_errors() -> u32 {
         board::LineView.corrupt_frames()
     }
     #[cfg(feature = "qemu")]
-    fn line_healthy(_line: &mut impl Mutex<T = board::Line>) -> bool {
+    fn line_healthy() -> bool {
         true
     }
     #[cfg(feature = "qemu")]
-    fn line_stats(_line: &mut impl Mutex<T = board::Line>) -> (board::LineStats, pbcard::fdl::framer::FramerStats) {
+    fn line_stats() -> (board::LineStats, pbcard::fdl::framer::FramerStats) {
         (board::LineView.stats(), board::LineView.rx_stats())
     }
 
@@ -727,9 +688,9 @@ mod app {
     /// timers (F411: search step → new divisor, Baud_Control / DP_Control; P0963), the
     /// board's supervision (F411: LED pins, the address journal after a Set_Slave_Add, the
     /// IWDG), and the log.
-    #[task(priority = 1, shared = [node, drive, line, baud], local = [supervisor])]
+    #[task(priority = 1, shared = [node, drive, baud], local = [supervisor])]
     async fn housekeeping(cx: housekeeping::Context) {
-        let housekeeping::SharedResources { mut node, mut drive, mut line, mut baud, .. } = cx.shared;
+        let housekeeping::SharedResources { mut node, mut drive, mut baud, .. } = cx.shared;
         let sup = cx.local.supervisor;
         let mut next = Mono::now();
         let mut ms: u32 = 0;
@@ -763,19 +724,21 @@ mod app {
             if board::answer_waiting() {
                 rtic::pend(stm32f4xx_hal::pac::Interrupt::USART1);
             }
-            let line_errors = line_errors(&mut line);
+            let line_errors = line_errors();
             let (v, now, leds) = drive.lock(|d| {
                 let v = d.step(&mut node, line_errors);
                 (v, d.clock.now(), d.leds)
             });
 
-            // Rate control: the DP watchdog state, the timers, a new rate for the USART.
+            // Rate control: the DP watchdog state, the line's telegrams since the last step
+            // (F411: `phy::rate_link`), the timers, a new rate — which the line interrupt
+            // carries out (`board::switch_rate`: no lock of the line).
             let (switch, detected) = baud.lock(|b| {
                 b.dp_watchdog_active(now, v.dp_watchdog_active());
                 (b.poll(now), b.detected())
             });
             if let Some(rate) = switch {
-                if line.lock(|l| l.set_baud(rate)).is_err() {
+                if !board::switch_rate(rate) {
                     defmt::error!("rate {} not reachable", rate);
                 }
             }
@@ -799,19 +762,18 @@ mod app {
             };
             let acyclic_alive = acyclic_wait
                 .is_none_or(|(_, since)| now.saturating_since(since) < pbcard::time::Duration::from_millis(100));
-            let alive = acyclic_alive && line_healthy(&mut line);
+            let alive = acyclic_alive && line_healthy();
             // I&M1-4 a master wrote go into the journal with the address (QEMU: RAM only).
             #[cfg(feature = "board-f411")]
             if let Some(d) = node.lock(|n| n.im_mut().take_changed()) {
                 sup.store_im(d);
             }
-            if sup.tick(now, leds, (v.address, v.no_add_chg), alive) {
-                line.lock(|l| l.restart_rx());
-            }
+            // F411: a journal write silences and restarts the line through its command mailbox.
+            sup.tick(now, leds, (v.address, v.no_add_chg), alive);
 
             ms = ms.wrapping_add(1);
             if ms.is_multiple_of(STATS_PERIOD_MS) {
-                let (ls, rx) = line_stats(&mut line);
+                let (ls, rx) = line_stats();
                 let ab = baud.lock(|b| b.stats());
                 let (station, dp) = node.lock(|n| (n.station().stats(), n.slave().stats()));
                 let link = drive.lock(|d| d.app.link().stats());

@@ -33,6 +33,12 @@ systick_monotonic!(Mono, 1_000);
 /// Upper 32 bits of the millisecond count and the last lower half seen.
 static EXTEND: Mutex<Cell<(u32, u32)>> = Mutex::new(Cell::new((0, 0)));
 
+/// [`EXTEND`] for the line's lock-free reading ([`SysTickClock::line_now`]), one word:
+/// the upper half of the millisecond count (bits 31..1) and the top bit of the last lower
+/// half seen (bit 0). Written only inside the clock's critical section, after `EXTEND`.
+#[cfg(feature = "board-f411")]
+static EXTEND_WORD: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(0);
+
 /// The microsecond clock (cheap to copy; all copies share the same time base).
 #[derive(Debug, Clone, Copy)]
 pub struct SysTickClock {
@@ -69,9 +75,46 @@ impl SysTickClock {
                 hi = hi.wrapping_add(1);
             }
             cell.set((hi, lo));
+            #[cfg(feature = "board-f411")]
+            EXTEND_WORD.store((hi << 1) | (lo >> 31), core::sync::atomic::Ordering::Release);
             let elapsed = self.reload.saturating_sub(cvr);
             ((u64::from(hi) << 32) | u64::from(lo), elapsed)
         })
+    }
+}
+
+#[cfg(feature = "board-f411")]
+impl SysTickClock {
+    /// The time for the line interrupts (F411, logical priority 16, above the clock's
+    /// critical section), without a critical section and without writing `EXTEND`: the
+    /// millisecond count and the down-counter read as in `sample` (two reads of the count
+    /// around the counter), the upper half from [`EXTEND_WORD`] (advanced here when the
+    /// lower half wrapped since the tasks last read it — they do every millisecond). One
+    /// race is left: the line preempting a lower reader (or the SysTick handler) between its
+    /// read of the SysTick wrap flag (COUNTFLAG, cleared by that read) and its increment of
+    /// the count sees the old count with the new down-counter — a time up to 1 ms early.
+    /// `floor` (the line's last reading) keeps the line's own times monotonic.
+    pub fn line_now(&self, floor: Instant) -> Instant {
+        let mut lo = Mono::now().ticks();
+        let mut cvr = SYST::get_current();
+        let lo2 = Mono::now().ticks();
+        if lo2 != lo {
+            lo = lo2;
+            cvr = SYST::get_current();
+        }
+        let w = EXTEND_WORD.load(core::sync::atomic::Ordering::Acquire);
+        let mut hi = w >> 1;
+        if w & 1 == 1 && lo >> 31 == 0 {
+            hi = hi.wrapping_add(1);
+        }
+        let ms = (u64::from(hi) << 32) | u64::from(lo);
+        let elapsed = self.reload.saturating_sub(cvr);
+        let t = Instant::from_micros(ms * 1000 + u64::from(elapsed / self.cycles_per_us));
+        if t < floor {
+            floor
+        } else {
+            t
+        }
     }
 }
 

@@ -80,16 +80,19 @@
 use core::ptr::addr_of_mut;
 use core::sync::atomic::{AtomicU32, AtomicU8, Ordering};
 
+use pbcard::fast::{FastPath, Verdict};
 use pbcard::fdl::telegram::MAX_FRAME_LEN;
-use pbcard::phy::line::{self, BitClock, Receiver, RxStats, TxDrop, TxPlan};
+use pbcard::phy::line::{self, classify, BitClock, Receiver, RxStats, TxDrop, TxPlan};
+use pbcard::phy::rate_link::RateTap;
 use pbcard::phy::timing::{compare_passed, LineTicks, RingReader, RxEnables, RxFlags, RxIrqGate};
-use pbcard::time::{Baudrate, BitTimes};
+use pbcard::time::{Baudrate, BitTimes, Instant};
 use stm32f4xx_hal::gpio::{Output, PushPull, PA10, PA8, PA9, PB6, PB7, PB8};
 use stm32f4xx_hal::pac::{DMA2, IWDG, RCC, TIM5, USART1};
 use stm32f4xx_hal::rcc::{Enable, Reset};
 
+use super::clock::SysTickClock;
 use super::divisor::usart_brr;
-use super::{DriverEnable, FrameQueue, UnsupportedRate};
+use super::{DriverEnable, UnsupportedRate};
 
 /// USART1 TX pin (AF7).
 pub type TxPin = PA9<stm32f4xx_hal::gpio::Alternate<7>>;
@@ -163,7 +166,8 @@ pub struct LineStats {
     pub framing: u32,
     pub noise: u32,
     pub overrun: u32,
-    /// Telegrams dropped because the decision task had not taken the older ones.
+    /// Telegrams dropped because the core had not taken the older ones (the fast path's
+    /// `FastStats::queue_full`).
     pub queue_full: u32,
     pub responses: u32,
     /// Responses started by the TIM5 compare (min_TSDR not yet over when they were ready).
@@ -206,7 +210,8 @@ pub struct DmaLine {
     tx_buf: &'static mut [u8; MAX_FRAME_LEN],
     /// The ring's read side (the first byte not yet cut).
     reader: RingReader<RX_RING>,
-    seg_buf: [u8; MAX_FRAME_LEN],
+    /// The segment being cut (taken out of `self` while its telegrams are worked on).
+    seg_buf: Option<&'static mut [u8; MAX_FRAME_LEN]>,
     /// A character error since the last IDLE.
     corrupt: bool,
     /// Which receive interrupts are on ([`RxIrqGate`]).
@@ -214,7 +219,16 @@ pub struct DmaLine {
     /// The enables last programmed (written only when they change).
     enabled: Option<RxEnables>,
     receiver: Receiver,
-    queue: FrameQueue<FrameMeta>,
+    /// The line half of the split (`pbcard::fast`), attached once in `init`.
+    fast: Option<FastPath<'static>>,
+    /// The line half of the rate control (`pbcard::phy::rate_link`), attached with it.
+    rate_tap: Option<RateTap<'static>>,
+    /// Requests the fast path left to the core ([`Verdict::Core`]), oldest first, until
+    /// their answers are back.
+    awaiting: heapless::Deque<FrameMeta, { pbcard::fast::QUEUE_LEN }>,
+    /// The protocol clock, read lock-free ([`SysTickClock::line_now`]), and its last reading.
+    time: SysTickClock,
+    last_now: Instant,
     segments: u32,
     /// Ring position the T_SYN check compares with.
     tsyn_pos: Option<u16>,
@@ -229,6 +243,38 @@ pub struct DmaLine {
 
 static mut RX_RING_BUF: [u8; RX_RING] = [0; RX_RING];
 static mut TX_BUF: [u8; MAX_FRAME_LEN] = [0; MAX_FRAME_LEN];
+static mut SEG_BUF: [u8; MAX_FRAME_LEN] = [0; MAX_FRAME_LEN];
+
+/// The transmitter's parts of a [`DmaLine`], borrowed field by field ([`sender!`]) so that a
+/// response can be started while the fast path's answer (a borrow of `DmaLine::fast`) is held.
+struct Sender<'l> {
+    usart: &'l USART1,
+    dma: &'l DMA2,
+    tim: &'l TIM5,
+    de: &'l mut DePin,
+    buf: &'l mut [u8; MAX_FRAME_LEN],
+    tx: &'l mut Tx,
+    table: &'l LineTicks,
+    transmit: bool,
+    segments: u32,
+}
+
+/// The [`Sender`] of a `DmaLine` expression (field borrows only).
+macro_rules! sender {
+    ($l:expr) => {
+        Sender {
+            usart: &$l.usart,
+            dma: &$l.dma,
+            tim: &$l.tim,
+            de: &mut $l.de,
+            buf: &mut *$l.tx_buf,
+            tx: &mut $l.tx,
+            table: &$l.table,
+            transmit: $l.transmit,
+            segments: $l.segments,
+        }
+    };
+}
 
 impl DmaLine {
     /// Take USART1, DMA2 and TIM5 (clocks enabled and reset here), start TIM5 free-running at
@@ -246,6 +292,7 @@ impl DmaLine {
         timclk_hz: u32,
         rate: Baudrate,
         transmit: bool,
+        time: SysTickClock,
         rcc: &mut RCC,
     ) -> Result<Self, UnsupportedRate> {
         de.disable();
@@ -256,7 +303,8 @@ impl DmaLine {
         TIM5::reset(rcc);
         // SAFETY: `new` is called once from `init`; the buffers are handed to the DMA and to
         // this struct only.
-        let (ring, tx_buf) = unsafe { (&mut *addr_of_mut!(RX_RING_BUF), &mut *addr_of_mut!(TX_BUF)) };
+        let (ring, tx_buf, seg_buf) =
+            unsafe { (&mut *addr_of_mut!(RX_RING_BUF), &mut *addr_of_mut!(TX_BUF), &mut *addr_of_mut!(SEG_BUF)) };
 
         // TIM5: 32-bit up-counter, prescaler 0, wraps at 2^32 (44.7 s at 96 MHz).
         tim.psc().write(|w| unsafe { w.bits(0) });
@@ -280,12 +328,16 @@ impl DmaLine {
             ring,
             tx_buf,
             reader: RingReader::new(),
-            seg_buf: [0; MAX_FRAME_LEN],
+            seg_buf: Some(seg_buf),
             corrupt: false,
             gate: RxIrqGate::new(),
             enabled: None,
             receiver: Receiver::new(),
-            queue: FrameQueue::new(),
+            fast: None,
+            rate_tap: None,
+            awaiting: heapless::Deque::new(),
+            time,
+            last_now: Instant::from_micros(0),
             segments: 0,
             tsyn_pos: None,
             tx: Tx::Idle,
@@ -295,6 +347,13 @@ impl DmaLine {
         line.usart.cr2().write(|w| w.stop().stop1());
         line.set_baud(rate)?;
         Ok(line)
+    }
+
+    /// Give the line its fast path and its half of the rate control (from `init`, after the
+    /// splits): from here on every telegram is answered here ([`DmaLine::on_usart`]).
+    pub fn attach(&mut self, fast: FastPath<'static>, rate: RateTap<'static>) {
+        self.fast = Some(fast);
+        self.rate_tap = Some(rate);
     }
 
     /// The APB2 clock the divisors are computed from.
@@ -354,9 +413,7 @@ impl DmaLine {
     /// Ring write position of the receive DMA.
     #[inline(always)]
     fn ring_pos(&self) -> usize {
-        let ndtr = self.dma.st(RX_STREAM).ndtr().read().bits() as usize;
-        // NDTR counts down from RX_RING and reloads at 0 (circular mode).
-        (RX_RING - ndtr.min(RX_RING)) % RX_RING
+        ring_pos(&self.dma)
     }
 
     /// Switch the line to `rate`: abort a response, reprogram the divisor, restart the
@@ -416,7 +473,8 @@ impl DmaLine {
         self.gate.restart();
         self.enabled = None;
         self.apply_gate();
-        self.queue.clear();
+        // No telegram before the restart may be answered any more (`quiet_since`).
+        self.segments = self.segments.wrapping_add(1);
         self.tsyn_pos = None;
         self.receiver.reset();
     }
@@ -440,37 +498,84 @@ impl DmaLine {
         self.stop_rx_dma();
         self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() & !(TIM_CC1 | TIM_CC2)) });
         self.tsyn_pos = None;
-        self.queue.clear();
         self.silent = true;
     }
 
-    /// A command from a lower task ([`control`]), executed in the TIM5 interrupt.
+    /// A command from a lower task ([`control`]), executed in the TIM5 interrupt: the
+    /// mailbox, then a rate switch the rate keeper asked for (`RateTap::take_switch`; not
+    /// while silenced — it is carried out after the restart).
     fn on_command(&mut self) {
         match COMMAND.swap(control::NONE, Ordering::AcqRel) {
             control::SILENCE => self.silence(),
             control::RESTART => self.restart_rx(),
             _ => {}
         }
+        if !self.silent {
+            if let Some(rate) = self.rate_tap.as_mut().and_then(|t| t.take_switch()) {
+                // Every rate has a divisor at the board's PCLK2 (`new` computed them; the
+                // keeper's caller logs an unreachable one): an error leaves the old rate.
+                let _ = self.set_baud(rate);
+            }
+        }
     }
 
-    /// The next telegram for the decision task: its bytes into `buf`, its length and data.
-    pub fn take_frame(&mut self, buf: &mut [u8; MAX_FRAME_LEN]) -> Option<(usize, FrameMeta)> {
-        self.queue.pop_into(buf)
+    /// One telegram the receiver cut, in the USART1 interrupt: the fast path decides
+    /// (`FastPath::on_frame`); its answer goes out at min_TSDR of the staging while the rate
+    /// control's gate is open (`RateTap::may_answer`); a request left to the core waits in
+    /// `awaiting`; then the telegram is accounted to the rate control
+    /// (`pbcard::phy::line::classify`: after the response is on its way, off its path).
+    #[inline(always)]
+    fn on_telegram(&mut self, frame: &[u8], meta: FrameMeta) {
+        let now = self.time.line_now(self.last_now);
+        self.last_now = now;
+        let (Some(fast), Some(tap)) = (self.fast.as_mut(), self.rate_tap.as_mut()) else { return };
+        let own = fast.address();
+        // min_TSDR as the core last published it (a Set_Prm that changes it applies from the
+        // next response on, as in the single-task decision).
+        let min_tsdr = fast.min_tsdr();
+        let max_tsdr = BitTimes(u32::from(pbcard::card::max_tsdr(self.rate)));
+        match fast.on_frame(now, frame) {
+            Verdict::Answer(bytes) => {
+                if tap.may_answer(true) {
+                    sender!(self).respond(&meta, bytes, min_tsdr, max_tsdr);
+                }
+            }
+            Verdict::Core => {
+                // At most `QUEUE_LEN − 1` requests are with the core: never full.
+                let _ = self.awaiting.push_back(meta);
+            }
+            Verdict::Silent => {}
+        }
+        tap.account(classify(frame, own));
     }
 
-    /// Whether no character has arrived since `frame`'s IDLE (its response may still go out).
-    fn quiet_since(&self, frame: &FrameMeta) -> bool {
-        frame.last_of_segment && frame.seg == self.segments && self.ring_pos() == usize::from(frame.seg_end)
+    /// The core's answers to requests in `awaiting` (the core task pends USART1 after each):
+    /// sent as `respond` decides (min_TSDR, max_TSDR, the line quiet since the request); none
+    /// while silenced or while the rate control's gate is shut.
+    fn take_deferred(&mut self) {
+        loop {
+            let Some(fast) = self.fast.as_mut() else { return };
+            let min_tsdr = fast.min_tsdr();
+            let Some(bytes) = fast.take_deferred() else { return };
+            let Some(meta) = self.awaiting.pop_front() else { continue };
+            let open = self.rate_tap.as_ref().is_some_and(|t| t.may_answer(false));
+            if self.silent || bytes.is_empty() || !open {
+                continue;
+            }
+            let max_tsdr = BitTimes(u32::from(pbcard::card::max_tsdr(self.rate)));
+            sender!(self).respond(&meta, bytes, min_tsdr, max_tsdr);
+        }
     }
 
-    /// The USART1 interrupt: errors, IDLE, TC. Returns `true` when telegrams were queued for
-    /// the decision task.
+    /// The USART1 interrupt: the core's answers, errors, IDLE (the segment's telegrams through
+    /// the fast path), TC. Returns `true` when telegrams were queued for the core.
     // In RAM (module documentation "In RAM").
     #[inline(never)]
     #[link_section = ".data.pbcard_line"]
     pub fn on_usart(&mut self) -> bool {
         // SR only, never DR (module documentation): the DMA's next DR read clears the flags.
         let sr = self.usart.sr().read().bits();
+        self.take_deferred();
         if self.silent {
             // Pended before the silence: nothing is received, nothing to release.
             return false;
@@ -523,29 +628,35 @@ impl DmaLine {
         self.enabled = Some(e);
     }
 
+    /// The segment up to ring position `write`: cut into telegrams, each through
+    /// [`Self::on_telegram`] in line order. Returns `true` when the fast path queued telegrams
+    /// for the core.
     fn on_idle(&mut self, idle_seen: u32, write: usize) -> bool {
-        let (n, take) = self.reader.take(self.ring, write, &mut self.seg_buf);
+        let Some(seg_buf) = self.seg_buf.take() else { return false };
+        let (n, take) = self.reader.take(self.ring, write, &mut seg_buf[..]);
         // A segment longer than a telegram cannot be one: dropped like a corrupt one.
         let corrupt = core::mem::take(&mut self.corrupt) || n > take;
         self.segments = self.segments.wrapping_add(1);
         let seg = self.segments;
         let seg_end = write as u16;
-        let (queue, seg_buf) = (&mut self.queue, &self.seg_buf);
-        let mut queued = 0usize;
-        let meta = FrameMeta { last_of_segment: false, seg_end, seg, idle_seen };
-        self.receiver.segment(&seg_buf[..take], corrupt, |f| {
-            if !queue.push(f, meta) {
-                add(QUEUE_FULL, 1);
-            }
-            queued += 1;
+        let queued_before = self.fast.as_ref().map_or(0, |f| f.stats().queued);
+        // The cutter out of `self` while its telegrams are worked on (28 bytes).
+        let mut receiver = core::mem::take(&mut self.receiver);
+        let mut consumed = 0usize;
+        receiver.segment(&seg_buf[..take], corrupt, |f| {
+            consumed += f.len();
+            // Only a telegram that ends its segment can be answered: bytes after it mean the
+            // line was not idle (`quiet_since`).
+            let meta = FrameMeta { last_of_segment: consumed == take, seg_end, seg, idle_seen };
+            self.on_telegram(f, meta);
         });
-        if queued > 0 {
-            if let Some(m) = self.queue.back_meta_mut() {
-                m.last_of_segment = true;
-            }
-        }
+        self.receiver = receiver;
+        self.seg_buf = Some(seg_buf);
         self.publish_rx();
-        queued > 0
+        let Some(fast) = self.fast.as_ref() else { return false };
+        let stats = fast.stats();
+        COUNTERS[QUEUE_FULL].store(stats.queue_full, Ordering::Relaxed);
+        stats.queued != queued_before
     }
 
     /// Arm TIM5 compare 2 for the T_SYN proof at `at`, against the ring position `pos` (the
@@ -588,7 +699,7 @@ impl DmaLine {
             if let Tx::Armed { ring_pos } = self.tx {
                 if usize::from(ring_pos) == self.ring_pos() {
                     add(DELAYED_STARTS, 1);
-                    self.start_now();
+                    sender!(self).start_now();
                 } else {
                     self.tx = Tx::Idle;
                     add(DROPPED_LINE_ACTIVE, 1);
@@ -597,33 +708,52 @@ impl DmaLine {
         }
     }
 
-    /// Send `bytes` as the response to `request` (the decision task's answer), no earlier
+    fn abort_tx(&mut self) {
+        self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() & !TIM_CC1) });
+        self.usart.cr1().modify(|_, w| w.tcie().disabled());
+        self.usart.cr3().modify(|_, w| w.dmat().disabled());
+        let st = self.dma.st(TX_STREAM);
+        st.cr().modify(|r, w| unsafe { w.bits(r.bits() & !DMA_EN) });
+        while st.cr().read().bits() & DMA_EN != 0 {}
+        self.de.disable();
+        self.tx = Tx::Idle;
+    }
+}
+
+impl Sender<'_> {
+    /// Send `bytes` as the response to `request` (the fast path's or the core's answer), no earlier
     /// than `min_tsdr` after its last stop bit and no later than `max_tsdr` — or not at all
     /// ([`line::tx_plan`]). Returns what was done.
-    pub fn respond(&mut self, request: &FrameMeta, bytes: &[u8], min_tsdr: BitTimes, max_tsdr: BitTimes) -> TxPlan {
-        if !self.transmit || bytes.is_empty() || bytes.len() > self.tx_buf.len() {
+    fn respond(&mut self, request: &FrameMeta, bytes: &[u8], min_tsdr: BitTimes, max_tsdr: BitTimes) -> TxPlan {
+        if !self.transmit || bytes.is_empty() || bytes.len() > self.buf.len() {
             add(DROPPED_BAD_LENGTH, 1);
             return TxPlan::Drop(TxDrop::Busy);
         }
         // From the tick table: additions and one multiply, no division.
         let not_before = self.table.response_not_before(request.idle_seen, min_tsdr);
         let latest = self.table.response_latest(request.idle_seen, max_tsdr);
-        let plan = line::tx_plan(self.ticks(), not_before, latest, self.quiet_since(request), self.tx != Tx::Idle);
+        let plan = line::tx_plan(
+            self.tim.cnt().read().bits(),
+            not_before,
+            latest,
+            quiet_since(self.dma, self.segments, request),
+            *self.tx != Tx::Idle,
+        );
         match plan {
             TxPlan::Drop(TxDrop::LineActive) => add(DROPPED_LINE_ACTIVE, 1),
             TxPlan::Drop(TxDrop::TooLate) => add(DROPPED_TOO_LATE, 1),
             TxPlan::Drop(TxDrop::Busy) => add(DROPPED_BUSY, 1),
             TxPlan::Now | TxPlan::At(_) => {
-                self.tx_buf[..bytes.len()].copy_from_slice(bytes);
+                self.buf[..bytes.len()].copy_from_slice(bytes);
                 let st = self.dma.st(TX_STREAM);
                 st.ndtr().write(|w| unsafe { w.bits(bytes.len() as u32) });
                 if let TxPlan::At(t) = plan {
-                    self.tx = Tx::Armed { ring_pos: request.seg_end };
+                    *self.tx = Tx::Armed { ring_pos: request.seg_end };
                     self.tim.ccr(0).write(|w| unsafe { w.bits(t) });
                     self.tim.sr().write(|w| unsafe { w.bits(!TIM_CC1) });
                     self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() | TIM_CC1) });
                     // The compare may have passed while it was being armed.
-                    if compare_passed(self.ticks(), t) {
+                    if compare_passed(self.tim.cnt().read().bits(), t) {
                         self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() & !TIM_CC1) });
                         self.start_now();
                     }
@@ -641,7 +771,7 @@ impl DmaLine {
         self.usart.cr1().modify(|_, w| w.re().disabled());
         self.dma.hifcr().write(|w| unsafe { w.bits(DMA_S7_FLAGS) });
         st.par().write(|w| unsafe { w.bits(self.usart.dr().as_ptr() as u32) });
-        st.m0ar().write(|w| unsafe { w.bits(self.tx_buf.as_ptr() as u32) });
+        st.m0ar().write(|w| unsafe { w.bits(self.buf.as_ptr() as u32) });
         st.fcr().write(|w| unsafe { w.bits(0) });
         st.cr().write(|w| unsafe { w.bits(DMA_CHSEL_USART1 | DMA_PL_VERY_HIGH | DMA_MINC | DMA_DIR_M2P) });
         // TC is rc_w0: writing 0 clears it, the other bits written 1 are unaffected.
@@ -650,25 +780,29 @@ impl DmaLine {
         self.de.enable();
         self.usart.cr3().modify(|_, w| w.dmat().enabled());
         self.usart.cr1().modify(|_, w| w.tcie().enabled());
-        self.tx = Tx::Sending;
+        *self.tx = Tx::Sending;
         add(RESPONSES, 1);
-    }
-
-    fn abort_tx(&mut self) {
-        self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() & !TIM_CC1) });
-        self.usart.cr1().modify(|_, w| w.tcie().disabled());
-        self.usart.cr3().modify(|_, w| w.dmat().disabled());
-        let st = self.dma.st(TX_STREAM);
-        st.cr().modify(|r, w| unsafe { w.bits(r.bits() & !DMA_EN) });
-        while st.cr().read().bits() & DMA_EN != 0 {}
-        self.de.disable();
-        self.tx = Tx::Idle;
     }
 }
 
-// The line's counters (issue 11 item 3c): written only with the line's exclusive access (its
-// interrupts, or the decision task inside the line's lock) — one writer at a time, so a load
-// and a store, no read-modify-write race — and read by any task without a lock.
+/// Ring write position of the receive DMA.
+#[inline(always)]
+fn ring_pos(dma: &DMA2) -> usize {
+    let ndtr = dma.st(RX_STREAM).ndtr().read().bits() as usize;
+    // NDTR counts down from RX_RING and reloads at 0 (circular mode).
+    (RX_RING - ndtr.min(RX_RING)) % RX_RING
+}
+
+/// Whether no character has arrived since `frame`'s IDLE (its response may still go out):
+/// it ended its segment, no IDLE since (`segments`), the DMA has not moved.
+#[inline(always)]
+fn quiet_since(dma: &DMA2, segments: u32, frame: &FrameMeta) -> bool {
+    frame.last_of_segment && frame.seg == segments && ring_pos(dma) == usize::from(frame.seg_end)
+}
+
+// The line's counters (issue 11 item 3c): written only by the line interrupts (USART1, TIM5,
+// both at priority 16: one writer at a time, so a load and a store, no read-modify-write
+// race) and read by any task without a lock.
 const PARITY: usize = 0;
 const FRAMING: usize = 1;
 const NOISE: usize = 2;
@@ -791,6 +925,14 @@ pub mod control {
     pub fn restart() -> bool {
         command(RESTART)
     }
+
+    /// Pend the TIM5 interrupt without a command: it carries out a rate switch the rate
+    /// keeper asked for (`pbcard::phy::rate_link`).
+    pub fn kick() {
+        cortex_m::peripheral::NVIC::pend(Interrupt::TIM5);
+        cortex_m::asm::dsb();
+        cortex_m::asm::isb();
+    }
 }
 
 /// The receive gate's view of USART_SR.
@@ -872,8 +1014,22 @@ pub const NAME: &str = "STM32F411 reference board, USART1 + DMA2, TIM5 bit timer
 
 /// The line of this board.
 pub type Line = DmaLine;
-/// The rate control of this board: the ASIC-style search and supervision.
-pub type Baud = pbcard::phy::autobaud::Autobaud;
+/// The rate control of this board: the ASIC-style search and supervision
+/// (`pbcard::phy::autobaud::Autobaud`) in the keeper half of `pbcard::phy::rate_link`; the
+/// line interrupt holds the other half.
+pub type Baud = pbcard::phy::rate_link::RateKeeper<'static>;
+
+/// Make the line take the rate switch the keeper has just asked for (`RateKeeper::poll`
+/// returned `rate`): the TIM5 interrupt, pended, carries it out before this returns
+/// (`DmaLine::on_command`). `false` when the rate has no USART divisor at PCLK2 (the line
+/// then stays at the old rate).
+pub fn switch_rate(rate: Baudrate) -> bool {
+    if usart_brr(clocks::PCLK2_HZ, rate.bits_per_second()).is_none() {
+        return false;
+    }
+    control::kick();
+    true
+}
 pub use super::fault::register_application;
 
 /// The low-priority board work (housekeeping task): LED pins, the card's journal (station
@@ -908,8 +1064,8 @@ impl Supervisor {
     /// Once per millisecond: show `leds`; store `address` (station address, No_Add_Chg) when
     /// it differs from the stored pair (Set_Slave_Add) and the I&M1–4 of [`Self::store_im`] (the
     /// flash stalls the CPU meanwhile, so the line is silenced before and restarted after —
-    /// module documentation "Flash stalls"; returns `false`: nothing left for the caller to
-    /// restart); start the IWDG at the first call and feed it only when `alive` (the line
+    /// module documentation "Flash stalls": both through the line's command mailbox, no lock);
+    /// start the IWDG at the first call and feed it only when `alive` (the line
     /// hardware runs and the protocol tasks make progress).
     pub fn tick(
         &mut self,
@@ -917,7 +1073,7 @@ impl Supervisor {
         leds: Option<pbcard::led::Leds>,
         address: (u8, bool),
         alive: bool,
-    ) -> bool {
+    ) {
         if let Some(l) = leds {
             self.leds.show(now, l);
         }
@@ -959,7 +1115,6 @@ impl Supervisor {
                 w.feed();
             }
         }
-        false
     }
 }
 
@@ -1090,11 +1245,22 @@ pub fn init(dp: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYS
         fs: gpiob.pb8.into_push_pull_output_in_state(PinState::Low),
     };
 
-    let line =
-        match DmaLine::new(dp.USART1, dp.DMA2, dp.TIM5, (tx, rx), DePin(de), pclk2, timclk1, rate, crystal, &mut rcc) {
-            Ok(l) => l,
-            Err(e) => defmt::panic!("line rate {} not reachable at PCLK2 {=u32} Hz", e.0, pclk2),
-        };
+    let line = match DmaLine::new(
+        dp.USART1,
+        dp.DMA2,
+        dp.TIM5,
+        (tx, rx),
+        DePin(de),
+        pclk2,
+        timclk1,
+        rate,
+        crystal,
+        clock,
+        &mut rcc,
+    ) {
+        Ok(l) => l,
+        Err(e) => defmt::panic!("line rate {} not reachable at PCLK2 {=u32} Hz", e.0, pclk2),
+    };
     let (over8, brr) = usart_brr(pclk2, rate.bits_per_second()).unwrap_or((false, 0));
     defmt::info!(
         "USART1 {} = {=u32} bit/s (OVER8 {=bool}, BRR {=u16:#x}), SYSCLK {=u32} Hz, TIM5 {=u32} Hz",

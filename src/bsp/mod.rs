@@ -36,67 +36,7 @@ pub use f411 as board;
 #[cfg(feature = "qemu")]
 pub use qemu as board;
 
-use heapless::Deque;
-use pbcard::fdl::telegram::MAX_FRAME_LEN;
 use pbcard::time::{Baudrate, BitTimes, Instant};
-
-/// Telegrams a line keeps for the decision task.
-pub const RX_QUEUE: usize = 4;
-
-/// The telegrams a line interrupt delimited, waiting for the decision task: the bytes in
-/// fixed slots (copied once in, once out, only their length), the line's own data `M` beside
-/// them. When full, the oldest telegram gives way (its response would be stale anyway).
-/// The F411's DMA line; QEMU's line hands telegrams to the fast path (`pbcard::fast`).
-#[cfg_attr(feature = "qemu", allow(dead_code))]
-pub struct FrameQueue<M: Copy> {
-    slots: [[u8; MAX_FRAME_LEN]; RX_QUEUE],
-    next: usize,
-    queued: Deque<(u8, u8, M), RX_QUEUE>,
-}
-
-#[cfg_attr(feature = "qemu", allow(dead_code))]
-impl<M: Copy> FrameQueue<M> {
-    /// Empty.
-    pub const fn new() -> Self {
-        FrameQueue { slots: [[0; MAX_FRAME_LEN]; RX_QUEUE], next: 0, queued: Deque::new() }
-    }
-
-    /// Queue a telegram (≤ 255 bytes); `false` when the oldest one was dropped for it.
-    pub fn push(&mut self, bytes: &[u8], meta: M) -> bool {
-        let n = bytes.len().min(MAX_FRAME_LEN);
-        let mut kept = true;
-        if self.queued.is_full() {
-            // Slots go round-robin: the next slot is the oldest queued telegram's.
-            self.queued.pop_front();
-            kept = false;
-        }
-        let slot = self.next;
-        self.next = (self.next + 1) % RX_QUEUE;
-        self.slots[slot][..n].copy_from_slice(&bytes[..n]);
-        let _ = self.queued.push_back((slot as u8, n as u8, meta));
-        kept
-    }
-
-    /// The oldest telegram: its bytes copied to `buf`, its length and data.
-    pub fn pop_into(&mut self, buf: &mut [u8; MAX_FRAME_LEN]) -> Option<(usize, M)> {
-        let (slot, len, meta) = self.queued.pop_front()?;
-        let n = usize::from(len);
-        buf[..n].copy_from_slice(&self.slots[usize::from(slot)][..n]);
-        Some((n, meta))
-    }
-
-    /// The data of the newest telegram.
-    #[cfg_attr(not(feature = "board-f411"), allow(dead_code))]
-    pub fn back_meta_mut(&mut self) -> Option<&mut M> {
-        self.queued.back_mut().map(|e| &mut e.2)
-    }
-
-    /// Drop everything.
-    #[cfg_attr(not(feature = "board-f411"), allow(dead_code))]
-    pub fn clear(&mut self) {
-        self.queued.clear();
-    }
-}
 
 /// A monotonic clock in microseconds that does not wrap in the product's lifetime.
 pub trait Clock {

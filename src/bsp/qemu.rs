@@ -479,20 +479,17 @@ impl FixedRate {
     }
 }
 
+/// The rate never changes under QEMU: nothing to switch (`FixedRate::poll` never asks).
+pub fn switch_rate(_rate: Baudrate) -> bool {
+    true
+}
+
 /// The QEMU board's supervision: nothing (no LED pins, no flash journal, no watchdog).
 pub struct Supervisor;
 
 impl Supervisor {
-    /// No LEDs, no journal, no IWDG; never asks for a receiver restart.
-    pub fn tick(
-        &mut self,
-        _now: Instant,
-        _leds: Option<pbcard::led::Leds>,
-        _address: (u8, bool),
-        _alive: bool,
-    ) -> bool {
-        false
-    }
+    /// No LEDs, no journal, no IWDG.
+    pub fn tick(&mut self, _now: Instant, _leds: Option<pbcard::led::Leds>, _address: (u8, bool), _alive: bool) {}
 }
 
 /// No fault path to register with: a panic ends QEMU.

@@ -8,11 +8,14 @@
 //! [`line::Receiver`], starts responses as [`line::tx_plan`] says, and reports every frame,
 //! every receive error and the passing of time back. [`timing`] holds what the line interrupt
 //! computes: the per-rate tick table, the "already passed?" check of a compare, the ring
-//! reader and the receive-interrupt gate.
+//! reader and the receive-interrupt gate. [`rate_link`] splits the rate control between the line
+//! interrupt (classifies telegrams, gates answers, carries out rate switches) and a lower task
+//! that owns [`autobaud::Autobaud`], lock-free.
 
 pub mod autobaud;
 pub mod divisor;
 pub mod line;
+pub mod rate_link;
 #[cfg(test)]
 mod tests_props;
 pub mod timing;
