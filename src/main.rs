@@ -12,24 +12,26 @@
 //!
 //! | priority | task | does |
 //! |---|---|---|
-//! | 16 (highest) | F411: `line_usart1` (USART1: IDLE, PE/FE/NF/ORE, TC), `line_tim5` (TIM5 compares: T_SYN proof, delayed response start) | the DMA line (`bsp/f411.rs`): cut telegrams into the queue, release DE on TC; never touches the `Node` |
-//! | 16 | QEMU: `usart1` (USART1 interrupt per character) | the per-byte line (`node::answer` → `Node::on_frame`) → response; after a Data_Exchange spawns `app_step`, after a DP-V1 request `acyclic` |
-//! | 15 | F411: `decide` (bound to the unused SDIO interrupt, pended by `line_usart1`) | per telegram: `Node::on_frame` → `DmaLine::respond` (min_TSDR by TIM5 compare); autobaud frame accounting; spawns as above |
+//! | 16 (highest) | F411: `usart1` (USART1: IDLE, PE/FE/NF/ORE, TC; pended by `core_step` for a deferred answer), `tim5` (TIM5 compares: T_SYN proof, delayed response start; the command mailbox: flash silence / restart, rate switch) | the DMA line (`bsp/f411.rs`) with the fast path (`pbcard::fast::FastPath`): every telegram cut at IDLE through `FastPath::on_frame`, its answer by `respond` (min_TSDR from the staging, min/max_TSDR by TIM5), a deferred one when the core has it; each telegram classified for the rate control (`phy::rate_link`: the line's gate, counts, switches); release DE on TC; never touches the `Node` |
+//! | 16 | QEMU: `usart1` (USART1 interrupt per character) | the per-byte line with the same fast path (`bsp/qemu.rs` `on_usart_fast`) → response after the quiet window |
+//! | 15 | both: `core_step` (bound to the unused I2C1_EV interrupt, pended by `usart1` and by every task that changed the node) | `CoreLink`: republish the staging, `Node::on_frame` for every queued telegram, the staging after each; a deferred (DP-V1) answer back to the line (pends USART1); after a Data_Exchange spawns `app_step`, after a DP-V1 request `acyclic` |
 //! | 11 | F411: `spi_frame` (software task, spawned by `spi_nss` at 12 on NSS rising) | one DPM SPI transaction against its own image (`dpm::spi::WireImage`), the reply armed for the next one |
 //! | 8 | `acyclic` (software task) | `Node::process_acyclic`: DP-V1 records at slot 0, PROFIdrive parameter access (card PNUs, then the drive's through the DPM parameter mailbox, `Application::parameters`; a job waiting for the drive is retried on the next spawn) |
-//! | 1 | `housekeeping` (QEMU) / `housekeeping_board` (F411) (async, every 1 ms) | the application step with two short Node locks (`Application::snapshot`: node timers + a copy; unlocked: DPM publish, drive, profile cycle, PKW, DRIVE_CMD; `Application::apply`: diagnosis + input image), STATUS.CORRUPT_FRAMES from the line, events, logs; F411: autobaud poll and rate switch, LEDs, IWDG, address journal |
+//! | 1 | `housekeeping` (async, every 1 ms) | the application step with two short Node locks (`Application::snapshot`: node timers + a copy; unlocked: DPM publish, drive, profile cycle, PKW, DRIVE_CMD; `Application::apply`: diagnosis + input image), then pends `core_step` (staging); STATUS.CORRUPT_FRAMES from the line's atomics, events, logs; F411: the autobaud machine (`RateKeeper::poll`: the line's counts, the timers, the gate's verdict; a rate switch asked of the line through `board::switch_rate`, no lock), LEDs, IWDG, address journal (line silence / restart through the mailbox) |
 //! | 1 | `app_step` (software task) | one application step (as above) right after a Data_Exchange (the drive sees new outputs at once) |
 //! | – | `idle` | WFI |
 //!
-//! The `Node` is shared by all of them but the line interrupts; the lower tasks lock it only
-//! to copy (`Application::snapshot` and `Application::apply` around the unlocked DPM, drive,
-//! profile and PKW work) or for one `Node::process_acyclic` call (README "Benchmark").
+//! The `Node` is shared by all of them but the line interrupts (ceiling 15: a lock masks the
+//! core task, never the line); the lower tasks lock it only to copy (`Application::snapshot`
+//! and `Application::apply` around the unlocked DPM, drive, profile and PKW work) or for one
+//! `Node::process_acyclic` call (README "Benchmark"). No task below 16 shares `line` on
+//! either board (README "The response path").
 //!
 //! The board is chosen by cargo feature; only `bsp::board` and the line block below differ:
 //!
 //! | feature | board | build |
 //! |---|---|---|
-//! | `board-f411` (default) | STM32F411 reference board (`bsp/f411.rs`): DMA line, autobaud, address journal in flash, LEDs, IWDG, own panic path; logs over RTT | `cargo build --release` |
+//! | `board-f411` (default) | STM32F411 reference board (`bsp/f411.rs`): DMA line with the fast path, autobaud, address journal in flash, LEDs, IWDG, own panic path; logs over RTT | `cargo build --release` |
 //! | `qemu` | QEMU netduinoplus2 = STM32F405 (`bsp/qemu.rs`), per-byte line at a fixed rate, defmt over semihosting | `cargo build --release --no-default-features --features qemu` |
 //! | `bench` (+ `qemu`) | the same, logging TIM2 instruction counts per response and under the Node lock | `... --features bench` |
 //!
@@ -506,7 +508,7 @@ mod app {
     }
 
     // =========================================================================================
-    // The line: the interrupt(s) at the top priority, the decision one below
+    // The line: the interrupt(s) at the top priority with the fast path, the core one below
     // =========================================================================================
 
     /// USART1. F411: IDLE (a segment is complete → its telegrams through the fast path),
@@ -621,7 +623,7 @@ mod app {
         #[cfg(feature = "bench")]
         let mut instr = 0u32;
         // The application (priority ceiling 8) for the DPM mailbox, the node (masks the
-        // line's decision) for one pass over the waiting requests.
+        // core task, not the line) for one pass over the waiting requests.
         drive.lock(|d| {
             let mut params = d.app.parameters(now);
             node.lock(|n| {

@@ -10,7 +10,8 @@
 //! highest RTIC task (the USART1 handler): neither preempts the other. F411: SysTick runs at
 //! logical priority 2 (`f411::SYSTICK_PRIORITY_HW`), below the line, and [`SysTickClock`]'s
 //! short critical section masks only the priorities up to 15 (BASEPRI), never the line's 16
-//! (no line interrupt reads this clock; issue 11 item 3c).
+//! (issue 11 item 3c): the line interrupts read the clock without it
+//! ([`SysTickClock::line_now`], for the fast path's telegram times).
 //!
 //! On the F411 the line times itself with TIM5 (`bsp/f411.rs`); this clock serves the protocol timers;
 //! under QEMU the SysTick runs at 168 MHz whatever RCC says: pass that as `sysclk_hz`.

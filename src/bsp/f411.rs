@@ -13,8 +13,9 @@
 //! * **IDLE** — one idle character after a stop bit: the bytes since the last IDLE (one
 //!   *segment*) go through [`pbcard::phy::line::Receiver`], which cuts them into telegrams by
 //!   their header length ([`pbcard::phy::line::expected_len`]) and hands every telegram on —
-//!   requests for us, for other stations, tokens, other slaves' responses — into a queue for
-//!   the decision task; the TIM5 timestamp of the IDLE gives the last stop bit;
+//!   requests for us, for other stations, tokens, other slaves' responses — to the fast path
+//!   in this interrupt (**The split**, below); the TIM5 timestamp of the IDLE gives the last
+//!   stop bit;
 //! * **PE / FE / NF / ORE** (PEIE, EIE) — the segment in progress is marked corrupt and
 //!   dropped at its IDLE; the receiver then waits for T_SYN;
 //! * **TC** — the end of our response (below).
@@ -37,8 +38,23 @@
 //! software event (TIM5_EGR.CC2G), not 44.7 s later at the counter's wrap (issue 11 item 2).
 //! After our own response the proof runs from the last stop bit (TC): T_SYN + one character.
 //!
-//! **Transmit.** The decision task hands the pre-staged response to [`DmaLine::respond`]
-//! with min_TSDR. [`pbcard::phy::line::tx_plan`] decides: drop it (characters arrived since
+//! **The split** (issue 11 item 1, as on QEMU; README "The response path"). The line owns
+//! the [`FastPath`] half of `pbcard::fast` ([`DmaLine::attach`]): each telegram cut at IDLE
+//! goes to `FastPath::on_frame` here, in the USART1 interrupt, at the protocol clock's time
+//! ([`SysTickClock::line_now`], lock-free). An answer from the staging goes to the transmitter
+//! at once (min_TSDR from the staging, `FastPath::min_tsdr`); a request the fast path leaves
+//! to the core ([`Verdict::Core`]: DP-V1 cases, other SAPs) waits in `awaiting` until the
+//! core task (priority 15) pends USART1 with its answer (`FastPath::take_deferred`), which is
+//! then sent under the same rules (min_TSDR, max_TSDR, the line quiet since the request).
+//! Every telegram is then classified (`pbcard::phy::line::classify`, after the response is
+//! on its way) and accounted to the rate control's line half (`pbcard::phy::rate_link::RateTap`):
+//! the autobaud machine runs in the housekeeping task, which asks for rate switches through
+//! the same link; the TIM5 interrupt carries them out ([`DmaLine::on_command`]). An answer
+//! goes out only while the link's gate is open (`RateTap::may_answer`: the rate locked, or
+//! about to lock on this very request).
+//!
+//! **Transmit.** The fast path's (or the core's) answer goes to the transmitter (`Sender`,
+//! the transmitting fields of [`DmaLine`]) with min_TSDR. [`pbcard::phy::line::tx_plan`] decides: drop it (characters arrived since
 //! the request — the master moved on —, later than the GSD's max_TSDR, or still sending), start
 //! at once, or arm TIM5 compare 1 at min_TSDR after the request's last stop bit. The start
 //! (here or in the TIM5 interrupt) sets DE (PA8) and then enables the USART's transmit DMA
@@ -47,18 +63,20 @@
 //! sent) releases DE and switches the receiver back on. Nothing here busy-waits.
 //!
 //! The line interrupts (USART1, TIM5) run at the highest priority and share nothing with the
-//! lower tasks but this [`DmaLine`] (locked only by the decision task; the counters are
-//! atomics, [`monitor`], and commands go through a mailbox, [`control`]); the FDL/DP decision
-//! runs one priority below, so a lower
-//! task holding the `Node` delays a decision (the response may then be dropped as too late:
-//! the master repeats it) but never the DE release or the receiver.
+//! lower tasks: no task below 16 locks this [`DmaLine`] (the counters are atomics,
+//! [`monitor`]; silence, restart and rate switches go through the command mailbox,
+//! [`control`], and `pbcard::phy::rate_link`; the core through the split's queues and triple
+//! buffer). A lower task holding the `Node` delays only the core task (DP-V1 answers, the
+//! staging's refresh), never an answer from the staging, the DE release or the receiver.
 //!
 //! **In RAM** (issue 11 item 2). [`DmaLine::on_usart`] and [`DmaLine::on_timer`] — the line
 //! interrupts' own code with what the compiler inlines into them (the receive gate, the ring
-//! reader, the T_SYN compare, the response start) — are linked into `.data.pbcard_line`:
+//! reader, the T_SYN compare, the response start, `FastPath::on_frame`'s own body; ≈ 4.8 KiB;
+//! the fast path's larger callees — `answer_srd`, the DP-V1 planner, the queue — stay in
+//! flash behind long-branch thunks) — are linked into `.data.pbcard_line`:
 //! cortex-m-rt 0.7 puts every `.data.*` input section into `.data`, which its reset code copies
 //! from flash to RAM, so they run from SRAM without flash wait states or ART cache misses
-//! (≈ 2 KiB; lld inserts the long-branch thunks between the two regions). Still in flash: the
+//! (lld inserts the long-branch thunks between the two regions). Still in flash: the
 //! RTIC vector stubs, `memcpy` (compiler_builtins) of the segment and queue copies, the panic
 //! paths, and `set_baud` (the restart command). A flash stall is not bridged by this — the
 //! vector table is in flash — which is why the line is silenced around flash writes.
@@ -72,7 +90,8 @@
 //! a response — DE low, transmit DMA off —, switches the receiver and its interrupts off and
 //! stops the receive DMA and both compares), writes the flash, and then **restarts** it
 //! ([`control::restart`]: USART reprogrammed, ring flushed — the DMA restarts at index 0 —,
-//! queue emptied, the receiver waits for T_SYN, proven by a compare armed from now). The
+//! no earlier request answerable any more, the receiver waits for T_SYN, proven by a compare
+//! armed from now; core answers that come back meanwhile are dropped). The
 //! commands go through an atomic mailbox executed at the line's own priority, so no lower task
 //! touches the line's registers or takes its lock. If the line cannot confirm the silence (its
 //! interrupt masked), the write is postponed to the next millisecond.
