@@ -594,9 +594,10 @@ impl DmaLine {
     pub fn on_usart(&mut self) -> bool {
         // SR only, never DR (module documentation): the DMA's next DR read clears the flags.
         let sr = self.usart.sr().read().bits();
-        self.take_deferred();
         if self.silent {
-            // Pended before the silence: nothing is received, nothing to release.
+            // Pended before the silence: nothing is received, nothing to release; a core
+            // answer that came back meanwhile is dropped.
+            self.take_deferred();
             return false;
         }
         let mut queued = false;
@@ -632,6 +633,9 @@ impl DmaLine {
             let now = self.ticks();
             self.arm_tsyn_check(self.table.tsyn_check_after_stop(now), self.ring_pos() as u16);
         }
+        // After a new segment (whose telegrams come first), the core's answers: one to a
+        // request before that segment is dropped then (the line was not quiet).
+        self.take_deferred();
         self.apply_gate();
         queued
     }
