@@ -84,12 +84,11 @@ pub const fn modelled_tsdr(rate: Baudrate, instructions: u32) -> u32 {
     }
 }
 
-/// Whether the GSD's MaxTsdr follow the cycle model ([`modelled_tsdr`]). **`false` while the
-/// F411 does not run the fast-path split** (issue 11): [`LINE_BUDGET_INSTRUCTIONS`] is measured
-/// on the QEMU build, whose line runs `fast::FastPath`; the shipped F411 still decides in its
-/// `decide` task through the whole `Node`, behind the node lock lower tasks hold, a path the
-/// benchmark no longer measures — declaring the model's values would promise a timing the
-/// board does not have. Until then the GSD declares [`customary_max_tsdr`].
+/// Whether the GSD's MaxTsdr follow the cycle model ([`modelled_tsdr`]). **`false` so far**
+/// (issue 11): [`LINE_BUDGET_INSTRUCTIONS`] is measured on the QEMU build, whose line runs
+/// `fast::FastPath`; the F411 now runs the same fast path from its DMA IDLE handler (no
+/// `Node` lock on the answer's way) — switching the GSD to the model is decided separately.
+/// Until then the GSD declares [`customary_max_tsdr`].
 pub const GSD_FROM_MODEL: bool = false;
 
 /// GSD `MaxTsdr_<rate>`: the latest a response starts after the request's last stop bit, in

@@ -332,9 +332,10 @@ impl Node {
     }
 }
 
-/// The decision for one telegram the line delimited, as the F411 firmware's decision task runs
-/// (moved here from `phy::line`, which no longer names the node: the line is below it)
-/// it: the node decides ([`Node::on_frame`]: no answer for other stations, broadcasts,
+/// The decision for one telegram the line delimited in one task, as the F411 firmware's decision
+/// task ran it before the split (moved here from `phy::line`, which no longer names the node:
+/// the line is below it; the split F411 does the same with `fast::FastPath` and
+/// `phy::rate_link`, whose gate mirrors the rate check here): the node decides ([`Node::on_frame`]: no answer for other stations, broadcasts,
 /// tokens, corrupt frames); an answered request is a valid SD1/SD2/SD3 telegram to us, which
 /// locks the search and retriggers Baud_Control; every other telegram is classified for the
 /// rate control ([`crate::phy::line::classify`]). The answer is returned only while the rate is locked — the

@@ -71,7 +71,7 @@
 //!
 //! **In RAM** (issue 11 item 2). [`DmaLine::on_usart`] and [`DmaLine::on_timer`] — the line
 //! interrupts' own code with what the compiler inlines into them (the receive gate, the ring
-//! reader, the T_SYN compare, the response start, `FastPath::on_frame`'s own body; ≈ 4.8 KiB;
+//! reader, the T_SYN compare, the response start, `FastPath::on_frame`'s own body; ≈ 4.4 KiB, 2 KiB before the split;
 //! the fast path's larger callees — `answer_srd`, the DP-V1 planner, the queue — stay in
 //! flash behind long-branch thunks) — are linked into `.data.pbcard_line`:
 //! cortex-m-rt 0.7 puts every `.data.*` input section into `.data`, which its reset code copies
