@@ -1562,4 +1562,7 @@ pub(crate) mod tests {
 
     /// Issue 12 item 4: the conformance defects, bytes in → bytes out through the card.
     mod conformance;
+
+    /// The outputs' safety under every Clear / Sync / Freeze / watchdog combination.
+    mod clear_sync;
 }
