@@ -106,17 +106,6 @@ fn image_of(seed: u8, n: usize) -> Vec<u8> {
 }
 
 impl Bench {
-    /// Set_Prm with WD_On (1 s), Freeze_Req and Sync_Req, Group_Ident 0; Chk_Cfg `m`.
-    fn bring_up_for_sync(&mut self, m: &card::Module) {
-        let mut prm = vec![0xB8, 1, 100, 11, (card::IDENT_NUMBER >> 8) as u8, card::IDENT_NUMBER as u8, 0];
-        prm.extend_from_slice(&card::USER_PRM_DEFAULTS);
-        assert_eq!(self.srd(Some(61), &prm), [telegram::SC]);
-        self.step(1);
-        assert_eq!(self.srd(Some(62), m.cfg), [telegram::SC]);
-        self.step(1);
-        assert_eq!(self.node.slave().state(), DpState::DataExch, "{}", m.name);
-    }
-
     /// An SDN Global_Control (SAP 58) with `command` and `group` select.
     fn gc(&mut self, command: u8, group: u8) {
         let hdr = Header {
@@ -168,7 +157,7 @@ fn run(module: usize, ops: &[Op]) -> Result<(), TestCaseError> {
     let m = mods[module % mods.len()];
     let n = m.outputs as usize;
     let mut b = Bench::new();
-    b.bring_up_for_sync(m);
+    b.bring_up_sync_freeze(m);
     let mut model = Model::new(n);
     // Images sent since the last Clear / fail-safe / leave: the only ones the drive may see.
     let mut fresh: Vec<Vec<u8>> = Vec::new();
@@ -196,7 +185,7 @@ fn run(module: usize, ops: &[Op]) -> Result<(), TestCaseError> {
                 fresh.clear();
                 b.step(1);
                 prop_assert_eq!(b.drive_outputs(n), model.applied.clone(), "{}: zero after leaving", k);
-                b.bring_up_for_sync(m);
+                b.bring_up_sync_freeze(m);
             }
             Op::DxOtherMaster(seed) => {
                 let r = b.dx_from(OTHER_MASTER, &image_of(seed, n));
@@ -220,7 +209,7 @@ fn run(module: usize, ops: &[Op]) -> Result<(), TestCaseError> {
                 fresh.clear();
                 b.step(1);
                 prop_assert_eq!(b.drive_outputs(n), model.applied.clone(), "{}: zero after the watchdog", k);
-                b.bring_up_for_sync(m);
+                b.bring_up_sync_freeze(m);
             }
         }
         b.step(1);
