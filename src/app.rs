@@ -1311,7 +1311,7 @@ pub(crate) mod tests {
 
         impl Bench {
             /// Set_Prm with Sync_Req and Freeze_Req (and the watchdog, 1 s), Chk_Cfg.
-            fn bring_up_sync_freeze(&mut self, m: &card::Module) {
+            pub(in crate::app::tests) fn bring_up_sync_freeze(&mut self, m: &card::Module) {
                 let mut prm = vec![0xB8, 1, 100, 11, (card::IDENT_NUMBER >> 8) as u8, card::IDENT_NUMBER as u8, 0];
                 prm.extend_from_slice(&card::USER_PRM_DEFAULTS);
                 assert_eq!(self.srd(Some(61), &prm), [telegram::SC]);
@@ -1562,4 +1562,7 @@ pub(crate) mod tests {
 
     /// Issue 12 item 4: the conformance defects, bytes in → bytes out through the card.
     mod conformance;
+
+    /// The outputs' safety under every Clear / Sync / Freeze / watchdog combination.
+    mod clear_sync;
 }

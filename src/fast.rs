@@ -576,6 +576,12 @@ impl<'a> FastPath<'a> {
         if self.diag_consumed.is_some_and(|s| !after(s, self.st.done_seq)) {
             self.diag_consumed = None;
         }
+        // The window's mark follows the core once it has judged: sequence numbers compare by
+        // wrapping distance, so a mark left 2^31 telegrams behind would read as "after" again
+        // and reopen the not-ready window (≈ 12 days of a 1 ms bus cycle).
+        if !after(self.judge_seq, self.st.done_seq) {
+            self.judge_seq = self.st.done_seq;
+        }
     }
 
     /// The core's answer to the oldest deferred request: `Some(bytes)` (empty = no answer),
@@ -1253,6 +1259,32 @@ mod tests {
         core.run(&mut node);
         assert_eq!(node.min_tsdr(), crate::time::BitTimes(200));
         assert_eq!(fast.min_tsdr(), crate::time::BitTimes(200));
+    }
+
+    /// Sequence numbers wrap: 2^31 telegrams after the last Chk_Cfg the not-ready window
+    /// does not reopen (it did, answering Data_Exchange RS once per 2^31 telegrams).
+    #[test]
+    fn the_not_ready_window_survives_the_sequence_wrap() {
+        let mut node = Node::new(DpSlave::new(8));
+        let mut shared = Shared::new();
+        let (mut fast, mut core) = shared.split(&mut node);
+        let mut m = ScriptedMaster::new(2, 8);
+        let now = Instant::from_micros(100);
+        assert_eq!(fast.on_frame(now, &m.srd(Some(61), &SetPrm::CARD.pdu())), Verdict::Answer(&[telegram::SC]));
+        assert_eq!(fast.on_frame(now, &m.srd(Some(62), card::MODULES[0].cfg)), Verdict::Answer(&[telegram::SC]));
+        core.run(&mut node);
+        let Verdict::Answer(dx) = fast.on_frame(now, &m.srd(None, &[1, 2, 3, 4])) else { panic!() };
+        assert_eq!(parts(dx).0, ResponseStatus::Dl as u8);
+        core.run(&mut node);
+        // As if 2^31 - 8 telegrams had passed since the Chk_Cfg.
+        fast.seq = fast.seq.wrapping_add(0x7FFF_FFF8);
+        for k in 0..32u8 {
+            let Verdict::Answer(dx) = fast.on_frame(now, &m.srd(None, &[k, 2, 3, 4])) else { panic!() };
+            assert_eq!(parts(dx).0, ResponseStatus::Dl as u8, "Data_Exchange {k} after the wrap");
+            assert!(!fast.in_window(), "{k}");
+            core.run(&mut node);
+            assert_eq!(node.slave().outputs(), &[k, 2, 3, 4]);
+        }
     }
 
     /// DP-V1 from the staging: the line answers SC to a request and to a poll whose response

@@ -25,6 +25,11 @@
 //!
 //! The master can be paused ([`SimBus::set_master_paused`]) to let our DP watchdog expire.
 //!
+//! Each station is an [`Endpoint`] on its [`SimLine`] (receive, answer after min_TSDR, the
+//! max_TSDR check, faults, trace): [`SlaveEndpoint`] holds the protocol parts above,
+//! [`card_bus::CardEndpoint`] the shipped card (fast path, core, application with DPM and
+//! simulated drive; `SimBus::cards`, judged in `tests/profirust_card.rs`).
+//!
 //! ## One-cycle lag of the input image
 //!
 //! Our slave answers Data_Exchange from a **pre-staged** frame: the answer to request *n*
@@ -49,6 +54,7 @@ pub use pbcard;
 pub use profirust;
 
 pub mod c_host;
+pub mod card_bus;
 pub mod qemu;
 pub mod scripted;
 pub mod serial;
@@ -266,30 +272,46 @@ const TRACE_LEN: usize = 2000;
 /// Trace entries shown in failure reports.
 pub const TRACE_DUMP: usize = 80;
 
-/// Our slave stack on one endpoint of the simulated line.
-pub struct SlaveEndpoint<A: SlaveApp> {
+/// One station on the simulated line: what [`SimBus`] needs of it.
+pub trait Endpoint {
+    /// Its station address.
+    fn address(&self) -> u8;
+    /// One simulation step at `now_us`: line, protocol, timers, application; the DP events.
+    fn poll(&mut self, now_us: u64) -> Events;
+    /// Its DP state machine's state.
+    fn dp_state(&self) -> DpState;
+    /// Add a line to its trace.
+    fn note(&mut self, t_us: u64, what: String);
+    /// State, statistics and recent trace, for failure reports.
+    fn report(&self) -> String;
+}
+
+/// What [`SimLine::receive`] saw in one step.
+enum Rx {
+    /// Nothing new (or our own answer still on the line).
+    Nothing,
+    /// The line has been idle for T_SYN or longer (reported once per idle period).
+    Idle(BitTimes),
+    /// Characters that completed since the last step.
+    Bytes(Vec<u8>),
+}
+
+/// A slave's end of the simulated line: receive, answer after min_TSDR, the max_TSDR check,
+/// fault injection and the trace — shared by [`SlaveEndpoint`] (the protocol parts) and
+/// [`CardEndpoint`] (the shipped card).
+pub struct SimLine {
     phy: SimulatorPhy,
     rate: Baudrate,
     step_us: u64,
-    /// The frame splitter (public for its statistics).
-    pub framer: Framer,
-    /// The FDL station (public for its statistics).
-    pub station: Station,
-    /// The DP slave under test.
-    pub slave: DpSlave,
-    /// The simulated device.
-    pub app: A,
+    address: u8,
     fault: Option<FaultHook>,
     /// Answer waiting for min_TSDR: (bytes, due µs, request end µs).
     pending_tx: Option<(Vec<u8>, u64, u64)>,
     /// End of the last character seen or sent (µs, step resolution).
     last_activity_us: u64,
     idle_reported: bool,
+    transmitting: bool,
     rx_scratch: Vec<u8>,
-    /// Every non-empty [`Events`] with its time (µs).
-    pub events: Vec<(u64, Events)>,
-    /// OR of every event so far.
-    pub events_seen: Events,
     /// Answers sent, with the response delay upper bound (bit times) of each: min, max.
     pub tsdr_bits: Option<(u64, u64)>,
     /// Answers sent.
@@ -298,32 +320,196 @@ pub struct SlaveEndpoint<A: SlaveApp> {
     pub answers_abandoned: u64,
     /// Recent frames and notes.
     pub trace: VecDeque<TraceEntry>,
-    last_state: DpState,
 }
 
-impl<A: SlaveApp> SlaveEndpoint<A> {
-    fn new(phy: SimulatorPhy, rate: Baudrate, step_us: u64, address: u8, app: A) -> Self {
-        let slave = DpSlave::new(address);
-        let last_state = slave.state();
-        SlaveEndpoint {
+impl SimLine {
+    fn new(phy: SimulatorPhy, rate: Baudrate, step_us: u64, address: u8) -> Self {
+        SimLine {
             phy,
             rate,
             step_us,
-            framer: Framer::new(),
-            station: Station::new(),
-            slave,
-            app,
+            address,
             fault: None,
             pending_tx: None,
             last_activity_us: 0,
             idle_reported: false,
+            transmitting: false,
             rx_scratch: Vec::with_capacity(512),
-            events: Vec::new(),
-            events_seen: Events::empty(),
             tsdr_bits: None,
             answers: 0,
             answers_abandoned: 0,
             trace: VecDeque::with_capacity(TRACE_LEN),
+        }
+    }
+
+    fn note(&mut self, t_us: u64, what: String) {
+        if self.trace.len() == TRACE_LEN {
+            self.trace.pop_front();
+        }
+        self.trace.push_back(TraceEntry { t_us, what });
+    }
+
+    /// The last `n` trace entries as text.
+    fn dump_trace_last(&self, n: usize) -> String {
+        let mut s = String::new();
+        for e in self.trace.iter().skip(self.trace.len().saturating_sub(n)) {
+            let _ = writeln!(s, "{:>12} µs  {}", e.t_us, e.what);
+        }
+        s
+    }
+
+    /// The characters that completed on the line since the last step (none while our own
+    /// answer is on the line); a pending answer is abandoned when someone else talks first.
+    fn receive(&mut self, now_us: u64) -> Rx {
+        let pnow = pr_instant(now_us);
+        self.transmitting = self.phy.poll_transmission(pnow);
+        if self.transmitting {
+            return Rx::Nothing;
+        }
+        let mut rx = std::mem::take(&mut self.rx_scratch);
+        rx.clear();
+        self.phy.receive_data(pnow, |buf| {
+            rx.extend_from_slice(buf);
+            (buf.len(), ())
+        });
+        if rx.is_empty() {
+            self.rx_scratch = rx;
+            let silent = self.rate.duration_to_bits(Duration::from_micros(now_us - self.last_activity_us));
+            if !self.idle_reported && silent >= u64::from(BitTimes::TSYN.0) {
+                self.idle_reported = true;
+                return Rx::Idle(BitTimes(silent.min(u64::from(u32::MAX)) as u32));
+            }
+            return Rx::Nothing;
+        }
+        self.last_activity_us = now_us;
+        self.idle_reported = false;
+        if let Some((tx, _, _)) = self.pending_tx.take() {
+            // Someone else started talking before our min_TSDR passed.
+            self.answers_abandoned += 1;
+            self.note(now_us, format!("ABANDONED answer {} (line busy)", hex(&tx)));
+        }
+        Rx::Bytes(rx)
+    }
+
+    /// The received-frame fault hook: `false` when the frame is to be dropped; it may corrupt
+    /// `frame`.
+    fn rx_fault(&mut self, now_us: u64, frame: &mut [u8]) -> bool {
+        match self.fault.as_mut().map_or(Fault::Pass, |f| f(Dir::Rx, now_us, frame)) {
+            Fault::Pass | Fault::SendAfter(_) => true,
+            Fault::Drop => {
+                self.note(now_us, "  (rx fault: frame dropped)".into());
+                false
+            }
+            Fault::Corrupt { index, xor } => {
+                let i = index.min(frame.len() - 1);
+                frame[i] ^= xor;
+                self.note(now_us, format!("  (rx fault: corrupted to {})", hex(frame)));
+                true
+            }
+        }
+    }
+
+    /// Schedule `resp` for the first step `min_tsdr` bit times after the request that ended at
+    /// `now_us` (the transmit fault hook may drop, corrupt or delay it).
+    fn answer(&mut self, now_us: u64, mut resp: Vec<u8>, min_tsdr: BitTimes) {
+        let mut delay = min_tsdr.0.max(BitTimes::MIN_TSDR_DEFAULT.0);
+        match self.fault.as_mut().map_or(Fault::Pass, |f| f(Dir::Tx, now_us, &resp)) {
+            Fault::Pass => {}
+            Fault::SendAfter(bits) => {
+                delay = bits.0;
+                self.note(now_us, format!("  (tx fault: answer after {} bit times)", bits.0));
+            }
+            Fault::Drop => {
+                self.note(now_us, format!("  (tx fault: answer {} dropped)", hex(&resp)));
+                return;
+            }
+            Fault::Corrupt { index, xor } => {
+                let i = index.min(resp.len() - 1);
+                resp[i] ^= xor;
+                self.note(now_us, "  (tx fault: answer corrupted)".into());
+            }
+        }
+        let due = now_us + self.rate.bits_to_duration(delay).as_micros();
+        self.pending_tx = Some((resp, due, now_us));
+    }
+
+    /// A due answer goes on the line.
+    fn send_due(&mut self, now_us: u64) {
+        if self.transmitting {
+            return;
+        }
+        if let Some((_, due, _)) = &self.pending_tx {
+            if now_us >= *due {
+                let (bytes, _, req_end) = self.pending_tx.take().unwrap();
+                self.transmit(now_us, req_end, bytes);
+            }
+        }
+    }
+
+    fn transmit(&mut self, now_us: u64, req_end_us: u64, bytes: Vec<u8>) {
+        // The request really ended somewhere in (req_end - step, req_end]: the delay upper bound
+        // adds one step.
+        let delay_us = now_us - req_end_us + self.step_us;
+        let delay_bits = self.rate.duration_to_bits(Duration::from_micros(delay_us));
+        let max = u64::from(card::max_tsdr(self.rate));
+        if delay_bits > max {
+            panic!(
+                "slave #{} answered after up to {delay_bits} bit times > max_TSDR {max} at {:?}: {}\n{}",
+                self.address,
+                self.rate,
+                hex(&bytes),
+                self.dump_trace_last(TRACE_DUMP)
+            );
+        }
+        let lo_bits = self.rate.duration_to_bits(Duration::from_micros(now_us - req_end_us));
+        self.tsdr_bits = Some(match self.tsdr_bits {
+            None => (lo_bits, delay_bits),
+            Some((a, b)) => (a.min(lo_bits), b.max(delay_bits)),
+        });
+        self.note(now_us, format!("tx  {}   (tsdr {lo_bits}..{delay_bits} bits)", hex(&bytes)));
+        let n = bytes.len();
+        self.phy.transmit_data(pr_instant(now_us), |buf| {
+            buf[..n].copy_from_slice(&bytes);
+            (n, ())
+        });
+        self.answers += 1;
+        self.last_activity_us = now_us + self.rate.bits_to_duration(11 * n as u32).as_micros();
+        self.idle_reported = false;
+    }
+}
+
+/// Our slave stack on one endpoint of the simulated line: the protocol parts (framer, FDL
+/// station, DP slave) with a test application.
+pub struct SlaveEndpoint<A: SlaveApp> {
+    /// Its end of the line (answers, timing, trace).
+    pub line: SimLine,
+    /// The frame splitter (public for its statistics).
+    pub framer: Framer,
+    /// The FDL station (public for its statistics).
+    pub station: Station,
+    /// The DP slave under test.
+    pub slave: DpSlave,
+    /// The simulated device.
+    pub app: A,
+    /// Every non-empty [`Events`] with its time (µs).
+    pub events: Vec<(u64, Events)>,
+    /// OR of every event so far.
+    pub events_seen: Events,
+    last_state: DpState,
+}
+
+impl<A: SlaveApp> SlaveEndpoint<A> {
+    fn new(line: SimLine, address: u8, app: A) -> Self {
+        let slave = DpSlave::new(address);
+        let last_state = slave.state();
+        SlaveEndpoint {
+            line,
+            framer: Framer::new(),
+            station: Station::new(),
+            slave,
+            app,
+            events: Vec::new(),
+            events_seen: Events::empty(),
             last_state,
         }
     }
@@ -335,19 +521,16 @@ impl<A: SlaveApp> SlaveEndpoint<A> {
 
     /// Install a fault hook (replaces any previous one).
     pub fn set_fault_hook(&mut self, hook: impl FnMut(Dir, u64, &[u8]) -> Fault + 'static) {
-        self.fault = Some(Box::new(hook));
+        self.line.fault = Some(Box::new(hook));
     }
 
     /// Remove the fault hook.
     pub fn clear_fault_hook(&mut self) {
-        self.fault = None;
+        self.line.fault = None;
     }
 
     fn note(&mut self, t_us: u64, what: String) {
-        if self.trace.len() == TRACE_LEN {
-            self.trace.pop_front();
-        }
-        self.trace.push_back(TraceEntry { t_us, what });
+        self.line.note(t_us, what);
     }
 
     /// The recent trace as text (the last [`TRACE_DUMP`] entries).
@@ -357,40 +540,15 @@ impl<A: SlaveApp> SlaveEndpoint<A> {
 
     /// The last `n` trace entries as text.
     pub fn dump_trace_last(&self, n: usize) -> String {
-        let mut s = String::new();
-        for e in self.trace.iter().skip(self.trace.len().saturating_sub(n)) {
-            let _ = writeln!(s, "{:>12} µs  {}", e.t_us, e.what);
-        }
-        s
+        self.line.dump_trace_last(n)
     }
 
     fn poll(&mut self, now_us: u64) -> Events {
         let now = Instant::from_micros(now_us);
-        let pnow = pr_instant(now_us);
-        let transmitting = self.phy.poll_transmission(pnow);
-
-        if !transmitting {
-            // 1. Characters that completed on the line since the last step.
-            let mut rx = std::mem::take(&mut self.rx_scratch);
-            rx.clear();
-            self.phy.receive_data(pnow, |buf| {
-                rx.extend_from_slice(buf);
-                (buf.len(), ())
-            });
-            if rx.is_empty() {
-                let silent = self.rate.duration_to_bits(Duration::from_micros(now_us - self.last_activity_us));
-                if !self.idle_reported && silent >= u64::from(BitTimes::TSYN.0) {
-                    self.framer.idle(BitTimes(silent.min(u64::from(u32::MAX)) as u32));
-                    self.idle_reported = true;
-                }
-            } else {
-                self.last_activity_us = now_us;
-                self.idle_reported = false;
-                if let Some((tx, _, _)) = self.pending_tx.take() {
-                    // Someone else started talking before our min_TSDR passed.
-                    self.answers_abandoned += 1;
-                    self.note(now_us, format!("ABANDONED answer {} (line busy)", hex(&tx)));
-                }
+        match self.line.receive(now_us) {
+            Rx::Nothing => {}
+            Rx::Idle(bits) => self.framer.idle(bits),
+            Rx::Bytes(rx) => {
                 for &b in &rx {
                     match self.framer.push(b) {
                         Push::Pending => {}
@@ -401,19 +559,12 @@ impl<A: SlaveApp> SlaveEndpoint<A> {
                         }
                     }
                 }
-            }
-            self.rx_scratch = rx;
-
-            // 2. A due answer goes on the line.
-            if let Some((_, due, _)) = &self.pending_tx {
-                if now_us >= *due {
-                    let (bytes, _, req_end) = self.pending_tx.take().unwrap();
-                    self.transmit(now_us, req_end, bytes);
-                }
+                self.line.rx_scratch = rx;
             }
         }
+        self.line.send_due(now_us);
 
-        // 3. Timers and the application.
+        // Timers and the application.
         self.slave.poll(now);
         let ev = self.slave.take_events();
         if !ev.is_empty() {
@@ -436,17 +587,8 @@ impl<A: SlaveApp> SlaveEndpoint<A> {
         if mine {
             self.note(now_us, format!("rx  {}", hex(&frame)));
         }
-        match self.fault.as_mut().map_or(Fault::Pass, |f| f(Dir::Rx, now_us, &frame)) {
-            Fault::Pass | Fault::SendAfter(_) => {}
-            Fault::Drop => {
-                self.note(now_us, "  (rx fault: frame dropped)".into());
-                return;
-            }
-            Fault::Corrupt { index, xor } => {
-                let i = index.min(frame.len() - 1);
-                frame[i] ^= xor;
-                self.note(now_us, format!("  (rx fault: corrupted to {})", hex(&frame)));
-            }
+        if !self.line.rx_fault(now_us, &mut frame) {
+            return;
         }
         let retries_before = self.station.stats().retries;
         let response = self.station.on_frame(now, &frame, &mut self.slave).map(<[u8]>::to_vec);
@@ -463,58 +605,38 @@ impl<A: SlaveApp> SlaveEndpoint<A> {
                 self.dump_trace()
             );
         }
-        if let Some(mut resp) = response {
-            let mut delay = self.slave.min_tsdr().0.max(BitTimes::MIN_TSDR_DEFAULT.0);
-            match self.fault.as_mut().map_or(Fault::Pass, |f| f(Dir::Tx, now_us, &resp)) {
-                Fault::Pass => {}
-                Fault::SendAfter(bits) => {
-                    delay = bits.0;
-                    self.note(now_us, format!("  (tx fault: answer after {} bit times)", bits.0));
-                }
-                Fault::Drop => {
-                    self.note(now_us, format!("  (tx fault: answer {} dropped)", hex(&resp)));
-                    return;
-                }
-                Fault::Corrupt { index, xor } => {
-                    let i = index.min(resp.len() - 1);
-                    resp[i] ^= xor;
-                    self.note(now_us, "  (tx fault: answer corrupted)".into());
-                }
-            }
-            let due = now_us + self.rate.bits_to_duration(delay).as_micros();
-            self.pending_tx = Some((resp, due, now_us));
+        if let Some(resp) = response {
+            self.line.answer(now_us, resp, self.slave.min_tsdr());
         }
     }
+}
 
-    fn transmit(&mut self, now_us: u64, req_end_us: u64, bytes: Vec<u8>) {
-        // The request really ended somewhere in (req_end - step, req_end]: the delay upper bound
-        // adds one step.
-        let delay_us = now_us - req_end_us + self.step_us;
-        let delay_bits = self.rate.duration_to_bits(Duration::from_micros(delay_us));
-        let max = u64::from(card::max_tsdr(self.rate));
-        if delay_bits > max {
-            panic!(
-                "slave #{} answered after up to {delay_bits} bit times > max_TSDR {max} at {:?}: {}\n{}",
-                self.slave.address(),
-                self.rate,
-                hex(&bytes),
-                self.dump_trace()
-            );
-        }
-        let lo_bits = self.rate.duration_to_bits(Duration::from_micros(now_us - req_end_us));
-        self.tsdr_bits = Some(match self.tsdr_bits {
-            None => (lo_bits, delay_bits),
-            Some((a, b)) => (a.min(lo_bits), b.max(delay_bits)),
-        });
-        self.note(now_us, format!("tx  {}   (tsdr {lo_bits}..{delay_bits} bits)", hex(&bytes)));
-        let n = bytes.len();
-        self.phy.transmit_data(pr_instant(now_us), |buf| {
-            buf[..n].copy_from_slice(&bytes);
-            (n, ())
-        });
-        self.answers += 1;
-        self.last_activity_us = now_us + self.rate.bits_to_duration(11 * n as u32).as_micros();
-        self.idle_reported = false;
+impl<A: SlaveApp> Endpoint for SlaveEndpoint<A> {
+    fn address(&self) -> u8 {
+        self.slave.address()
+    }
+    fn poll(&mut self, now_us: u64) -> Events {
+        SlaveEndpoint::poll(self, now_us)
+    }
+    fn dp_state(&self) -> DpState {
+        self.slave.state()
+    }
+    fn note(&mut self, t_us: u64, what: String) {
+        self.line.note(t_us, what);
+    }
+    fn report(&self) -> String {
+        format!(
+            "slave #{}: state {:?}, master {:?}, events seen {:?}, framer {:?}, station {:?}, dp {:?}\n--- trace of #{} ---\n{}",
+            self.address(),
+            self.slave.state(),
+            self.slave.master_address(),
+            self.events_seen,
+            self.framer.stats(),
+            self.station.stats(),
+            self.slave.stats(),
+            self.address(),
+            self.dump_trace()
+        )
     }
 }
 
@@ -658,7 +780,7 @@ pub struct CycleRecord {
 }
 
 /// The profirust master and our slaves on one simulated line.
-pub struct SimBus<A: SlaveApp> {
+pub struct SimBus<E: Endpoint> {
     rate: Baudrate,
     now_us: u64,
     step_us: u64,
@@ -667,7 +789,7 @@ pub struct SimBus<A: SlaveApp> {
     dp: DpMaster<'static>,
     handles: Vec<(u8, PeripheralHandle)>,
     /// The slave endpoints, in the order given.
-    pub slaves: Vec<SlaveEndpoint<A>>,
+    pub slaves: Vec<E>,
     master_paused: bool,
     /// Every peripheral event of the master.
     pub master_events: Vec<MasterEvent>,
@@ -677,10 +799,29 @@ pub struct SimBus<A: SlaveApp> {
     pub steps: u64,
 }
 
-impl<A: SlaveApp> SimBus<A> {
-    /// Build the line: the master with its peripherals, and one slave endpoint per
-    /// `(address, app)`. The master is online and in Operate.
+impl<A: SlaveApp> SimBus<SlaveEndpoint<A>> {
+    /// Build the line: the master with its peripherals, and one slave endpoint (the protocol
+    /// parts with a test application) per `(address, app)`. The master is online and in
+    /// Operate.
     pub fn new(master: MasterConfig, peripherals: &[PeripheralConfig], slaves: Vec<(u8, A)>) -> Self {
+        let addresses: Vec<u8> = slaves.iter().map(|(a, _)| *a).collect();
+        let mut apps = slaves.into_iter();
+        SimBus::with_endpoints(master, peripherals, &addresses, |line, addr| {
+            let (_, app) = apps.next().expect("one app per address");
+            SlaveEndpoint::new(line, addr, app)
+        })
+    }
+}
+
+impl<E: Endpoint> SimBus<E> {
+    /// Build the line: the master with its peripherals, and one endpoint per address, made by
+    /// `make(line, address)` on its own end of the line. The master is online and in Operate.
+    pub fn with_endpoints(
+        master: MasterConfig,
+        peripherals: &[PeripheralConfig],
+        addresses: &[u8],
+        mut make: impl FnMut(SimLine, u8) -> E,
+    ) -> Self {
         let rate = master.rate;
         let prate = profirust_rate(rate);
         let step_us = rate.bits_to_duration(master.step_bits.max(1)).as_micros().max(1);
@@ -706,7 +847,7 @@ impl<A: SlaveApp> SimBus<A> {
             handles.push((p.address, dp.add(per)));
         }
 
-        let max_slave = slaves.iter().map(|(a, _)| *a).chain(peripherals.iter().map(|p| p.address)).max().unwrap_or(0);
+        let max_slave = addresses.iter().copied().chain(peripherals.iter().map(|p| p.address)).max().unwrap_or(0);
         let hsa = master.hsa.unwrap_or_else(|| (max_slave + 1).clamp(master.address + 1, 126));
         let mut builder = profirust::fdl::ParametersBuilder::new(master.address, prate);
         builder
@@ -723,11 +864,11 @@ impl<A: SlaveApp> SimBus<A> {
         fdl.set_online();
         dp.enter_operate();
 
-        let slaves = slaves
-            .into_iter()
-            .map(|(addr, app)| {
+        let slaves = addresses
+            .iter()
+            .map(|&addr| {
                 let phy = master_phy.duplicate(leak_name(format!("slave#{addr}")));
-                SlaveEndpoint::new(phy, rate, step_us, addr, app)
+                make(SimLine::new(phy, rate, step_us, addr), addr)
             })
             .collect();
 
@@ -777,7 +918,7 @@ impl<A: SlaveApp> SimBus<A> {
     }
 
     /// The slave endpoint at `addr`.
-    pub fn slave(&mut self, addr: u8) -> &mut SlaveEndpoint<A> {
+    pub fn slave(&mut self, addr: u8) -> &mut E {
         self.slaves.iter_mut().find(|s| s.address() == addr).expect("no slave at that address")
     }
 
@@ -852,7 +993,7 @@ impl<A: SlaveApp> SimBus<A> {
     pub fn bring_up(&mut self, addr: u8, limit: Duration) {
         self.expect_until(limit, &format!("data exchange with #{addr}"), |bus, r| {
             matches!(r.master_event, Some((a, PeripheralEvent::DataExchanged)) if a == addr)
-                && bus.slaves.iter().any(|s| s.address() == addr && s.slave.state() == DpState::DataExch)
+                && bus.slaves.iter().any(|s| s.address() == addr && s.dp_state() == DpState::DataExch)
         });
     }
 
@@ -914,19 +1055,7 @@ impl<A: SlaveApp> SimBus<A> {
             self.master_events.iter().map(|e| (e.t_us, e.address, e.event)).collect::<Vec<_>>()
         );
         for sl in &self.slaves {
-            let _ = writeln!(
-                s,
-                "slave #{}: state {:?}, master {:?}, events seen {:?}, framer {:?}, station {:?}, dp {:?}\n--- trace of #{} ---\n{}",
-                sl.address(),
-                sl.slave.state(),
-                sl.slave.master_address(),
-                sl.events_seen,
-                sl.framer.stats(),
-                sl.station.stats(),
-                sl.slave.stats(),
-                sl.address(),
-                sl.dump_trace()
-            );
+            let _ = writeln!(s, "{}", sl.report());
         }
         s
     }

@@ -36,7 +36,7 @@ fn watchdog_ms(rate: Baudrate) -> u64 {
     }
 }
 
-fn card_bus(rate: Baudrate, module: &card::Module) -> SimBus<EchoApp> {
+fn card_bus(rate: Baudrate, module: &card::Module) -> SimBus<SlaveEndpoint<EchoApp>> {
     SimBus::new(
         MasterConfig::new(rate).watchdog_ms(watchdog_ms(rate)),
         &[PeripheralConfig::card(SLAVE, module, rate)],
@@ -50,7 +50,7 @@ fn card_bus(rate: Baudrate, module: &card::Module) -> SimBus<EchoApp> {
 ///   master's PI_I of cycle k is `transform(PI_Q of cycle k − 1)` (one-cycle lag of
 ///   pre-staging);
 /// * no FCB retry was needed and the master never lost the slave.
-fn check_cycles(bus: &mut SimBus<EchoApp>, addr: u8, cycles: &[CycleRecord]) {
+fn check_cycles(bus: &mut SimBus<SlaveEndpoint<EchoApp>>, addr: u8, cycles: &[CycleRecord]) {
     let ep = bus.slave(addr);
     let n_in = ep.slave.input_len();
     let slog = &ep.app.log;
@@ -79,7 +79,7 @@ fn check_cycles(bus: &mut SimBus<EchoApp>, addr: u8, cycles: &[CycleRecord]) {
     assert_eq!(ep.slave.outputs(), &cycles.last().unwrap().q_sent[..]);
     assert_eq!(ep.slave.state(), DpState::DataExch);
     assert_eq!(ep.station.stats().retries, 0, "FCB retries on a clean line");
-    assert_eq!(ep.answers_abandoned, 0);
+    assert_eq!(ep.line.answers_abandoned, 0);
     assert!(
         !bus.events_for(addr).contains(&PeripheralEvent::Offline),
         "master lost the slave: {:?}",
@@ -107,7 +107,7 @@ fn bring_up_and_exchange(rate: Baudrate, cycles: usize) {
     let t0 = bus.now_us();
     let log = bus.exchange(SLAVE, cycles, Duration::from_millis(60_000), |k| pattern(k, module.outputs as usize));
     check_cycles(&mut bus, SLAVE, &log);
-    let tsdr = bus.slave(SLAVE).tsdr_bits;
+    let tsdr = bus.slave(SLAVE).line.tsdr_bits;
     assert!(!bus.slave(SLAVE).events_seen.contains(Events::WATCHDOG_EXPIRED));
     println!(
         "{rate:?}: {cycles} cycles in {} µs simulated ({} µs/cycle), {} steps, response delay {:?} bit times",
@@ -271,10 +271,10 @@ fn i_min_tsdr_from_set_prm() {
         SimBus::new(m, &[PeripheralConfig::card(SLAVE, &card::MODULES[0], rate)], vec![(SLAVE, EchoApp::default())]);
     bus.bring_up(SLAVE, Duration::from_millis(1_000));
     assert_eq!(bus.slave(SLAVE).slave.min_tsdr().0, 40);
-    bus.slave(SLAVE).tsdr_bits = None;
+    bus.slave(SLAVE).line.tsdr_bits = None;
     let log = bus.exchange(SLAVE, 50, Duration::from_millis(2_000), |k| pattern(k, 4));
     check_cycles(&mut bus, SLAVE, &log);
-    let (lo, hi) = bus.slave(SLAVE).tsdr_bits.unwrap();
+    let (lo, hi) = bus.slave(SLAVE).line.tsdr_bits.unwrap();
     assert!(lo >= 40 && hi <= u64::from(card::max_tsdr(rate)), "response delay {lo}..{hi} bit times");
 }
 

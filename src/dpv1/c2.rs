@@ -600,20 +600,34 @@ impl<const N: usize> C2<N> {
 
     /// Stage a 4-byte PDU answer to `req` in the scratch buffer.
     fn emit_scratch(&mut self, own: u8, req: &DataTelegram<'_>, our_sap: u8, resp: &Response<'_>) -> C2Answer {
-        let mut pdu = [0u8; 4];
-        let n = resp.emit(&mut pdu).unwrap_or(0);
-        let hdr = Header {
-            da: req.sa,
-            sa: own,
-            fc: FunctionCode::response(ResponseStatus::Dl),
-            dsap: req.ssap,
-            ssap: Some(our_sap),
-        };
-        match telegram::emit(&mut self.scratch, &hdr, &pdu[..n]) {
-            Ok(len) => C2Answer::Frame { id: N as u8, len: len as u16 },
-            Err(_) => C2Answer::Status(ResponseStatus::Rr),
+        match emit_short_response(&mut self.scratch, own, req, our_sap, resp) {
+            Some(len) => C2Answer::Frame { id: N as u8, len: len as u16 },
+            None => C2Answer::Status(ResponseStatus::Rr),
         }
     }
+}
+
+/// A short DP-V1 response PDU (at most 4 octets: an Abort, an error PDU) as the SD2 data answer
+/// (DL) from `our_sap` to the SAP `req` came from, into `buf`: the frame's length, `None` when
+/// `buf` cannot hold it (the caller answers RR, no resources). Shared by the connection SAPs
+/// here and the line's staged answers (`fast::dpv1`).
+pub fn emit_short_response(
+    buf: &mut [u8],
+    own: u8,
+    req: &DataTelegram<'_>,
+    our_sap: u8,
+    resp: &Response<'_>,
+) -> Option<usize> {
+    let mut pdu = [0u8; 4];
+    let n = resp.emit(&mut pdu).unwrap_or(0);
+    let hdr = Header {
+        da: req.sa,
+        sa: own,
+        fc: FunctionCode::response(ResponseStatus::Dl),
+        dsap: req.ssap,
+        ssap: Some(our_sap),
+    };
+    telegram::emit(buf, &hdr, &pdu[..n]).ok()
 }
 
 /// Initiate.res to the stored Initiate.req (S and D blocks swapped).

@@ -48,7 +48,7 @@ use crate::card;
 use crate::dpv1::c1;
 use crate::dpv1::c2::{self, ConnectionState};
 use crate::dpv1::pdu::{Abort, AbortReason, Function, Instance, Response, Subnet};
-use crate::fdl::telegram::{self, DataTelegram, FunctionCode, Header, ResponseStatus, MAX_FRAME_LEN};
+use crate::fdl::telegram::{DataTelegram, ResponseStatus, MAX_FRAME_LEN};
 use crate::node::Node;
 use crate::time::Instant;
 
@@ -283,18 +283,9 @@ impl FastPath<'_> {
 
     /// A 4-byte response PDU to `t` from `our_sap` in `buf` (as `C2::emit_scratch`).
     fn pdu_frame(&mut self, t: &DataTelegram<'_>, own: u8, our_sap: u8, resp: &Response<'_>) -> u16 {
-        let mut pdu = [0u8; 4];
-        let n = resp.emit(&mut pdu).unwrap_or(0);
-        let hdr = Header {
-            da: t.sa,
-            sa: own,
-            fc: FunctionCode::response(ResponseStatus::Dl),
-            dsap: t.ssap,
-            ssap: Some(our_sap),
-        };
-        match telegram::emit(&mut self.buf, &hdr, &pdu[..n]) {
-            Ok(len) => len as u16,
-            Err(_) => self.status(t.sa, ResponseStatus::Rr),
+        match c2::emit_short_response(&mut self.buf, own, t, our_sap, resp) {
+            Some(len) => len as u16,
+            None => self.status(t.sa, ResponseStatus::Rr),
         }
     }
 }

@@ -5,8 +5,8 @@
 //! first response byte into DR (`BENCH req <n> resp <m> instr <i>`). This program sends the
 //! requests one at a time over the socket — DP-V0 bring-up and Data_Exchange for four GSD
 //! modules (4, 12, 20, 28 bytes each way) and the bench build's two extra modules (32 and 244
-//! bytes each way, [`BENCH_MODULES`]), then an MSAC_C2 connection reading PNU 918 through
-//! record 47 — collects those lines from the
+//! bytes each way, [`BENCH_MODULES`]), then an MSAC_C2 connection and MSAC_C1 (SAP 51), each
+//! reading PNU 918 through record 47 — collects those lines from the
 //! decoded defmt log and prints a Markdown table (the README's "Benchmark" section).
 //!
 //! Measured path: RTIC handler entry → SR/DR read → `Node::on_byte` (framer, telegram decode
@@ -68,6 +68,19 @@ impl<S: std::io::Read + std::io::Write> Script<S> {
             fc: FunctionCode::request(SRD_HIGH, self.c2_fcb, true),
             dsap: Some(dsap),
             ssap: Some(50),
+        };
+        self.raw(label, &qemu::frame(&h, pdu))
+    }
+
+    /// An MSAC_C1 SRD from the class-1 master (SSAP and DSAP 51), on its FCB.
+    fn c1(&mut self, label: &str, pdu: &[u8]) -> Vec<u8> {
+        self.fcb = !self.fcb;
+        let h = Header {
+            da: SLAVE,
+            sa: MASTER,
+            fc: FunctionCode::request(SRD_HIGH, self.fcb, true),
+            dsap: Some(51),
+            ssap: Some(51),
         };
         self.raw(label, &qemu::frame(&h, pdu))
     }
@@ -194,6 +207,40 @@ fn main() {
         let r = poll(&mut s, "DS_Read.res, PNU 918 = 126");
         if host_tests::pdu_of(&r) != Some(&[0x5E, 0, 47, 8, k, 1, 1, 1, 0x42, 1, 0, SLAVE][..]) {
             fail(&format!("PNU 918 read: {}", host_tests::hex(&r)));
+        }
+    }
+
+    // DP-V1 MSAC_C1 (SAP 51) from the class-1 master: parameterised again with DPV1_Enable
+    // (DPV1_Status_1 b7) and Standard telegram 1, then PNU 918 through record 47 — DS_Write,
+    // DS_Read, each acknowledged SC by the line and answered on a later poll from the staging.
+    let st1 = by_ref(1);
+    let id = card::IDENT_NUMBER.to_be_bytes();
+    let mut prm = vec![0x80, 0x01, 0x01, 11, id[0], id[1], 0x00];
+    prm.extend_from_slice(&card::USER_PRM_DEFAULTS);
+    prm[7] |= 0x80;
+    s.srd("Set_Prm (new parameters in Data_Exch)", Some(61), &prm);
+    s.srd(&format!("Chk_Cfg {} ({})", host_tests::hex(st1.cfg), st1.name), Some(62), st1.cfg);
+    s.srd("Slave_Diag", Some(60), &[]);
+    let c1_poll = |s: &mut Script<_>, what: &str| {
+        for _ in 0..100 {
+            let r = s.c1(&format!("MSAC_C1 poll → {what}"), &[]);
+            if host_tests::pdu_of(&r).is_some_and(|p| !p.is_empty()) {
+                return r;
+            }
+            s.sent.last_mut().expect("sent").0 = "MSAC_C1 poll → not ready (SC)".into();
+        }
+        fail("no MSAC_C1 response after 100 polls")
+    };
+    for k in 1..=SAMPLES as u8 {
+        s.c1(
+            "MSAC_C1 DS_Write record 47, read PNU 918 (SC)",
+            &[0x5F, 0, 47, 10, k, 1, 1, 1, 0x10, 1, 0x03, 0x96, 0, 0],
+        );
+        c1_poll(&mut s, "DS_Write.res");
+        s.c1("MSAC_C1 DS_Read record 47 (SC)", &[0x5E, 0, 47, 240]);
+        let r = c1_poll(&mut s, "DS_Read.res, PNU 918 = 126");
+        if host_tests::pdu_of(&r) != Some(&[0x5E, 0, 47, 8, k, 1, 1, 1, 0x42, 1, 0, SLAVE][..]) {
+            fail(&format!("MSAC_C1 PNU 918 read: {}", host_tests::hex(&r)));
         }
     }
 
