@@ -80,7 +80,8 @@ impl CardEndpoint {
         if !self.line.rx_fault(now_us, &mut frame) {
             return;
         }
-        let min_tsdr = self.node.min_tsdr();
+        // min_TSDR in force before this request, from the staging (as the F411 line reads it).
+        let min_tsdr = self.fast.min_tsdr();
         let dx_before = self.node.slave().stats().data_exchanges;
         let answer = match self.fast.on_frame(now, &frame) {
             Verdict::Silent => None,
