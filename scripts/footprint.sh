@@ -9,11 +9,11 @@
 #    (`dpm::spi::SpiSlave` / `WireImage`); the drive's control board is the host, so nothing
 #    of the host side belongs in the card. (Symbols of functions LTO inlined are not in the
 #    table; the bench's entry points and its large step functions are not inlined.)
-# 2. Prints text / data / bss (arm-none-eabi-size) against the issue's limits: flash
-#    (text + data) ≤ 96 KiB, RAM (data + bss) ≤ 32 KiB. A figure within its limit is enforced
-#    (the script fails if it grows above it); a figure still above its limit is reported with
-#    the biggest symbols, and the script does not fail for it (the split alone does not get
-#    the card there; see README "Footprint").
+# 2. Prints text / data / bss (arm-none-eabi-size) and checks the issue's limits: flash
+#    (text + data) ≤ 96 KiB, RAM (data + bss) ≤ 32 KiB. A limit the build is under is
+#    enforced (the script fails if the figure grows above it); a figure still above its limit
+#    is reported with the biggest symbols, and the script does not fail for it (the split
+#    alone does not get the card there; README "Footprint").
 #
 # Usage: bash scripts/footprint.sh [ELF]   (default target/thumbv7em-none-eabihf/release/pbcard)
 set -euo pipefail
@@ -21,10 +21,11 @@ cd "$(dirname "$0")/.."
 ELF=${1:-${CARGO_TARGET_DIR:-target}/thumbv7em-none-eabihf/release/pbcard}
 FLASH_LIMIT=$((96 * 1024))
 RAM_LIMIT=$((32 * 1024))
-# The figures the card-only build is known to be within (raise to the limit as it shrinks
-# below): a limit is enforced only where the build has got under it.
-ENFORCE_FLASH=${ENFORCE_FLASH:-auto}
-ENFORCE_RAM=${ENFORCE_RAM:-auto}
+# Enforced only where the card-only build has got under the limit (issue 13 item 1): RAM is
+# (21 KiB), flash is not yet (132 KiB at opt-level 3) — it is printed with the biggest
+# symbols. Set ENFORCE_FLASH=yes once the flash figure is under 96 KiB.
+ENFORCE_FLASH=${ENFORCE_FLASH:-no}
+ENFORCE_RAM=${ENFORCE_RAM:-yes}
 
 if [[ ! -f "$ELF" ]]; then
     echo "footprint: $ELF not found (build it with: cargo build --release)" >&2
@@ -54,13 +55,21 @@ for c in "${checks[@]}"; do
 done
 [[ $fail == 0 ]] && echo "footprint: no simulation symbols (drive::, SimDrive, app::Application, dpm::host::, SpiHost, Loopback)"
 
+# Berkeley text / data / bss as arm-none-eabi-size prints them. With cortex-m-rt's linker
+# script the initialised `.data` (RAM, copied from flash at start) is counted in `text` (its
+# load image) and not in `data`, and `bss` includes `.uninit` (the RTIC resources); so the
+# limits are checked on the sections (`size -A`): flash = every section in the flash region
+# (0x0800_0000..) plus `.data`'s load image, RAM = every section in SRAM (0x2000_0000..).
 read -r text data bss _ < <(arm-none-eabi-size "$ELF" | awk 'NR == 2 {print $1, $2, $3, $4}')
-flash=$((text + data))
-ram=$((data + bss))
+read -r flash ram dotdata < <(arm-none-eabi-size -A -d "$ELF" | awk '
+    $3 >= 134217728 && $3 < 536870912 {f += $2}
+    $3 >= 536870912 && $3 < 805306368 {r += $2}
+    $1 == ".data" {d = $2}
+    END {print f + d, r, d + 0}')
 kib() { awk -v b="$1" 'BEGIN {printf "%.1f KiB", b / 1024}'; }
-echo "footprint: text $text, data $data, bss $bss"
-echo "footprint: flash (text + data) $flash B = $(kib $flash) (limit $(kib $FLASH_LIMIT))"
-echo "footprint: RAM (data + bss)    $ram B = $(kib $ram) (limit $(kib $RAM_LIMIT))"
+echo "footprint: arm-none-eabi-size: text $text, data $data, bss $bss (.data $dotdata B is in text)"
+echo "footprint: flash (text + .data load image) $flash B = $(kib "$flash") (limit $(kib $FLASH_LIMIT))"
+echo "footprint: RAM (.data + .bss + .uninit)    $ram B = $(kib "$ram") (limit $(kib $RAM_LIMIT); the stack comes on top)"
 
 above=""
 check_limit() { # name value limit enforce

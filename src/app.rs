@@ -888,6 +888,73 @@ pub(crate) mod tests {
             n <= 4608 + 4 * crate::dpm::spi::MAX_TRANSACTION + 384 + 256 + 64 + 520 + 64,
             "Application is {n} bytes"
         );
+        // The shipped card: no SPI frame transport, no simulated drive, no host state.
+        let c = core::mem::size_of::<Card>();
+        assert!(c + 4 * crate::dpm::spi::MAX_TRANSACTION < n, "Card is {c} bytes");
+    }
+
+    /// Issue 13 item 1: the shipped card ([`Card::new`], its own image) is the card of the
+    /// bench's card-only mode — the same responses and input images, the same blocks of the
+    /// card's side (STATUS, OUTPUTS, DRIVE_CMD, CARD) for the same drive writes.
+    #[test]
+    fn the_card_alone_is_the_card_of_the_bench() {
+        use crate::dpm::{DriveStateImage, HostConfig};
+        let mut b = Bench::new();
+        b.app = Application::card_only();
+        b.app.set_baudrate(Some(Baudrate::B1500k));
+        let mut card = Card::new();
+        card.set_baudrate(Some(Baudrate::B1500k));
+        let mut node = Node::new(DpSlave::new(SLAVE));
+        let mut fcb = false;
+        let mut now = Instant::from_millis(0);
+        // One request to both nodes, a step of `ms` on both; the responses must agree.
+        let mut both = |b: &mut Bench, card: &mut Card, node: &mut Node, dsap: Option<u8>, pdu: &[u8], ms: u64| {
+            fcb = !fcb;
+            let fc = FunctionCode::request(0xD, fcb, true);
+            let hdr = Header { da: SLAVE, sa: MASTER, fc, dsap, ssap: dsap.map(|_| 62) };
+            let mut buf = [0u8; telegram::MAX_FRAME_LEN];
+            let n = telegram::emit(&mut buf, &hdr, pdu).unwrap();
+            let (mut ra, mut rb) = (None, None);
+            for &x in &buf[..n] {
+                ra = b.node.on_byte(now, x).map(|r| r.to_vec()).or(ra);
+                rb = node.on_byte(now, x).map(|r| r.to_vec()).or(rb);
+            }
+            assert_eq!(ra, rb, "the same response");
+            now = now + Duration::from_millis(ms);
+            b.now = now;
+            let ea = b.app.step(now, &mut b.node);
+            let eb = card.step(now, node);
+            assert_eq!(ea, eb, "the same events");
+            assert_eq!(b.node.slave().inputs(), node.slave().inputs(), "the same input image");
+            assert_eq!(b.node.slave().state(), node.slave().state());
+            ra.unwrap_or_default()
+        };
+        // The drive's control board: CONFIG (the start-up gate opens), then its state.
+        for dpm in [b.app.dpm_mut(), card.dpm_mut()] {
+            dpm.host().write_config(&HostConfig::DEFAULT);
+        }
+        both(&mut b, &mut card, &mut node, None, &[], 1);
+        let mut prm = vec![0x88, 1, 100, 11, (card::IDENT_NUMBER >> 8) as u8, card::IDENT_NUMBER as u8, 0];
+        prm.extend_from_slice(&card::USER_PRM_DEFAULTS);
+        assert_eq!(both(&mut b, &mut card, &mut node, Some(61), &prm, 1), [telegram::SC]);
+        assert_eq!(both(&mut b, &mut card, &mut node, Some(62), card::MODULES[0].cfg, 1), [telegram::SC]);
+        assert_eq!(node.slave().state(), DpState::DataExch);
+        for k in 0..20u16 {
+            if k == 5 {
+                for dpm in [b.app.dpm_mut(), card.dpm_mut()] {
+                    dpm.host().write_drive_state(&DriveStateImage::EMPTY);
+                }
+            }
+            let q = [0x04, if k < 10 { 0x7E } else { 0x7F }, 0x20, k as u8];
+            both(&mut b, &mut card, &mut node, None, &q, 2);
+        }
+        let (x, y) = (b.app.dpm(), card.dpm());
+        assert_eq!(x.status(), y.status());
+        assert_eq!(x.outputs(), y.outputs());
+        assert_eq!(x.drive_command(), y.drive_command());
+        assert_eq!(x.card_report(), y.card_report());
+        assert_eq!(b.app.profidrive_state(), card.profidrive_state());
+        assert_eq!(b.app.link().stats(), card.link().stats());
     }
 
     #[test]
