@@ -18,9 +18,9 @@ cargo clippy --lib -- -D warnings
 cargo clippy --lib --tests --target "$HOST" -- -D warnings
 cargo clippy -p host-tests --all-targets --target "$HOST" -- -D warnings
 
-echo "== firmware: release build for the STM32F411 (thumbv7em-none-eabihf)"
+echo "== firmware: release build for the STM32F411 (thumbv7em-none-eabihf), the card alone: no simulation linked, footprint"
 cargo build --release
-arm-none-eabi-size "${CARGO_TARGET_DIR:-target}/thumbv7em-none-eabihf/release/pbcard"
+bash scripts/footprint.sh
 
 echo "== firmware: QEMU netduinoplus2 builds (features qemu, bench) and clippy of both firmware builds, -D warnings"
 bash scripts/qemu.sh build

@@ -1,30 +1,38 @@
-//! The card with a simulated drive behind its DPM, as the QEMU firmware, the soft slave and
-//! the host tests run it: one call per main-loop turn.
+//! The card as it ships ([`Card`]), and the bench that runs it with a simulated drive behind
+//! its DPM ([`Application`]): one call per main-loop turn.
 //!
 //! ```text
-//! Node::poll ─▶ Link::publish (STATUS, OUTPUTS, CARD)
-//!            ─▶ SimDrive::step over dpm::host::Host (reads DRIVE_CMD, runs the drive model, writes DRIVE_STATE, DRIVE, serves the mailbox)
-//!            ─▶ Link::collect (DRIVE, CONFIG, mailbox) ─▶ profile::runtime (DRIVE_STATE ─▶ input image; outputs ─▶ DRIVE_CMD)
+//! Card:        Node::poll ─▶ Link::publish (STATUS, OUTPUTS, CARD)
+//!              ─▶ (the drive's control board writes DRIVE_STATE, DRIVE, CONFIG, MBX_RSP through the SPI transport)
+//!              ─▶ Link::collect (DRIVE, CONFIG, mailbox) ─▶ profile::runtime (DRIVE_STATE ─▶ input image; outputs ─▶ DRIVE_CMD)
+//! Application: the same card, with SimDrive::step over dpm::host::Host between publish and collect
+//!              (reads DRIVE_CMD, runs the drive model, writes DRIVE_STATE, DRIVE, serves the mailbox)
 //! ```
 //!
-//! The card's profile layer ([`crate::profile::runtime::Runtime`]) owns the telegram, the
-//! control profile (PROFIdrive 4.1 / 2.0, WEG, INVT), the operate mode (PROFIdrive / Bypass /
-//! Echo), the PKW channel and the fault buffer; the drive sees only the drive-neutral
-//! DRIVE_CMD and answers DRIVE_STATE (issue 6 item 2). The drive runs the host-side reference
+//! [`Card`] is everything the card does without a simulated drive: the node-side DPM link
+//! ([`Link`]), the card's profile layer ([`crate::profile::runtime::Runtime`]: the telegram,
+//! the control profile (PROFIdrive 4.1 / 2.0, WEG, INVT), the operate mode (PROFIdrive /
+//! Bypass / Echo), the PKW channel and the fault buffer), the speed-reference reader, the
+//! fail-safe path and the card's DPM image. The drive sees only the drive-neutral DRIVE_CMD
+//! and answers DRIVE_STATE (issue 6 item 2). The board firmware of a real card runs
+//! [`Card::new`]: the drive's control board is the SPI master and its frames reach the image
+//! through [`Card::dpm_mut`] (`dpm::spi::SpiSlave`); nothing of [`crate::drive`] or of the
+//! host side [`crate::dpm::host`] is part of it (issue 13 item 1, `scripts/footprint.sh`).
+//!
+//! [`Application`] is the bench: a [`Card`] whose image lives behind the host-side reference
 //! implementation ([`crate::dpm::host`], issue 7 item 5) over the SPI frame transport
 //! ([`crate::dpm::spi::SpiHost`]) to an in-process card ([`crate::dpm::spi::Loopback`], which
-//! owns the card's DPM image): the same code and the same frames a drive maker's control
-//! board uses on the wire (issue 7: "the QEMU build and the soft slave use an in-process
-//! transport with the same frames").
-//!
-//! The board firmware of a real card runs [`Application::card_only`]: no simulated drive, the
-//! drive's control board is the SPI master and its frames reach the image through
-//! [`Application::dpm_mut`]. A bench board without a drive builds with the `sim-drive`
-//! feature and runs [`Application::new`] like the QEMU build.
+//! owns the card's DPM image), and a [`SimDrive`] on that host: the same code and the same
+//! frames a drive maker's control board uses on the wire (issue 7: "the QEMU build and the
+//! soft slave use an in-process transport with the same frames"). The QEMU firmware, the F411
+//! with the `sim-drive` feature, the soft slave and the host tests run it; it dereferences to
+//! its [`Card`], so every card method is an application method.
 //!
 //! PROFIdrive parameters not owned by the card go to the drive through the DPM parameter
-//! mailbox: [`Application::parameters`] is the table for [`Node::process_acyclic`]; the PKW
-//! channel of the PPO / INVT telegrams uses the same mailbox with its own answer cache.
+//! mailbox: [`Card::parameters`] is the table for [`Node::process_acyclic`]; the PKW channel
+//! of the PPO / INVT telegrams uses the same mailbox with its own answer cache.
+
+use core::ops::{Deref, DerefMut};
 
 use crate::card;
 use crate::dp::{DpState, Events};
@@ -55,41 +63,45 @@ fn raw_inputs(dpm: &Dpm) -> bool {
     head(crate::dpm::layout::drive_state::START) == 0 && head(crate::dpm::layout::inputs::START) != 0
 }
 
-/// The drive's side of the DPM as the application sees it: the host reference
-/// implementation over the SPI frames of [`crate::dpm::spi`], the card an in-process
-/// [`Loopback`] that owns the card's DPM image.
+/// Where the card's DPM image lives: in the card itself ([`Dpm`], the board), or behind the
+/// simulated drive's host interface ([`DriveHost`], the bench's in-process SPI card).
+pub trait CardImage {
+    /// The DPM image.
+    fn dpm(&self) -> &Dpm;
+    /// The DPM image, writable.
+    fn dpm_mut(&mut self) -> &mut Dpm;
+}
+
+impl CardImage for Dpm {
+    fn dpm(&self) -> &Dpm {
+        self
+    }
+    fn dpm_mut(&mut self) -> &mut Dpm {
+        self
+    }
+}
+
+/// The drive's side of the DPM as the bench sees it: the host reference implementation over
+/// the SPI frames of [`crate::dpm::spi`], the card an in-process [`Loopback`] that owns the
+/// card's DPM image.
 pub type DriveHost = Host<SpiHost<Loopback>>;
 
-/// The simulated drive, and whether it runs: in [card-only](Application::card_only) mode it
-/// is kept (for the accessors) but never stepped, so the host blocks are written only by the
-/// drive's control board through the SPI transport.
-#[derive(Debug, Clone)]
-struct DriveSlot {
-    sim: SimDrive,
-    runs: bool,
-}
-
-impl DriveSlot {
-    fn step<T: Transport>(&mut self, now: Instant, host: &mut Host<T>) {
-        if self.runs {
-            self.sim.step(now, host);
-        }
+impl CardImage for DriveHost {
+    fn dpm(&self) -> &Dpm {
+        self.transport().dpm()
     }
-
-    fn set_serve_parameters(&mut self, on: bool) {
-        self.sim.set_serve_parameters(on);
-    }
-
-    fn params(&self) -> &DriveTable {
-        self.sim.params()
+    fn dpm_mut(&mut self) -> &mut Dpm {
+        self.transport_mut().dpm_mut()
     }
 }
 
-/// DPM image (behind the drive's host interface) + card-side link, profile layer and
-/// parameter caches + simulated drive.
+/// The card (ARCHITECTURE §2): the DPM image `I` (its own [`Dpm`] on the board) with the
+/// card-side link, the profile layer, the speed-reference reader and the parameter caches of
+/// record 47 and the PKW channel. No drive: the drive's control board writes the host blocks
+/// through the transport the platform feeds into [`dpm_mut`](Self::dpm_mut).
 #[derive(Debug, Clone)]
-pub struct Application {
-    host: DriveHost,
+pub struct Card<I = Dpm> {
+    image: I,
     link: Link,
     params: ParamCache,
     pkw_params: ParamCache,
@@ -97,66 +109,41 @@ pub struct Application {
     /// through the record-47 answer cache `params`, so neither takes the other's answers).
     refs: References,
     runtime: Runtime,
-    drive: DriveSlot,
     /// Events of [`Self::step_publish`] for [`Self::step_collect`].
     events: Events,
 }
 
-impl Application {
-    /// A fresh image (P0740 "inactive" until the first step), the profile layer without a
-    /// telegram, and a simulated drive at standstill that runs in every step over the SPI
-    /// frames (the QEMU firmware, the soft slave, the host tests, a bench board without a
-    /// drive).
-    pub fn new(drive: DriveConfig) -> Self {
-        Self::build(SimDrive::new(drive), true)
+impl Card {
+    /// The card as it ships: a fresh image (P0740 "inactive" until the first step), the
+    /// profile layer without a telegram, no parameterisation before the drive has written a
+    /// valid CONFIG (issue 16, [`Link::set_startup_gate`]). The host blocks (INPUTS, DRIVE,
+    /// CONFIG, MBX_RSP, DRIVE_STATE) are written only by the drive's control board.
+    pub fn new() -> Self {
+        let mut card = Self::with_image(Dpm::new());
+        card.link.set_startup_gate(true);
+        card
     }
+}
 
-    /// The card alone (the board firmware with a real drive): no simulated drive runs, the
-    /// host blocks (INPUTS, DRIVE, CONFIG, MBX_RSP, DRIVE_STATE) are written only by the
-    /// drive's control board, through the SPI transport the platform feeds into
-    /// [`dpm_mut`](Self::dpm_mut) (`dpm::spi::SpiSlave`).
-    pub fn card_only() -> Self {
-        let mut app = Self::build(SimDrive::new(DriveConfig::DEFAULT), false);
-        // Issue 16: no parameterisation before the drive has written a valid CONFIG.
-        app.link.set_startup_gate(true);
-        app
+impl Default for Card {
+    fn default() -> Self {
+        Self::new()
     }
+}
 
-    fn build(sim: SimDrive, runs: bool) -> Self {
-        // The simulated drive runs on `Host::cycle` (its status and command in CYCLIC
-        // exchanges) with its mailbox on block accesses: a parameter job answered within one
-        // card step, as the tests of the card's parameter access count them (the fragments of
-        // the CYCLIC exchange take several drive cycles a job, `docs/SPI.md`). A card-only
-        // host is the drive maker's: everything in the CYCLIC exchange.
-        let opts = if runs { Options { cyclic_mailbox: false, ..Options::DEFAULT } } else { Options::DEFAULT };
-        let host = match Host::open(SpiHost::new(Loopback::new(Dpm::new())), opts) {
-            Ok(h) => h,
-            // A fresh image always carries the current header, and the loopback card answers
-            // every well-formed frame.
-            Err(_) => unreachable!("a fresh DPM image opens"),
-        };
-        Application {
-            host,
+impl<I: CardImage> Card<I> {
+    /// The card over `image` (a fresh one), without the startup gate: the bench's card, whose
+    /// simulated drive writes CONFIG in its first cycle.
+    pub fn with_image(image: I) -> Self {
+        Card {
+            image,
             link: Link::new(),
             params: ParamCache::new(),
             pkw_params: ParamCache::new(),
             refs: References::new(),
             runtime: Runtime::new(Scales::DEFAULT),
-            drive: DriveSlot { sim, runs },
             events: Events::empty(),
         }
-    }
-
-    /// Stop (false) or restart the simulated drive's steps: a drive whose control board
-    /// stopped (its heartbeat stands still — fault injection for the drive-lost image).
-    pub fn set_drive_runs(&mut self, runs: bool) {
-        self.drive.runs = runs;
-    }
-
-    /// Whether the simulated drive runs in the steps (false in [card-only](Self::card_only)
-    /// mode).
-    pub fn simulates_drive(&self) -> bool {
-        self.drive.runs
     }
 
     /// The drive's parameters (behind the card's own PNUs) through the DPM parameter mailbox
@@ -164,18 +151,7 @@ impl Application {
     /// job pending, a drive that does not answer makes it fail with 0x11 after the mailbox
     /// timeout.
     pub fn parameters(&mut self, now: Instant) -> MailboxParams<'_> {
-        MailboxParams::new(now, &mut self.link, self.host.transport_mut().dpm_mut(), &mut self.params)
-    }
-
-    /// Whether the simulated drive answers the parameter mailbox (default yes; off: a drive
-    /// whose control board does not answer — fault injection).
-    pub fn set_serve_parameters(&mut self, on: bool) {
-        self.drive.set_serve_parameters(on);
-    }
-
-    /// The simulated drive's parameter table.
-    pub fn drive_params(&self) -> &DriveTable {
-        self.drive.params()
+        MailboxParams::new(now, &mut self.link, self.image.dpm_mut(), &mut self.params)
     }
 
     /// The rate the platform listens at (`None` while searching); shown as P0963.
@@ -183,20 +159,18 @@ impl Application {
         self.link.set_baudrate(rate);
     }
 
-    /// Run the node's timers, publish the card's state and the master's outputs, run the
-    /// drive (which also answers a parameter mailbox request), take the drive's state through
-    /// the profile layer into the next input image and the profile's command into DRIVE_CMD,
-    /// and serve a PKW job. Returns the node's events (for logs and LEDs). Call it often
-    /// (every few ms, and after each received telegram if the platform can): the answer to
-    /// Data_Exchange *n* carries the drive's reaction to the outputs of an earlier cycle.
+    /// One step of the card alone: the node's timers, [`Link::publish`] (STATUS, OUTPUTS,
+    /// CARD), then [`Link::collect`] and the profile layer (DRIVE_STATE → the next input image,
+    /// the outputs → DRIVE_CMD) and a waiting PKW job. Returns the node's events (for logs and
+    /// LEDs). The drive's control board writes the host blocks between two steps, through the
+    /// transport the platform feeds into [`dpm_mut`](Self::dpm_mut).
     pub fn step(&mut self, now: Instant, node: &mut Node) -> Events {
         let events = self.step_publish(now, node);
-        self.step_drive(now);
         self.step_collect(now, node);
         events
     }
 
-    /// The first third of [`step`](Self::step), the part that needs the node: its timers and
+    /// The first part of [`step`](Self::step), the part that needs the node: its timers and
     /// [`Link::publish`] (status, outputs, events into the DPM). The same as
     /// [`snapshot`](Self::snapshot) + [`publish`](Self::publish).
     pub fn step_publish(&mut self, now: Instant, node: &mut Node) -> Events {
@@ -205,13 +179,7 @@ impl Application {
         snap.events
     }
 
-    /// The middle of [`step`](Self::step), without the node: the simulated drive reads
-    /// DRIVE_CMD, runs, writes DRIVE_STATE and serves the parameter mailbox.
-    pub fn step_drive(&mut self, now: Instant) {
-        self.drive.step(now, &mut self.host);
-    }
-
-    /// The last part of [`step`](Self::step), with the node: [`Link::collect`] (drive
+    /// The last part of [`step`](Self::step) (after the drive's part, on a bench), with the node: [`Link::collect`] (drive
     /// supervision, configuration takeover, mailbox), the profile layer (DRIVE_STATE → the
     /// next input image, the outputs → DRIVE_CMD) and a waiting PKW job. The same as
     /// [`collect`](Self::collect) on a fresh copy of the node + [`apply`](Self::apply).
@@ -225,7 +193,7 @@ impl Application {
     /// with the lock held; it only copies): the node's timers ([`Node::poll`]), the link's
     /// reaction to a new telegram, and a [`NodeSnapshot`] of what [`publish`](Self::publish)
     /// and [`collect`](Self::collect) need. The firmware's step is `snapshot` (locked) →
-    /// `publish` → [`step_drive`](Self::step_drive) → `collect` → [`apply`](Self::apply)
+    /// `publish` → (on a bench: [`Application::step_drive`]) → `collect` → [`apply`](Self::apply)
     /// (locked); [`step`](Self::step) does the same with the node at hand.
     pub fn snapshot(&mut self, now: Instant, node: &mut Node) -> NodeSnapshot {
         let events = node.poll(now);
@@ -235,7 +203,7 @@ impl Application {
     /// Without the node: STATUS, OUTPUTS and CARD into the DPM from `snap`
     /// ([`Link::publish_snapshot`]); its events are kept for the profile layer.
     pub fn publish(&mut self, snap: &NodeSnapshot) {
-        self.link.publish_snapshot(snap, self.host.transport_mut().dpm_mut());
+        self.link.publish_snapshot(snap, self.image.dpm_mut());
         self.events |= snap.events;
     }
 
@@ -244,7 +212,7 @@ impl Application {
     /// on `snap` (DRIVE_STATE → the next input image, the outputs → DRIVE_CMD) and a waiting
     /// PKW job. Returns what the node must learn, for [`apply`](Self::apply).
     pub fn collect(&mut self, now: Instant, snap: &NodeSnapshot) -> NodeUpdate {
-        let dpm = self.host.transport().dpm();
+        let dpm = self.image.dpm();
         let raw = raw_inputs(dpm);
         let mut update = self.link.collect_host(now, snap.dp_state(), dpm, raw);
         let events = core::mem::replace(&mut self.events, Events::empty());
@@ -266,7 +234,7 @@ impl Application {
         if !self.refs.is_busy() && !self.params.waiting() {
             return;
         }
-        let dpm = self.host.transport_mut().dpm_mut();
+        let dpm = self.image.dpm_mut();
         let mut table = MailboxParams::new(now, &mut self.link, dpm, &mut self.params);
         if self.refs.is_busy() && !self.runtime.has_pkw_work() {
             if let Some(scales) = self.refs.service(now, &mut table, self.runtime.scales()) {
@@ -301,7 +269,7 @@ impl Application {
         let mut safe = DriveCommandImage::EMPTY;
         safe.command.flags = CommandFlags::COAST | CommandFlags::COMM_LOSS;
         // OUTPUTS and DRIVE_CMD of one card cycle: the host's pairing check takes it.
-        self.link.publish_safe_state(&safe, self.host.transport_mut().dpm_mut());
+        self.link.publish_safe_state(&safe, self.image.dpm_mut());
     }
 
     /// After a reset that followed [`fail_safe`](Self::fail_safe) (the board keeps a flag in
@@ -350,7 +318,7 @@ impl Application {
         // Watchdog expired / master gone (left data exchange) or master in Clear.
         let lost = !in_dx || snap.is_clear();
         self.runtime.set_clear_mode(in_dx && snap.is_clear());
-        let state = *self.link.read_drive_state(self.host.transport().dpm());
+        let state = *self.link.read_drive_state(self.image.dpm());
         let outputs = (events.contains(Events::OUTPUTS_UPDATED) && !lost).then(|| snap.outputs());
         let drive_lost = self.link.drive_lost();
         let Some(x) = self.runtime.cycle_at(now, outputs, lost, &state.status, state.extra.words()) else { return };
@@ -368,14 +336,14 @@ impl Application {
         if in_dx && !drive_lost && !raw && sel.telegram == telegram && telegram == update.telegram() {
             update.set_inputs(x.inputs);
         }
-        self.link.publish_command(&img, self.host.transport_mut().dpm_mut());
+        self.link.publish_command(&img, self.image.dpm_mut());
     }
 
     /// Serve a waiting PKW job through the mailbox (its own answer cache, so a record-47 job
     /// and a PKW job never discard each other's answers).
     pub fn service_pkw(&mut self, now: Instant) {
         if self.runtime.has_pkw_work() {
-            let dpm = self.host.transport_mut().dpm_mut();
+            let dpm = self.image.dpm_mut();
             let mut table = MailboxParams::new(now, &mut self.link, dpm, &mut self.pkw_params);
             self.runtime.service_pkw(&mut table);
         }
@@ -383,22 +351,12 @@ impl Application {
 
     /// The DPM image.
     pub fn dpm(&self) -> &Dpm {
-        self.host.transport().dpm()
+        self.image.dpm()
     }
     /// The DPM image, writable: for a transport that moves the host's bytes into it
     /// (`dpm::spi::SpiSlave` on the board).
     pub fn dpm_mut(&mut self) -> &mut Dpm {
-        self.host.transport_mut().dpm_mut()
-    }
-    /// The drive's host interface (the reference implementation the simulated drive runs,
-    /// over the SPI frames to the in-process card).
-    pub fn host(&self) -> &DriveHost {
-        &self.host
-    }
-    /// The drive's host interface, writable: what the drive's control board does besides the
-    /// simulated drive's cycle (write CONFIG, …), for tests and tools.
-    pub fn host_mut(&mut self) -> &mut DriveHost {
-        &mut self.host
+        self.image.dpm_mut()
     }
     /// The card-side link (counters, init-error flag).
     pub fn link_mut(&mut self) -> &mut Link {
@@ -419,6 +377,152 @@ impl Application {
             AnyProfile::Profidrive(p) => Some(p.state()),
             _ => None,
         }
+    }
+    /// Where the image lives ([`DriveHost`] on the bench).
+    pub fn image(&self) -> &I {
+        &self.image
+    }
+    /// Where the image lives, writable.
+    pub fn image_mut(&mut self) -> &mut I {
+        &mut self.image
+    }
+}
+
+/// The simulated drive, and whether it runs: in [card-only](Application::card_only) mode it
+/// is kept (for the accessors) but never stepped, so the host blocks are written only by the
+/// drive's control board through the SPI transport.
+#[derive(Debug, Clone)]
+struct DriveSlot {
+    sim: SimDrive,
+    runs: bool,
+}
+
+impl DriveSlot {
+    fn step<T: Transport>(&mut self, now: Instant, host: &mut Host<T>) {
+        if self.runs {
+            self.sim.step(now, host);
+        }
+    }
+}
+
+/// The bench: a [`Card`] whose DPM image sits behind the drive's host interface
+/// ([`DriveHost`], the in-process SPI frames), and a simulated drive on that host. Every
+/// [`Card`] method is reachable through `Deref`; [`step`](Self::step) adds the drive's part.
+#[derive(Debug, Clone)]
+pub struct Application {
+    card: Card<DriveHost>,
+    drive: DriveSlot,
+}
+
+impl Deref for Application {
+    type Target = Card<DriveHost>;
+    fn deref(&self) -> &Card<DriveHost> {
+        &self.card
+    }
+}
+
+impl DerefMut for Application {
+    fn deref_mut(&mut self) -> &mut Card<DriveHost> {
+        &mut self.card
+    }
+}
+
+impl Application {
+    /// A fresh image (P0740 "inactive" until the first step), the profile layer without a
+    /// telegram, and a simulated drive at standstill that runs in every step over the SPI
+    /// frames (the QEMU firmware, the soft slave, the host tests, a bench board without a
+    /// drive).
+    pub fn new(drive: DriveConfig) -> Self {
+        Self::build(SimDrive::new(drive), true)
+    }
+
+    /// The card alone behind the bench's host interface: no simulated drive runs, the host
+    /// blocks (INPUTS, DRIVE, CONFIG, MBX_RSP, DRIVE_STATE) are written only by the drive's
+    /// control board (the tests' SPI master) through [`dpm_mut`](Card::dpm_mut) or
+    /// [`host_mut`](Self::host_mut). The board firmware runs [`Card::new`] instead.
+    pub fn card_only() -> Self {
+        let mut app = Self::build(SimDrive::new(DriveConfig::DEFAULT), false);
+        // Issue 16: no parameterisation before the drive has written a valid CONFIG.
+        app.card.link.set_startup_gate(true);
+        app
+    }
+
+    fn build(sim: SimDrive, runs: bool) -> Self {
+        // The simulated drive runs on `Host::cycle` (its status and command in CYCLIC
+        // exchanges) with its mailbox on block accesses: a parameter job answered within one
+        // card step, as the tests of the card's parameter access count them (the fragments of
+        // the CYCLIC exchange take several drive cycles a job, `docs/SPI.md`). A card-only
+        // host is the drive maker's: everything in the CYCLIC exchange.
+        let opts = if runs { Options { cyclic_mailbox: false, ..Options::DEFAULT } } else { Options::DEFAULT };
+        let host = match Host::open(SpiHost::new(Loopback::new(Dpm::new())), opts) {
+            Ok(h) => h,
+            // A fresh image always carries the current header, and the loopback card answers
+            // every well-formed frame.
+            Err(_) => unreachable!("a fresh DPM image opens"),
+        };
+        Application { card: Card::with_image(host), drive: DriveSlot { sim, runs } }
+    }
+
+    /// The card.
+    pub fn card(&self) -> &Card<DriveHost> {
+        &self.card
+    }
+    /// The card, writable.
+    pub fn card_mut(&mut self) -> &mut Card<DriveHost> {
+        &mut self.card
+    }
+
+    /// Stop (false) or restart the simulated drive's steps: a drive whose control board
+    /// stopped (its heartbeat stands still — fault injection for the drive-lost image).
+    pub fn set_drive_runs(&mut self, runs: bool) {
+        self.drive.runs = runs;
+    }
+
+    /// Whether the simulated drive runs in the steps (false in [card-only](Self::card_only)
+    /// mode).
+    pub fn simulates_drive(&self) -> bool {
+        self.drive.runs
+    }
+
+    /// Whether the simulated drive answers the parameter mailbox (default yes; off: a drive
+    /// whose control board does not answer — fault injection).
+    pub fn set_serve_parameters(&mut self, on: bool) {
+        self.drive.sim.set_serve_parameters(on);
+    }
+
+    /// The simulated drive's parameter table.
+    pub fn drive_params(&self) -> &DriveTable {
+        self.drive.sim.params()
+    }
+
+    /// Run the node's timers, publish the card's state and the master's outputs, run the
+    /// drive (which also answers a parameter mailbox request), take the drive's state through
+    /// the profile layer into the next input image and the profile's command into DRIVE_CMD,
+    /// and serve a PKW job. Returns the node's events (for logs and LEDs). Call it often
+    /// (every few ms, and after each received telegram if the platform can): the answer to
+    /// Data_Exchange *n* carries the drive's reaction to the outputs of an earlier cycle.
+    pub fn step(&mut self, now: Instant, node: &mut Node) -> Events {
+        let events = self.card.step_publish(now, node);
+        self.step_drive(now);
+        self.card.step_collect(now, node);
+        events
+    }
+
+    /// The middle of [`step`](Self::step), without the node: the simulated drive reads
+    /// DRIVE_CMD, runs, writes DRIVE_STATE and serves the parameter mailbox.
+    pub fn step_drive(&mut self, now: Instant) {
+        self.drive.step(now, &mut self.card.image);
+    }
+
+    /// The drive's host interface (the reference implementation the simulated drive runs,
+    /// over the SPI frames to the in-process card).
+    pub fn host(&self) -> &DriveHost {
+        &self.card.image
+    }
+    /// The drive's host interface, writable: what the drive's control board does besides the
+    /// simulated drive's cycle (write CONFIG, …), for tests and tools.
+    pub fn host_mut(&mut self) -> &mut DriveHost {
+        &mut self.card.image
     }
     /// The simulated drive (at standstill, never stepped, in card-only mode).
     pub fn drive(&self) -> &SimDrive {
@@ -784,6 +888,73 @@ pub(crate) mod tests {
             n <= 4608 + 4 * crate::dpm::spi::MAX_TRANSACTION + 384 + 256 + 64 + 520 + 64,
             "Application is {n} bytes"
         );
+        // The shipped card: no SPI frame transport, no simulated drive, no host state.
+        let c = core::mem::size_of::<Card>();
+        assert!(c + 4 * crate::dpm::spi::MAX_TRANSACTION < n, "Card is {c} bytes");
+    }
+
+    /// Issue 13 item 1: the shipped card ([`Card::new`], its own image) is the card of the
+    /// bench's card-only mode — the same responses and input images, the same blocks of the
+    /// card's side (STATUS, OUTPUTS, DRIVE_CMD, CARD) for the same drive writes.
+    #[test]
+    fn the_card_alone_is_the_card_of_the_bench() {
+        use crate::dpm::{DriveStateImage, HostConfig};
+        let mut b = Bench::new();
+        b.app = Application::card_only();
+        b.app.set_baudrate(Some(Baudrate::B1500k));
+        let mut card = Card::new();
+        card.set_baudrate(Some(Baudrate::B1500k));
+        let mut node = Node::new(DpSlave::new(SLAVE));
+        let mut fcb = false;
+        let mut now = Instant::from_millis(0);
+        // One request to both nodes, a step of `ms` on both; the responses must agree.
+        let mut both = |b: &mut Bench, card: &mut Card, node: &mut Node, dsap: Option<u8>, pdu: &[u8], ms: u64| {
+            fcb = !fcb;
+            let fc = FunctionCode::request(0xD, fcb, true);
+            let hdr = Header { da: SLAVE, sa: MASTER, fc, dsap, ssap: dsap.map(|_| 62) };
+            let mut buf = [0u8; telegram::MAX_FRAME_LEN];
+            let n = telegram::emit(&mut buf, &hdr, pdu).unwrap();
+            let (mut ra, mut rb) = (None, None);
+            for &x in &buf[..n] {
+                ra = b.node.on_byte(now, x).map(|r| r.to_vec()).or(ra);
+                rb = node.on_byte(now, x).map(|r| r.to_vec()).or(rb);
+            }
+            assert_eq!(ra, rb, "the same response");
+            now = now + Duration::from_millis(ms);
+            b.now = now;
+            let ea = b.app.step(now, &mut b.node);
+            let eb = card.step(now, node);
+            assert_eq!(ea, eb, "the same events");
+            assert_eq!(b.node.slave().inputs(), node.slave().inputs(), "the same input image");
+            assert_eq!(b.node.slave().state(), node.slave().state());
+            ra.unwrap_or_default()
+        };
+        // The drive's control board: CONFIG (the start-up gate opens), then its state.
+        for dpm in [b.app.dpm_mut(), card.dpm_mut()] {
+            dpm.host().write_config(&HostConfig::DEFAULT);
+        }
+        both(&mut b, &mut card, &mut node, None, &[], 1);
+        let mut prm = vec![0x88, 1, 100, 11, (card::IDENT_NUMBER >> 8) as u8, card::IDENT_NUMBER as u8, 0];
+        prm.extend_from_slice(&card::USER_PRM_DEFAULTS);
+        assert_eq!(both(&mut b, &mut card, &mut node, Some(61), &prm, 1), [telegram::SC]);
+        assert_eq!(both(&mut b, &mut card, &mut node, Some(62), card::MODULES[0].cfg, 1), [telegram::SC]);
+        assert_eq!(node.slave().state(), DpState::DataExch);
+        for k in 0..20u16 {
+            if k == 5 {
+                for dpm in [b.app.dpm_mut(), card.dpm_mut()] {
+                    dpm.host().write_drive_state(&DriveStateImage::EMPTY);
+                }
+            }
+            let q = [0x04, if k < 10 { 0x7E } else { 0x7F }, 0x20, k as u8];
+            both(&mut b, &mut card, &mut node, None, &q, 2);
+        }
+        let (x, y) = (b.app.dpm(), card.dpm());
+        assert_eq!(x.status(), y.status());
+        assert_eq!(x.outputs(), y.outputs());
+        assert_eq!(x.drive_command(), y.drive_command());
+        assert_eq!(x.card_report(), y.card_report());
+        assert_eq!(b.app.profidrive_state(), card.profidrive_state());
+        assert_eq!(b.app.link().stats(), card.link().stats());
     }
 
     #[test]

@@ -2,13 +2,14 @@
 //!
 //! Wiring only, no protocol decisions (ARCHITECTURE §3): bytes from the PROFIBUS line go
 //! into a [`pbcard::node::Node`] (framer → FDL station → DP slave, DP-V1); the response comes
-//! back as bytes for the board's [`bsp::BusPort`]. Behind the node sits
-//! [`pbcard::app::Application`]: the DPM image, the card-side link and (QEMU, or the F411
-//! with the `sim-drive` feature) the simulated drive (`pbcard::drive::SimDrive`, PROFIdrive
-//! state machine and ramp) over the in-process SPI frames — the same application as the
-//! soft slave's. The F411 build without `sim-drive` runs `Application::card_only()`: the
-//! drive's control board is the SPI master and writes the host blocks (block "DPM SPI
-//! transport" below).
+//! back as bytes for the board's [`bsp::BusPort`]. Behind the node sits the card
+//! ([`CardApp`]): the F411 build without `sim-drive` runs [`pbcard::app::Card`] alone (the
+//! DPM image, the card-side link, the profile layer; the drive's control board is the SPI
+//! master and writes the host blocks, block "DPM SPI transport" below; nothing of
+//! `pbcard::drive` is linked, `scripts/footprint.sh`). QEMU and the F411 with the `sim-drive`
+//! feature run the bench [`pbcard::app::Application`]: the same card with the simulated
+//! drive (`pbcard::drive::SimDrive`, PROFIdrive state machine and ramp) over the in-process
+//! SPI frames — the same application as the soft slave's.
 //!
 //! | priority | task | does |
 //! |---|---|---|
@@ -57,6 +58,15 @@ use defmt_rtt as _;
 #[cfg(all(target_os = "none", feature = "qemu"))]
 use defmt_semihosting as _;
 
+/// What runs behind the node: the bench with the simulated drive (QEMU, and the F411 with
+/// `sim-drive`: [`pbcard::app::Application`]).
+#[cfg(all(target_os = "none", any(feature = "qemu", feature = "sim-drive")))]
+type CardApp = pbcard::app::Application;
+/// What runs behind the node: the card alone (the F411 with a drive: [`pbcard::app::Card`];
+/// no simulated drive is linked).
+#[cfg(all(target_os = "none", not(any(feature = "qemu", feature = "sim-drive"))))]
+type CardApp = pbcard::app::Card;
+
 /// The PROFIBUS line rate of the QEMU board (also shown as P0963 / PNU 963); the F411
 /// searches it (autobaud).
 #[cfg(all(target_os = "none", feature = "qemu"))]
@@ -102,7 +112,7 @@ mod app {
     use crate::bsp::Clock;
     use crate::STATION_ADDRESS;
 
-    use pbcard::app::Application;
+    use crate::CardApp;
     use pbcard::dp::{DpSlave, DpState, Events};
     use pbcard::dpm::CommState;
     #[cfg(any(feature = "qemu", feature = "sim-drive"))]
@@ -140,10 +150,10 @@ mod app {
         }
     }
 
-    /// The application behind the DPM (image, link, simulated drive) and what the log has
-    /// shown of it.
+    /// The card behind the DPM (image, link, profile layer; QEMU and `sim-drive`: with the
+    /// simulated drive) and what the log has shown of it.
     pub struct Drive {
-        app: Application,
+        app: CardApp,
         clock: SysTickClock,
         comm: Option<CommState>,
         state: DriveState,
@@ -167,9 +177,9 @@ mod app {
             // over the in-process SPI frames. The F411 with a drive: the card alone, the
             // drive's control board writes the host blocks through SPI (`spi_frame`).
             #[cfg(any(feature = "qemu", feature = "sim-drive"))]
-            let mut app = Application::new(DriveConfig::DEFAULT);
+            let mut app = CardApp::new(DriveConfig::DEFAULT);
             #[cfg(not(any(feature = "qemu", feature = "sim-drive")))]
-            let mut app = Application::card_only();
+            let mut app = CardApp::new();
             // Issue 16: CARD.BOOT_ID, another value on every start of the board.
             #[cfg(feature = "board-f411")]
             app.link_mut().set_boot_id(crate::bsp::spi::boot_id());
@@ -214,6 +224,7 @@ mod app {
             #[cfg(feature = "bench")]
             let t_free = board::bench::count();
             app.publish(&snap);
+            #[cfg(any(feature = "qemu", feature = "sim-drive"))]
             app.step_drive(now);
             let update = app.collect(now, &snap);
             #[cfg(feature = "bench")]
@@ -265,6 +276,21 @@ mod app {
             self.log(&v);
             self.leds(now, &v);
             v
+        }
+
+        /// The card's image for the SPI frame task's hand-over (`bsp::spi::after_step`): the
+        /// card alone hands it over; with `sim-drive` the simulated drive writes the host
+        /// blocks through its in-process frames and nothing is handed over.
+        #[cfg(feature = "board-f411")]
+        fn wire_card(&mut self) -> Option<&mut pbcard::dpm::Dpm> {
+            #[cfg(feature = "sim-drive")]
+            {
+                None
+            }
+            #[cfg(not(feature = "sim-drive"))]
+            {
+                Some(self.app.dpm_mut())
+            }
         }
 
         /// The PS / BS / FS LED pattern (OPTE3/E5 §4.3, `pbcard::led`); logged when it
@@ -324,6 +350,12 @@ mod app {
             }
             // The card's PROFIdrive state of the drive (S1 before a profile is selected).
             let state = self.app.profidrive_state().unwrap_or(DriveState::SwitchingOnInhibited);
+            #[cfg(not(any(feature = "qemu", feature = "sim-drive")))]
+            if state != self.state {
+                defmt::info!("drive: {=str} -> {=str}", self.state.name(), state.name());
+                self.state = state;
+            }
+            #[cfg(any(feature = "qemu", feature = "sim-drive"))]
             if state != self.state {
                 let drive = self.app.drive();
                 defmt::info!(
@@ -882,7 +914,7 @@ mod app {
             // Between two steps (same priority as housekeeping): the hand-over, the armed
             // CYCLIC reply refreshed, the IRQ line.
             let (port, proto) = drive.lock(|d| {
-                let card = if d.app.simulates_drive() { None } else { Some(d.app.dpm_mut()) };
+                let card = d.wire_card();
                 crate::bsp::spi::after_step(&mut spi, &mut spi_wire, card)
             });
             ms = ms.wrapping_add(1);

@@ -2,13 +2,13 @@
 //! line to the safe state first (transmit DMA stopped, DE released — before any logging,
 //! issue 11 item 3e), then the log, the DPM OUTPUTS block to the
 //! safe state and the "card fault" event raised in `CARD.EVENTS`
-//! ([`pbcard::app::Application::fail_safe`]), a flag in RAM that survives the reset, then a
+//! ([`pbcard::app::Card::fail_safe`]), a flag in RAM that survives the reset, then a
 //! system reset. After the reset [`take_recovered_fault`] tells the firmware to raise the
 //! event once more in the fresh DPM image (the transport to the drive may not have moved the
 //! old one before the reset) and the BS LED shows "card fault" until data exchange.
 //!
-//! The application registers its [`Application`] once its resource is in place
-//! ([`register_application`]); the fault path then writes through that pointer, aliasing
+//! The application registers its card ([`CardApp`]: the card alone, or the `sim-drive`
+//! bench) once its resource is in place ([`register_application`]); the fault path then writes through that pointer, aliasing
 //! whatever task was running. That is acceptable only because nothing runs afterwards but the
 //! reset: the write is bounded and the image is rebuilt from scratch at boot.
 
@@ -16,7 +16,7 @@ use core::mem::MaybeUninit;
 use core::ptr::{addr_of, addr_of_mut, null_mut};
 use core::sync::atomic::{AtomicBool, AtomicPtr, Ordering};
 
-use pbcard::app::Application;
+use crate::CardApp;
 
 /// The value of [`FAULT_FLAG`] after a fault (anything else: a normal power-up).
 const FAULT_MAGIC: u32 = 0xFA17_CA5D;
@@ -25,15 +25,15 @@ const FAULT_MAGIC: u32 = 0xFA17_CA5D;
 #[link_section = ".uninit.pbcard_fault"]
 static mut FAULT_FLAG: MaybeUninit<u32> = MaybeUninit::uninit();
 
-static APP: AtomicPtr<Application> = AtomicPtr::new(null_mut());
+static APP: AtomicPtr<CardApp> = AtomicPtr::new(null_mut());
 static IN_FAULT: AtomicBool = AtomicBool::new(false);
 /// The fault has been logged (a fault inside the logging — RTT, `defmt` — logs nothing more).
 static LOGGED: AtomicBool = AtomicBool::new(false);
 
 /// Remember where the application lives (call with the RTIC resource locked, once it is in
 /// its final place; calling it again with the same object is harmless).
-pub fn register_application(app: &mut Application) {
-    APP.store(app as *mut Application, Ordering::Release);
+pub fn register_application(app: &mut CardApp) {
+    APP.store(app as *mut CardApp, Ordering::Release);
 }
 
 /// Whether the last reset came from the fault path (clears the flag).

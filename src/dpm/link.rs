@@ -173,7 +173,7 @@ impl Link {
         self.startup_gate && self.config.is_none()
     }
 
-    /// The safe state after a card fault ([`crate::app::Application::fail_safe`]): empty
+    /// The safe state after a card fault ([`crate::app::Card::fail_safe`]): empty
     /// OUTPUTS (no data exchange), then DRIVE_CMD `cmd` tied to exactly these OUTPUTS, so the
     /// host's pairing check takes the fail-safe command.
     pub fn publish_safe_state(&mut self, cmd: &DriveCommandImage, dpm: &mut Dpm) {
