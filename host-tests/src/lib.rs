@@ -303,7 +303,7 @@ pub struct SlaveEndpoint<A: SlaveApp> {
 
 impl<A: SlaveApp> SlaveEndpoint<A> {
     fn new(phy: SimulatorPhy, rate: Baudrate, step_us: u64, address: u8, app: A) -> Self {
-        let slave = DpSlave::new(address);
+        let slave = DpSlave::new(&pbcard::card::SLAVE, address);
         let last_state = slave.state();
         SlaveEndpoint {
             phy,

@@ -46,7 +46,6 @@ const LAYERS: &[(&str, u8)] = &[
 /// `Telegram` / `Family` moved from `dpm` to `profile`, `Node` generic over its record
 /// handlers, `phy::line` without `node::Node`). Remove an entry when its edge goes.
 const KNOWN_DEBT: &[(&str, &str)] = &[
-    ("dp", "card"),
     ("dpm", "card"),
     ("dpv1", "card"),
     ("fast", "card"),

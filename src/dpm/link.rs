@@ -394,7 +394,7 @@ impl Link {
             status: self.status_of(node),
             outputs,
             outputs_len: n as u8,
-            user_prm: slave.parameters().map_or(USER_PRM_DEFAULTS, |p| p.user),
+            user_prm: slave.parameters().and_then(|p| p.user.as_slice().try_into().ok()).unwrap_or(USER_PRM_DEFAULTS),
         }
     }
 
