@@ -491,6 +491,15 @@ pub const IM_ORDER_ID: &str = "ODC-PB1";
 pub const IM_HARDWARE_REVISION: u16 = 1;
 /// I&M0 SOFTWARE_REVISION: `V` + major, minor, patch — the GSD's `Software_Release` "V0.1.0".
 pub const IM_SOFTWARE_REVISION: [u8; 4] = [b'V', 0, 1, 0];
+/// This card's I&M0 values for `dpv1::im` (the constants above).
+pub const IM: crate::dpv1::im::ImDevice = crate::dpv1::im::ImDevice {
+    manufacturer_id: IM_MANUFACTURER_ID,
+    order_id: IM_ORDER_ID,
+    hardware_revision: IM_HARDWARE_REVISION,
+    software_revision: IM_SOFTWARE_REVISION,
+};
+// The MSAC_C2 connections fit the I&M relations (1 + C2_Max_Count_Channels).
+const _: () = assert!(1 + C2_MAX_COUNT_CHANNELS <= crate::dpv1::im::RELATIONS);
 /// GSD `Ident_Maintenance_supp`: I&M0–I&M4 at slot 0 / index 255 over MSAC_C1 and MSAC_C2.
 pub const IDENT_MAINTENANCE_SUPP: bool = true;
 
