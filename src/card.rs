@@ -499,7 +499,7 @@ pub const IM: crate::dpv1::im::ImDevice = crate::dpv1::im::ImDevice {
     software_revision: IM_SOFTWARE_REVISION,
 };
 // The MSAC_C2 connections fit the I&M relations (1 + C2_Max_Count_Channels).
-const _: () = assert!(1 + C2_MAX_COUNT_CHANNELS <= crate::dpv1::im::RELATIONS);
+const _: () = assert!(C2_MAX_COUNT_CHANNELS < crate::dpv1::im::RELATIONS);
 /// GSD `Ident_Maintenance_supp`: I&M0–I&M4 at slot 0 / index 255 over MSAC_C1 and MSAC_C2.
 pub const IDENT_MAINTENANCE_SUPP: bool = true;
 

@@ -42,7 +42,8 @@ const LAYERS: &[(&str, u8)] = &[
 ];
 
 /// Upward imports that exist today (from, to): issue 13 item 2 removes them (configuration as
-/// data instead of `card::` constants in `dp` / `dpv1` / `node` / `fast` / `store`,
+/// data instead of `card::` constants in `node` / `fast` / `store`, as `dp` takes a
+/// `dp::SlaveConfig` and `dpv1` an `im::ImDevice`;
 /// `Telegram` / `Family` moved from `dpm` to `profile`, `Node` generic over its record
 /// handlers, `phy::line` without `node::Node`). Remove an entry when its edge goes.
 const KNOWN_DEBT: &[(&str, &str)] =
