@@ -125,3 +125,68 @@ impl core::fmt::Debug for SlaveConfig {
             .finish_non_exhaustive()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::cfg::{self, AcceptAll, CfgError};
+    use super::super::diag::DiagError;
+    use super::super::prm::{PrmError, SetPrm};
+    use super::super::DpSlave;
+    use super::*;
+
+    /// Another product: its own ident, one module, only the DPV1 status bytes, a short
+    /// diagnosis, no Chk_Cfg rule.
+    const OTHER: SlaveConfig = SlaveConfig {
+        ident_number: 0x1234,
+        default_address: 126,
+        modules: &[Module { name: "1 byte in/out", reference: 1, cfg: &[0x30], inputs: 1, outputs: 1 }],
+        user_prm_len: 3,
+        user_prm_defaults: &[0, 0, 0],
+        user_prms: &[],
+        freeze_mode_supp: false,
+        sync_mode_supp: true,
+        fail_safe: false,
+        dpv1_slave: false,
+        wd_base_1ms_supp: false,
+        diagnostic_alarm_supp: false,
+        max_diag_data_len: 16,
+        cfg_policy: &AcceptAll,
+    };
+    const _: () = assert!(OTHER.fits());
+
+    #[test]
+    fn another_product_is_checked_against_its_own_values() {
+        let prm = |ident: u16, status: u8, user: &[u8]| {
+            let mut v = vec![status, 1, 1, 11, (ident >> 8) as u8, ident as u8, 0];
+            v.extend_from_slice(user);
+            v
+        };
+        assert!(SetPrm::parse(&prm(0x1234, 0xA8, &[0, 0, 0]), &OTHER).is_ok());
+        assert_eq!(SetPrm::parse(&prm(0x0F11, 0x88, &[0, 0, 0]), &OTHER), Err(PrmError::Ident(0x0F11)));
+        assert_eq!(SetPrm::parse(&prm(0x1234, 0x88, &[0; 5]), &OTHER), Err(PrmError::Length(12)));
+        assert_eq!(SetPrm::parse(&prm(0x1234, 0x98, &[0, 0, 0]), &OTHER), Err(PrmError::NotSupported));
+        assert!(matches!(
+            SetPrm::parse(&prm(0x1234, 0x88, &[0x80, 0, 0]), &OTHER),
+            Err(PrmError::Dpv1Status { byte: 1, .. })
+        ));
+        assert_eq!(cfg::check(&[0x30], OTHER.modules).map(|m| m.reference), Ok(1));
+        assert_eq!(cfg::check(&[0xF1], OTHER.modules), Err(CfgError::NoSuchModule));
+        assert_eq!(cfg::check(&[0x30, 0x30], OTHER.modules), Err(CfgError::MoreThanOneDriveModule));
+
+        let mut s = DpSlave::new(&OTHER, 5);
+        assert_eq!(s.real_cfg().cfg, &[0x30]);
+        assert_eq!(s.standard_diag().encode()[4..], [0x12, 0x34]);
+        assert_eq!(s.set_ext_diag(&[0x0B; 11], true), Err(DiagError::TooLong));
+        assert_eq!(s.set_ext_diag(&[0x0A, 1, 2, 3, 4, 5, 6, 7, 8, 9], true), Ok(()));
+    }
+
+    #[test]
+    fn fits_refuses_what_the_buffers_cannot_hold() {
+        assert!(!SlaveConfig { modules: &[], ..OTHER }.fits());
+        assert!(!SlaveConfig { user_prm_len: 2, user_prm_defaults: &[0, 0], ..OTHER }.fits());
+        assert!(!SlaveConfig { user_prm_len: 4, ..OTHER }.fits(), "defaults of another length");
+        assert!(!SlaveConfig { max_diag_data_len: 245, ..OTHER }.fits());
+        const BIG: Module = Module { name: "", reference: 2, cfg: &[0xC0, 0xFF, 0xFF], inputs: 245, outputs: 1 };
+        assert!(!SlaveConfig { modules: &[BIG], ..OTHER }.fits());
+    }
+}
