@@ -564,7 +564,12 @@ pub(crate) mod tests {
                 ..DriveConfig::DEFAULT
             });
             app.set_baudrate(Some(Baudrate::B1500k));
-            Bench { node: Node::new(DpSlave::new(SLAVE)), app, now: Instant::from_millis(0), fcb: false }
+            Bench {
+                node: Node::new(DpSlave::new(&crate::card::SLAVE, SLAVE)),
+                app,
+                now: Instant::from_millis(0),
+                fcb: false,
+            }
         }
 
         /// Send one SRD request; returns the response bytes.

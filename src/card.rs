@@ -1,7 +1,12 @@
 //! What this card is, as the PLC sees it: the constants that the GSD file (`gsd/ODCP0F11.gsd`)
 //! declares and the firmware enforces. `host-tests/tests/gsd.rs` parses the GSD with
 //! `gsd-parser` and asserts that every value here equals the GSD's — change both together.
+//!
+//! The DP slave takes them as [`SLAVE`], this product's [`dp::SlaveConfig`], with
+//! [`OperateModePolicy`], its Chk_Cfg rule; the composition passes `&card::SLAVE` to
+//! [`dp::DpSlave::new`].
 
+use crate::dp;
 use crate::time::Baudrate;
 
 /// PROFIBUS ident number (GSD `Ident_Number`, Set_Prm bytes 4–5, diagnosis octets 5–6).
@@ -185,23 +190,11 @@ pub const MAX_MODULE: u8 = 1;
 const _: () =
     assert!(MAX_INPUT_LEN <= crate::dpm::layout::PD_CAPACITY && MAX_OUTPUT_LEN <= crate::dpm::layout::PD_CAPACITY);
 
-/// One cyclic-data module the card offers (a GSD `Module`): the configuration bytes Chk_Cfg
-/// must carry to select it and the cyclic image sizes they imply (reference §3.4).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Module {
-    /// GSD module name.
-    pub name: &'static str,
-    /// GSD module reference number (the line after `Module = ...`): 1 / 20 for Standard
-    /// Telegram 1 / 20, 101..=106 for PPO 1..6, family tag × 1000 + telegram number for a
-    /// manufacturer's telegram (`dpm::Family`: 1 VACON, 2 WEG CFW500, 3 WEG CFW-11, 4 INVT).
-    pub reference: u16,
-    /// The Cfg_Data identifier bytes (Chk_Cfg / Get_Cfg).
-    pub cfg: &'static [u8],
-    /// Input bytes (slave → master).
-    pub inputs: u8,
-    /// Output bytes (master → slave).
-    pub outputs: u8,
-}
+/// One cyclic-data module the card offers (a GSD `Module`, [`dp::cfg::Module`]). The
+/// reference numbers: 1 / 20 for Standard Telegram 1 / 20, 101..=106 for PPO 1..6, family
+/// tag × 1000 + telegram number for a manufacturer's telegram (`dpm::Family`: 1 VACON, 2 WEG
+/// CFW500, 3 WEG CFW-11, 4 INVT).
+pub use crate::dp::cfg::Module;
 
 /// A manufacturer telegram of `words` consistent words each way in the special identifier
 /// format: `C4` (output and input length bytes, 4 manufacturer bytes), the length bytes,
@@ -313,27 +306,11 @@ pub const BENCH_244: Module = Module {
 
 /// Find the module whose configuration bytes are exactly `cfg`.
 pub fn module_for_cfg(cfg: &[u8]) -> Option<&'static Module> {
-    MODULES.iter().find(|m| m.cfg == cfg)
+    dp::cfg::module_for_cfg(cfg, MODULES)
 }
 
-/// One user parameter byte of Set_Prm (a GSD `ExtUserPrmData`), located at `offset` in
-/// User_Prm_Data **counted from DPV1_Status_1** (Set_Prm byte 7), as the GSD's
-/// `Ext_User_Prm_Data_Ref(offset)` counts it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct UserPrm {
-    /// GSD `ExtUserPrmData` reference number.
-    pub reference: u16,
-    /// Offset in User_Prm_Data (0..2 are DPV1_Status_1..3).
-    pub offset: usize,
-    /// GSD text.
-    pub name: &'static str,
-    /// Default value (GSD).
-    pub default: u8,
-    /// Smallest allowed value.
-    pub min: u8,
-    /// Largest allowed value.
-    pub max: u8,
-}
+/// One user parameter byte of Set_Prm (a GSD `ExtUserPrmData`, [`dp::prm::UserPrm`]).
+pub use crate::dp::prm::UserPrm;
 
 /// Operate mode (OPTE3/E5 §5.3 Table 13): 0 = Local (drive decides), 1 = Remote PROFIdrive,
 /// 2 = Remote Bypass, 3 = Remote Echo.
@@ -357,6 +334,61 @@ pub const USER_PRM_LEN: usize = 5;
 /// The default User_Prm_Data (GSD `Ext_User_Prm_Data_Const(0)` with every default applied).
 pub const USER_PRM_DEFAULTS: [u8; USER_PRM_LEN] =
     [0x00, 0x00, 0x00, PRM_OPERATE_MODE.default, PRM_COMM_LOSS_REACTION.default];
+
+/// This card as the DP slave checks it (Set_Prm ident check, User_Prm_Data length and
+/// ranges, Sync / Freeze / DP-V1 / alarm support, Chk_Cfg against [`MODULES`], Real_Cfg,
+/// `Max_Diag_Data_Len`): the constants above, with [`OperateModePolicy`].
+pub const SLAVE: dp::SlaveConfig = dp::SlaveConfig {
+    ident_number: IDENT_NUMBER,
+    default_address: DEFAULT_ADDRESS,
+    modules: MODULES,
+    user_prm_len: USER_PRM_LEN,
+    user_prm_defaults: &USER_PRM_DEFAULTS,
+    user_prms: USER_PRMS,
+    freeze_mode_supp: FREEZE_MODE_SUPP,
+    sync_mode_supp: SYNC_MODE_SUPP,
+    fail_safe: FAIL_SAFE,
+    dpv1_slave: DPV1_SLAVE,
+    wd_base_1ms_supp: WD_BASE_1MS_SUPP,
+    diagnostic_alarm_supp: DIAGNOSTIC_ALARM_SUPP,
+    max_diag_data_len: MAX_DIAG_DATA_LEN,
+    cfg_policy: &OperateModePolicy,
+};
+
+// The card fits the DP slave's compile-time buffers (dp::MAX_INPUT_LEN / MAX_OUTPUT_LEN,
+// dp::diag::MAX_DIAG_DATA_LEN, dp::prm::MAX_USER_PRM_LEN) and its tables are well formed.
+const _: () = assert!(SLAVE.fits());
+const _: () = assert!(MAX_INPUT_LEN <= dp::MAX_INPUT_LEN && MAX_OUTPUT_LEN <= dp::MAX_OUTPUT_LEN);
+const _: () = assert!(MAX_DIAG_DATA_LEN <= dp::diag::MAX_DIAG_DATA_LEN);
+const _: () = assert!(MAX_EXT_DIAG_LEN <= dp::diag::MAX_EXT_DIAG_LEN);
+const _: () = assert!(USER_PRM_LEN <= dp::prm::MAX_USER_PRM_LEN);
+const _: () = assert!(PRM_OPERATE_MODE.offset < USER_PRM_LEN && PRM_COMM_LOSS_REACTION.offset < USER_PRM_LEN);
+
+/// The module reference of Standard Telegram 20 (PZD-2/6), which [`OperateModePolicy`] limits.
+const ST20_REFERENCE: u16 = 20;
+
+/// This card's Chk_Cfg rule ([`dp::CfgPolicy`]), the operate mode rule of the profile: with
+/// the Set_Prm user parameter [`PRM_OPERATE_MODE`] = 2 Remote Bypass or 3 Remote Echo,
+/// Standard Telegram 20 is refused (OPTE3/E5 §5.1.5: "only PROFIdrive mode is allowed" with
+/// ST20) → [`dp::cfg::CfgError::NotAllowedInOperateMode`], Cfg_Fault.
+///
+/// Why at Chk_Cfg and not in Set_Prm: the master sends Set_Prm *before* Chk_Cfg, so when the
+/// mode arrives the module is not known yet; the forbidden pair is a configuration error,
+/// which OPTE3/E5 §5.3 answers with the configuration fault ("an invalid module
+/// configuration causes a diagnostic configuration fault"). A mode chosen locally in the
+/// drive (operate mode 0) is checked by `profile::cyclic::Cyclic::new` instead.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct OperateModePolicy;
+
+impl dp::CfgPolicy for OperateModePolicy {
+    fn check_cfg(&self, module: &Module, user_prm: &[u8]) -> Result<(), dp::cfg::CfgError> {
+        let operate_mode = user_prm.get(PRM_OPERATE_MODE.offset).copied().unwrap_or(0);
+        if module.reference == ST20_REFERENCE && matches!(operate_mode, 2 | 3) {
+            return Err(dp::cfg::CfgError::NotAllowedInOperateMode);
+        }
+        Ok(())
+    }
+}
 
 /// The benchmark modules through the whole card (DP slave, node, DPM, simulated drive):
 /// `cargo test --lib --features bench card::` (the other tests assume the GSD's modules).
@@ -398,7 +430,7 @@ mod bench_tests {
             assert_eq!(module_for_cfg(m.cfg), Some(&m));
             assert_eq!(Telegram::of_module(&m), None);
 
-            let mut node = Node::new(DpSlave::new(SLAVE));
+            let mut node = Node::new(DpSlave::new(&super::SLAVE, SLAVE));
             let mut app = Application::new(DriveConfig::DEFAULT);
             let mut now = Instant::from_millis(0);
             let mut fcb = false;
@@ -458,6 +490,15 @@ pub const IM_ORDER_ID: &str = "ODC-PB1";
 pub const IM_HARDWARE_REVISION: u16 = 1;
 /// I&M0 SOFTWARE_REVISION: `V` + major, minor, patch — the GSD's `Software_Release` "V0.1.0".
 pub const IM_SOFTWARE_REVISION: [u8; 4] = [b'V', 0, 1, 0];
+/// This card's I&M0 values for `dpv1::im` (the constants above).
+pub const IM: crate::dpv1::im::ImDevice = crate::dpv1::im::ImDevice {
+    manufacturer_id: IM_MANUFACTURER_ID,
+    order_id: IM_ORDER_ID,
+    hardware_revision: IM_HARDWARE_REVISION,
+    software_revision: IM_SOFTWARE_REVISION,
+};
+// The MSAC_C2 connections fit the I&M relations (1 + C2_Max_Count_Channels).
+const _: () = assert!(C2_MAX_COUNT_CHANNELS < crate::dpv1::im::RELATIONS);
 /// GSD `Ident_Maintenance_supp`: I&M0–I&M4 at slot 0 / index 255 over MSAC_C1 and MSAC_C2.
 pub const IDENT_MAINTENANCE_SUPP: bool = true;
 

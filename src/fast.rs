@@ -884,7 +884,7 @@ impl<'a> FastPath<'a> {
             }
             Some(sap::SET_PRM) | Some(sap::CHK_CFG) => self.sc(),
             Some(sap::SET_SLAVE_ADD) => {
-                let ok = SetSlaveAdd::parse(t.pdu).is_ok()
+                let ok = SetSlaveAdd::parse(t.pdu, card::IDENT_NUMBER).is_ok()
                     && st.flags & FLAG_NO_ADD_CHG == 0
                     && st.state() == DpState::WaitPrm;
                 if ok {
@@ -1187,7 +1187,10 @@ mod tests {
     /// Data_Exchange answers DL, the next diagnosis equals the core alone's.
     #[test]
     fn one_shot_diagnosis_through_the_line() {
-        let mut p = Pair { alone: Node::new(DpSlave::new(8)), split: Node::new(DpSlave::new(8)) };
+        let mut p = Pair {
+            alone: Node::new(DpSlave::new(&crate::card::SLAVE, 8)),
+            split: Node::new(DpSlave::new(&crate::card::SLAVE, 8)),
+        };
         let mut shared = Shared::new();
         let (mut fast, mut core) = shared.split(&mut p.split);
         let mut m = ScriptedMaster::new(2, 8);
@@ -1222,7 +1225,7 @@ mod tests {
     /// ran, the ready diagnosis.
     #[test]
     fn not_ready_window() {
-        let mut node = Node::new(DpSlave::new(8));
+        let mut node = Node::new(DpSlave::new(&crate::card::SLAVE, 8));
         let mut shared = Shared::new();
         let (mut fast, mut core) = shared.split(&mut node);
         let mut m = ScriptedMaster::new(2, 8);
@@ -1293,7 +1296,7 @@ mod tests {
     #[test]
     fn dpv1_held_poll_keeps_the_response() {
         use crate::dpv1::c2;
-        let mut node = Node::new(DpSlave::new(8));
+        let mut node = Node::new(DpSlave::new(&crate::card::SLAVE, 8));
         let mut shared = Shared::new();
         let (mut fast, mut core) = shared.split(&mut node);
         let mut m = ScriptedMaster::new(2, 8);
@@ -1347,7 +1350,7 @@ mod tests {
     /// The benchmark's sequence: after every core run the line sees the core idle.
     #[test]
     fn core_idle_after_every_run() {
-        let mut node = Node::new(DpSlave::new(126));
+        let mut node = Node::new(DpSlave::new(&crate::card::SLAVE, 126));
         let mut shared = Shared::new();
         let (mut fast, mut core) = shared.split(&mut node);
         let mut m = ScriptedMaster::new(2, 126);
@@ -1372,7 +1375,7 @@ mod tests {
     /// Other stations' traffic is dropped before any copy: nothing queued.
     #[test]
     fn foreign_traffic_is_not_queued() {
-        let mut node = Node::new(DpSlave::new(8));
+        let mut node = Node::new(DpSlave::new(&crate::card::SLAVE, 8));
         let mut shared = Shared::new();
         let (mut fast, core) = shared.split(&mut node);
         let mut other = ScriptedMaster::new(2, 9);

@@ -276,7 +276,7 @@ impl NodeRig {
     /// A node at `slave`, a master at `master`, time 0, 500 µs between requests.
     pub fn new(master: u8, slave: u8) -> Self {
         NodeRig {
-            node: Node::new(crate::dp::DpSlave::new(slave)),
+            node: Node::new(crate::dp::DpSlave::new(&crate::card::SLAVE, slave)),
             master: ScriptedMaster::new(master, slave),
             now: Instant::from_millis(0),
             step: crate::time::Duration::from_micros(500),

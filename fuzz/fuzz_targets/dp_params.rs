@@ -12,7 +12,7 @@ use pbcard::dp::prm::{LockRequest, SetPrm, StationStatus};
 use pbcard::dp::slave_add::SetSlaveAdd;
 
 fuzz_target!(|data: &[u8]| {
-    if let Ok(p) = SetPrm::parse(data) {
+    if let Ok(p) = SetPrm::parse(data, &card::SLAVE) {
         assert_eq!(data.len(), 7 + card::USER_PRM_LEN);
         assert_eq!(u16::from_be_bytes([data[4], data[5]]), card::IDENT_NUMBER);
         assert_eq!(p.watchdog().is_some(), p.status.contains(StationStatus::WD_ON));
@@ -32,7 +32,7 @@ fuzz_target!(|data: &[u8]| {
     if let Ok(io) = io {
         assert!(!data.is_empty() && io.inputs <= 244 && io.outputs <= 244);
     }
-    if let Ok(m) = cfg::check(data) {
+    if let Ok(m) = cfg::check(data, card::MODULES) {
         assert_eq!(m.cfg, data);
         let io = io.expect("check accepted what io_lengths refused");
         assert_eq!((io.inputs, io.outputs), (m.inputs as usize, m.outputs as usize));
@@ -42,17 +42,17 @@ fuzz_target!(|data: &[u8]| {
     let alarm = pbcard::dp::alarm::Alarm { seq: data.len() as u8 % 32, kind: 1, fault_code: 0x2310, delivered: false };
     for a in [None, Some(&alarm)] {
         let n = pbcard::dp::alarm::device_block(data, true, a, &mut out);
-        if validate_ext_diag(data).is_ok() && data.len() <= 32 {
-            assert!(validate_ext_diag(&out[..n]).is_ok(), "DP-V1 blocks malformed: {:02x?}", &out[..n]);
+        if validate_ext_diag(data, card::MAX_EXT_DIAG_LEN).is_ok() && data.len() <= 32 {
+            assert!(validate_ext_diag(&out[..n], card::MAX_EXT_DIAG_LEN).is_ok(), "DP-V1 blocks malformed: {:02x?}", &out[..n]);
         }
     }
-    if validate_ext_diag(data).is_ok() {
+    if validate_ext_diag(data, card::MAX_EXT_DIAG_LEN).is_ok() {
         assert!(data.len() <= card::MAX_EXT_DIAG_LEN);
         // The slave takes exactly what the validator accepts.
-        let mut s = pbcard::dp::DpSlave::new(8);
+        let mut s = pbcard::dp::DpSlave::new(&card::SLAVE, 8);
         s.set_ext_diag(data, true).expect("set_ext_diag refused validated blocks");
     }
-    if let Ok(a) = SetSlaveAdd::parse(data) {
+    if let Ok(a) = SetSlaveAdd::parse(data, card::IDENT_NUMBER) {
         assert!(a.address <= 125 && data.len() >= 4);
     }
     if let Some(gc) = GlobalControl::parse(data) {

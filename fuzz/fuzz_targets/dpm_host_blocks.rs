@@ -146,7 +146,7 @@ fuzz_target!(|data: &[u8]| {
     app.set_baudrate(Some(Baudrate::B1500k));
     let mut c = Card {
         app,
-        node: Node::new(DpSlave::new(ME)),
+        node: Node::new(DpSlave::new(&pbcard::card::SLAVE, ME)),
         master: ScriptedMaster::new(MASTER, ME),
         now: Instant::from_millis(0),
     };

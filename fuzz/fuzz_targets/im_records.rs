@@ -14,7 +14,7 @@ fuzz_target!(|data: &[u8]| {
         assert!(data.len() == CALL_HEADER_LEN || data.len() == CALL_HEADER_LEN + RECORD_LEN);
         assert!((65000..=65004).contains(&c.fi_index));
     }
-    let mut im = Im::new();
+    let mut im = Im::new(&pbcard::card::IM);
     let slot = data.first().map_or(0, |b| b & 1);
     let mut out = [0u8; 240];
     match im.write(slot, data) {

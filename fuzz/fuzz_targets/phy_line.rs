@@ -71,7 +71,7 @@ fn moved(a: RxStats, b: RxStats) -> u32 {
 fuzz_target!(|data: &[u8]| {
     let mut src = Src::new(data);
     let mut rx = Receiver::new();
-    let mut node = Node::new(DpSlave::new(ME));
+    let mut node = Node::new(DpSlave::new(&pbcard::card::SLAVE, ME));
     let mut now_us = 0u64;
     while !src.is_empty() {
         let c = src.u8();

@@ -176,7 +176,7 @@ fuzz_target!(|data: &[u8]| {
     let mut src = Src::new(data);
     let mut bus = Bus {
         station: Station::new(),
-        slave: DpSlave::new(ME),
+        slave: DpSlave::new(&pbcard::card::SLAVE, ME),
         master: ScriptedMaster::new(M1, ME),
         now: 0,
         last: None,

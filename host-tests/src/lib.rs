@@ -500,7 +500,7 @@ pub struct SlaveEndpoint<A: SlaveApp> {
 
 impl<A: SlaveApp> SlaveEndpoint<A> {
     fn new(line: SimLine, address: u8, app: A) -> Self {
-        let slave = DpSlave::new(address);
+        let slave = DpSlave::new(&card::SLAVE, address);
         let last_state = slave.state();
         SlaveEndpoint {
             line,

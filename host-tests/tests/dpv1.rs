@@ -58,7 +58,7 @@ struct Master {
 impl Master {
     fn new() -> Self {
         Master {
-            node: Node::new(DpSlave::new(ME)),
+            node: Node::new(DpSlave::new(&pbcard::card::SLAVE, ME)),
             drive: Drive { p100: 50 },
             master: ScriptedMaster::new(M1, ME),
             now: 0,

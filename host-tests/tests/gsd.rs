@@ -180,12 +180,18 @@ fn services_match_card() {
     // The Set_Prm the GSD describes with every alarm the GSD offers enabled is accepted;
     // enabling one it does not offer is refused (Prm_Fault).
     let ok = pbcard::testkit::SetPrm::CARD.user([0x80, 0x20, 0x03, 0, 0]).pdu();
-    assert!(pbcard::dp::prm::SetPrm::parse(&ok).is_ok(), "DPV1_Enable + Enable_Diagnostic_Alarm + Alarm_Mode 3");
+    assert!(
+        pbcard::dp::prm::SetPrm::parse(&ok, &card::SLAVE).is_ok(),
+        "DPV1_Enable + Enable_Diagnostic_Alarm + Alarm_Mode 3"
+    );
     for (bit, key) in
         [(0x80u8, "Pull_Plug"), (0x40, "Process"), (0x10, "Manufacturer_Specific"), (0x08, "Status"), (0x04, "Update")]
     {
         let bad = pbcard::testkit::SetPrm::CARD.user([0x80, 0x20 | bit, 0, 0, 0]).pdu();
-        assert!(pbcard::dp::prm::SetPrm::parse(&bad).is_err(), "{key}_Alarm_supp = 0 but the card accepts it");
+        assert!(
+            pbcard::dp::prm::SetPrm::parse(&bad, &card::SLAVE).is_err(),
+            "{key}_Alarm_supp = 0 but the card accepts it"
+        );
     }
     // I&M0 ORDER_ID is the GSD's OrderNumber.
     assert_eq!(

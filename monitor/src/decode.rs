@@ -177,7 +177,7 @@ pub fn set_prm(pdu: &[u8], product: &Product) -> String {
         let _ = write!(s, ", more User_Prm_Data {}", hex(&user[covered.max(3)..]));
     }
     if ident == pbcard::card::IDENT_NUMBER {
-        if let Err(e) = SetPrm::parse(pdu) {
+        if let Err(e) = SetPrm::parse(pdu, &pbcard::card::SLAVE) {
             let _ = write!(s, " — the pbcard card refuses it: {e:?} (Prm_Fault)");
         }
     }

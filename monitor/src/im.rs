@@ -190,7 +190,7 @@ mod tests {
             call(&w),
             "I&M function call, IM_Index 65001: I&M1: TAG_FUNCTION \"Pump 3 main drive\", TAG_LOCATION \"Hall B, rack 7\""
         );
-        let r = card_read(&mut Im::new(), &w);
+        let r = card_read(&mut Im::new(&pbcard::card::IM), &w);
         assert_eq!(r.len(), 68);
         assert_eq!(
             response(&r, Some(65001)),
@@ -200,7 +200,7 @@ mod tests {
         let w = write_call(65001, &padded(&[("ABCDEFGHIJKLMNOPQRSTUVWXYZ012345", 32), ("L", 22)]));
         assert!(call(&w).ends_with("TAG_FUNCTION \"ABCDEFGHIJKLMNOPQRSTUVWXYZ012345\", TAG_LOCATION \"L\""));
         // As shipped (blanks): empty fields.
-        let r = card_read(&mut Im::new(), &[CALL, 0, 0xFD, 0xE9]);
+        let r = card_read(&mut Im::new(&pbcard::card::IM), &[CALL, 0, 0xFD, 0xE9]);
         assert_eq!(response(&r, Some(65001)), "IM_Index 65001: I&M1: TAG_FUNCTION \"\", TAG_LOCATION \"\"");
     }
 
@@ -208,7 +208,7 @@ mod tests {
     fn im2_installation_date_field_by_field() {
         let w = write_call(65002, b"2026-12-01 22:40");
         assert_eq!(call(&w), "I&M function call, IM_Index 65002: I&M2: INSTALLATION_DATE \"2026-12-01 22:40\"");
-        let r = card_read(&mut Im::new(), &w);
+        let r = card_read(&mut Im::new(&pbcard::card::IM), &w);
         assert_eq!(response(&r, Some(65002)), "IM_Index 65002: I&M2: INSTALLATION_DATE \"2026-12-01 22:40\"");
         // Something in the 38 reserved bytes is shown.
         let mut c = b"2026-12-01 22:40".to_vec();
@@ -226,7 +226,7 @@ mod tests {
         let text = "Main pump drive, replaced bearing 2026-11, see log 17."; // 54 characters
         assert_eq!(text.len(), 54);
         let w = write_call(65003, text.as_bytes());
-        let r = card_read(&mut Im::new(), &w);
+        let r = card_read(&mut Im::new(&pbcard::card::IM), &w);
         assert_eq!(response(&r, Some(65003)), format!("IM_Index 65003: I&M3: DESCRIPTOR \"{text}\""));
         // Not printable: shown as dots, and the trailing blanks are cut.
         let w = write_call(65003, b"a\x01b\xFFc");
@@ -237,19 +237,19 @@ mod tests {
     fn im4_signature_field_by_field() {
         let mut sig = [0u8; CONTENT_LEN];
         sig[..4].copy_from_slice(&[0xDE, 0xAD, 0xBE, 0xEF]);
-        let r = card_read(&mut Im::new(), &write_call(65004, &sig));
+        let r = card_read(&mut Im::new(&pbcard::card::IM), &write_call(65004, &sig));
         assert_eq!(response(&r, Some(65004)), "IM_Index 65004: I&M4: SIGNATURE DE AD BE EF (then 50 zero bytes)");
         // As shipped: zeros.
-        let r = card_read(&mut Im::new(), &[CALL, 0, 0xFD, 0xEC]);
+        let r = card_read(&mut Im::new(&pbcard::card::IM), &[CALL, 0, 0xFD, 0xEC]);
         assert_eq!(response(&r, Some(65004)), "IM_Index 65004: I&M4: SIGNATURE none (54 zero bytes)");
         let full = [0xA5u8; CONTENT_LEN];
-        let r = card_read(&mut Im::new(), &write_call(65004, &full));
+        let r = card_read(&mut Im::new(&pbcard::card::IM), &write_call(65004, &full));
         assert_eq!(response(&r, Some(65004)), format!("IM_Index 65004: I&M4: SIGNATURE {}", hex(&full)));
     }
 
     #[test]
     fn im0_of_the_card_and_the_call_header() {
-        let mut im = Im::new();
+        let mut im = Im::new(&pbcard::card::IM);
         let mut serial = [b' '; 16];
         serial[..6].copy_from_slice(b"SN-001");
         im.set_ident(DeviceIdent { serial_number: serial, hardware_revision: 2 });
@@ -281,7 +281,7 @@ mod tests {
 
     #[test]
     fn the_relation_and_malformed_calls() {
-        let r = card_read(&mut Im::new(), &[CALL, 0, 0xFD, 0xE9]);
+        let r = card_read(&mut Im::new(&pbcard::card::IM), &[CALL, 0, 0xFD, 0xE9]);
         assert!(
             response(&r, Some(65000)).ends_with("(NOT the record the call on this relation selected, IM_Index 65000)")
         );
@@ -347,7 +347,7 @@ mod tests {
                 _ => sig.clone(),
             };
             let w = write_call(fi, &content);
-            let r = card_read(&mut Im::new(), &w);
+            let r = card_read(&mut Im::new(&pbcard::card::IM), &w);
             prop_assert_eq!(&r[..4], &w[..4]);
             let text = response(&r, Some(fi));
             let want = match k {

@@ -144,7 +144,7 @@ impl Monitor {
             }
         }
         if events.contains(Events::PRM_FAULT) {
-            let why = match SetPrm::parse(&self.last_set_prm) {
+            let why = match SetPrm::parse(&self.last_set_prm, &card::SLAVE) {
                 Err(e) => prm_error(e),
                 Ok(_) => "refused".into(),
             };

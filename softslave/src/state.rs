@@ -142,7 +142,7 @@ impl StateFile {
         let mut what = Vec::new();
         match self.address() {
             Some(a) => {
-                *node.slave_mut() = DpSlave::with_address_lock(a.address, a.no_add_chg);
+                *node.slave_mut() = DpSlave::with_address_lock(&pbcard::card::SLAVE, a.address, a.no_add_chg);
                 node.slave_mut().require_module(module);
                 what.push(format!("station address {} (No_Add_Chg {})", a.address, a.no_add_chg as u8));
             }

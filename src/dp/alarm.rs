@@ -323,7 +323,11 @@ pub fn device_block(blocks: &[u8], dpv1: bool, alarm: Option<&Alarm>, out: &mut 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::dp::diag::validate_ext_diag;
+
+    /// The card's limit.
+    fn validate_ext_diag(blocks: &[u8]) -> Result<(), crate::dp::diag::DiagError> {
+        crate::dp::diag::validate_ext_diag(blocks, crate::card::MAX_EXT_DIAG_LEN)
+    }
 
     fn ack(a: &Alarm) -> Ack {
         Ack { slot: 0, alarm_type: ALARM_TYPE_DIAGNOSTIC, specifier: a.specifier() }

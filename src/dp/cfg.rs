@@ -5,7 +5,51 @@
 //! length bytes follow (01 in, 10 out, 11 out then in), b3..b0 = manufacturer bytes that
 //! follow; a length byte: b7 consistency, b6 word unit, b5..b0 length − 1.
 
-use crate::card::{self, Module};
+/// One cyclic-data module a slave offers (a GSD `Module`): the Cfg_Data identifier bytes
+/// Chk_Cfg must carry to select it and the cyclic image sizes they imply (reference §3.4).
+/// A product lists its modules in [`super::SlaveConfig::modules`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Module {
+    /// GSD module name.
+    pub name: &'static str,
+    /// GSD module reference number (the line after `Module = ...`); the product gives it its
+    /// meaning (this card: 1 / 20 for Standard Telegram 1 / 20, 101..=106 for PPO 1..6,
+    /// family tag × 1000 + telegram number for a manufacturer's telegram).
+    pub reference: u16,
+    /// The Cfg_Data identifier bytes (Chk_Cfg / Get_Cfg).
+    pub cfg: &'static [u8],
+    /// Input bytes (slave → master).
+    pub inputs: u8,
+    /// Output bytes (master → slave).
+    pub outputs: u8,
+}
+
+/// The product's judgement of a Chk_Cfg beyond "these bytes are one of its modules": a rule
+/// that ties the module to the parameterization in force (the Set_Prm User_Prm_Data), such as
+/// a profile forbidding a telegram in some operate mode. The master sends Set_Prm *before*
+/// Chk_Cfg, so such a pair can only be judged at Chk_Cfg, and a forbidden pair is a
+/// configuration error: Cfg_Fault in the next diagnosis (reference §3.4, §3.5).
+///
+/// [`super::SlaveConfig::cfg_policy`] holds the product's policy; [`AcceptAll`] has no rule.
+/// `Sync` because the configuration is shared by whatever task owns the slave.
+pub trait CfgPolicy: Sync {
+    /// Judge a Chk_Cfg whose bytes selected `module` (one of the configuration's modules),
+    /// given `user_prm`, the User_Prm_Data of the accepted Set_Prm counted from DPV1_Status_1
+    /// ([`super::prm::SetPrm::user`]; empty when there is none). `Err` refuses the Chk_Cfg
+    /// (Cfg_Fault); the drive's telegram selection ([`super::DpSlave::require_module`]) is
+    /// checked after an `Ok`. The default accepts every module.
+    fn check_cfg(&self, module: &Module, user_prm: &[u8]) -> Result<(), CfgError> {
+        let _ = (module, user_prm);
+        Ok(())
+    }
+}
+
+/// A [`CfgPolicy`] without rules: every module of the configuration is accepted whatever the
+/// Set_Prm said.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct AcceptAll;
+
+impl CfgPolicy for AcceptAll {}
 
 /// Why a Chk_Cfg was refused (→ Cfg_Fault).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -18,10 +62,11 @@ pub enum CfgError {
     /// Well-formed, but no module of the GSD has these bytes.
     NoSuchModule,
     /// The bytes are two or more of the GSD's drive modules one after the other: only one
-    /// drive module is allowed (OPTE3/E5 §5.3 drive module rules; `card::MAX_MODULE`).
+    /// drive module is allowed (OPTE3/E5 §5.3 drive module rules; GSD `Max_Module` = 1).
     MoreThanOneDriveModule,
-    /// The module is not allowed in the operate mode the master forces through Set_Prm:
-    /// Standard Telegram 20 with Remote Bypass or Remote Echo (OPTE3/E5 §5.1.5).
+    /// The product's [`CfgPolicy`] does not allow the module with the Set_Prm in force (this
+    /// card: Standard Telegram 20 with the operate mode Remote Bypass or Remote Echo,
+    /// OPTE3/E5 §5.1.5).
     NotAllowedInOperateMode,
     /// A valid module, but not the one the drive selected (DPM `CONFIG.TELEGRAM`, taken over
     /// by [`super::DpSlave::require_module`]): the master must configure the drive's telegram
@@ -88,47 +133,37 @@ pub fn io_lengths(cfg: &[u8]) -> Result<IoLengths, CfgError> {
     Ok(io)
 }
 
-/// Check a Chk_Cfg against the modules the card offers: the bytes must be exactly those of
-/// one module (strict check; `Check_Cfg_Mode` is not offered). The allowed combinations are
-/// OPTE3/E5 §5.3's drive module rules without safety modules: exactly one drive module —
-/// none (empty or unknown bytes) is [`CfgError::Malformed`] / [`CfgError::NoSuchModule`], two
-/// or more concatenated modules [`CfgError::MoreThanOneDriveModule`]. Every error is a
-/// Cfg_Fault.
-pub fn check(cfg: &[u8]) -> Result<&'static Module, CfgError> {
+/// Check a Chk_Cfg against `modules` (a product's [`super::SlaveConfig::modules`]): the bytes
+/// must be exactly those of one module (strict check; `Check_Cfg_Mode` is not offered). The
+/// allowed combinations are OPTE3/E5 §5.3's drive module rules without safety modules:
+/// exactly one drive module — none (empty or unknown bytes) is [`CfgError::Malformed`] /
+/// [`CfgError::NoSuchModule`], two or more concatenated modules
+/// [`CfgError::MoreThanOneDriveModule`]. Every error is a Cfg_Fault. The product's
+/// [`CfgPolicy`] judges the module afterwards ([`super::DpSlave`] at Chk_Cfg).
+pub fn check(cfg: &[u8], modules: &'static [Module]) -> Result<&'static Module, CfgError> {
     io_lengths(cfg)?;
-    if let Some(m) = card::module_for_cfg(cfg) {
+    if let Some(m) = module_for_cfg(cfg, modules) {
         return Ok(m);
     }
-    if splits_into_modules(cfg) {
+    if splits_into_modules(cfg, modules) {
         return Err(CfgError::MoreThanOneDriveModule);
     }
     Err(CfgError::NoSuchModule)
 }
 
-/// [`check`], then the operate mode rule: with `operate_mode` (the Set_Prm user parameter
-/// `card::PRM_OPERATE_MODE`) = 2 Remote Bypass or 3 Remote Echo, Standard Telegram 20 is
-/// refused (OPTE3/E5 §5.1.5: "only PROFIdrive mode is allowed" with ST20).
-///
-/// Why here and not in Set_Prm: the master sends Set_Prm *before* Chk_Cfg, so when the mode
-/// arrives the module is not known yet; the forbidden pair is a configuration error, which
-/// OPTE3/E5 §5.3 answers with the configuration fault ("an invalid module configuration
-/// causes a diagnostic configuration fault"). A mode chosen locally in the drive (operate
-/// mode 0) is checked by `profile::cyclic::Cyclic::new` instead.
-pub fn check_for_mode(cfg: &[u8], operate_mode: u8) -> Result<&'static Module, CfgError> {
-    let m = check(cfg)?;
-    if m.reference == 20 && matches!(operate_mode, 2 | 3) {
-        return Err(CfgError::NotAllowedInOperateMode);
-    }
-    Ok(m)
+/// The module of `modules` whose configuration bytes are exactly `cfg`.
+pub fn module_for_cfg(cfg: &[u8], modules: &'static [Module]) -> Option<&'static Module> {
+    modules.iter().find(|m| m.cfg == cfg)
 }
 
-/// Whether `cfg` is two or more GSD modules one after the other. No module's bytes start
-/// with another module's (tested), so at most one module matches at each position and the
-/// greedy loop is exact (and bounded: every step eats at least one byte).
-fn splits_into_modules(cfg: &[u8]) -> bool {
+/// Whether `cfg` is two or more of `modules` one after the other. No module's bytes start
+/// with another module's (the product tests its table), so at most one module matches at
+/// each position and the greedy loop is exact (and bounded: every step eats at least one
+/// byte).
+fn splits_into_modules(cfg: &[u8], modules: &[Module]) -> bool {
     let (mut rest, mut count) = (cfg, 0usize);
     while !rest.is_empty() {
-        match card::MODULES.iter().find(|m| !m.cfg.is_empty() && rest.starts_with(m.cfg)) {
+        match modules.iter().find(|m| !m.cfg.is_empty() && rest.starts_with(m.cfg)) {
             Some(m) => rest = &rest[m.cfg.len()..],
             None => return false,
         }
@@ -140,6 +175,25 @@ fn splits_into_modules(cfg: &[u8]) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::card;
+
+    /// The card's module table.
+    fn check(cfg: &[u8]) -> Result<&'static Module, CfgError> {
+        super::check(cfg, card::MODULES)
+    }
+
+    fn splits_into_modules(cfg: &[u8]) -> bool {
+        super::splits_into_modules(cfg, card::MODULES)
+    }
+
+    /// [`check`], then the card's policy with `operate_mode` in its User_Prm_Data.
+    fn check_for_mode(cfg: &[u8], operate_mode: u8) -> Result<&'static Module, CfgError> {
+        let m = check(cfg)?;
+        let mut user = card::USER_PRM_DEFAULTS;
+        user[card::PRM_OPERATE_MODE.offset] = operate_mode;
+        card::SLAVE.cfg_policy.check_cfg(m, &user)?;
+        Ok(m)
+    }
 
     #[test]
     fn module_table_is_consistent() {

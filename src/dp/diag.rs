@@ -1,6 +1,11 @@
 //! Slave_Diag (SAP 60): the six standard octets and extended diagnosis (reference §3.5).
 
-use crate::card;
+/// The longest Slave_Diag DU the slave stages: the protocol's 244 octets (reference §3.5), so
+/// any product's GSD `Max_Diag_Data_Len` ([`super::SlaveConfig::max_diag_data_len`]) fits
+/// (its configuration asserts it).
+pub const MAX_DIAG_DATA_LEN: usize = 244;
+/// Room for extended diagnosis after the 6 standard octets ([`MAX_DIAG_DATA_LEN`] − 6).
+pub const MAX_EXT_DIAG_LEN: usize = MAX_DIAG_DATA_LEN - 6;
 
 bitflags::bitflags! {
     /// Station_status_1 (diagnosis octet 1).
@@ -46,7 +51,7 @@ pub const EXT_DIAG_OVERFLOW: u8 = 0x80;
 #[cfg_attr(target_os = "none", derive(defmt::Format))]
 #[non_exhaustive]
 pub enum DiagError {
-    /// More bytes than `Max_Diag_Data_Len` − 6.
+    /// More bytes than the GSD's `Max_Diag_Data_Len` − 6.
     TooLong,
     /// A device- or identifier-related block whose length byte is < 2 or runs past the end.
     BadBlockLength {
@@ -68,9 +73,11 @@ pub enum DiagError {
 /// Check that `blocks` is a sequence of well-formed extended diagnosis blocks:
 /// device-related (header `00 llllll`, length incl. header 2..=63), identifier-related
 /// (`01 llllll`), channel-related (`10 mmmmmm` + 2 bytes). Masters decode these blocks, and
-/// a malformed one can crash a master (profirust panics on a header byte of 0).
-pub fn validate_ext_diag(blocks: &[u8]) -> Result<(), DiagError> {
-    if blocks.len() > card::MAX_EXT_DIAG_LEN {
+/// a malformed one can crash a master (profirust panics on a header byte of 0). At most
+/// `max_ext_len` octets: the GSD's `Max_Diag_Data_Len` − 6
+/// ([`super::SlaveConfig::max_ext_diag_len`]).
+pub fn validate_ext_diag(blocks: &[u8], max_ext_len: usize) -> Result<(), DiagError> {
+    if blocks.len() > max_ext_len.min(MAX_EXT_DIAG_LEN) {
         return Err(DiagError::TooLong);
     }
     let mut i = 0;
@@ -108,12 +115,15 @@ pub struct StandardDiag {
     pub status3: u8,
     /// Diag.Master_Add: the locking master, 0xFF when free.
     pub master_add: u8,
+    /// Ident_Number (octets 5–6): the product's, GSD `Ident_Number`
+    /// ([`super::SlaveConfig::ident_number`]).
+    pub ident_number: u16,
 }
 
 impl StandardDiag {
     /// The six octets on the wire.
     pub fn encode(&self) -> [u8; 6] {
-        let id = card::IDENT_NUMBER.to_be_bytes();
+        let id = self.ident_number.to_be_bytes();
         [self.status1.bits(), (self.status2 | Status2::ALWAYS_ONE).bits(), self.status3, self.master_add, id[0], id[1]]
     }
 }
@@ -121,6 +131,12 @@ impl StandardDiag {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::card;
+
+    /// The card's limit.
+    fn validate_ext_diag(blocks: &[u8]) -> Result<(), DiagError> {
+        super::validate_ext_diag(blocks, card::MAX_EXT_DIAG_LEN)
+    }
 
     #[test]
     fn blocks() {
@@ -141,6 +157,7 @@ mod tests {
             status2: Status2::PRM_REQ,
             status3: 0,
             master_add: 0xFF,
+            ident_number: card::IDENT_NUMBER,
         };
         let id = card::IDENT_NUMBER.to_be_bytes();
         assert_eq!(d.encode(), [0x02, 0x05, 0x00, 0xFF, id[0], id[1]]);

@@ -8,6 +8,12 @@
 //! (Slave_Diag), [`global_control`] (Global_Control), [`slave_add`] (Set_Slave_Add). The
 //! state machine and the staging of responses live here.
 //!
+//! **The product** is a [`SlaveConfig`] value (ident number, modules, User_Prm_Data, supported
+//! features, `Max_Diag_Data_Len` — the GSD's values) with its Chk_Cfg rule ([`CfgPolicy`]),
+//! passed to [`DpSlave::new`]; `dp` names no product. The buffers are sized for the
+//! protocol's maxima ([`MAX_INPUT_LEN`], [`MAX_OUTPUT_LEN`], [`diag::MAX_DIAG_DATA_LEN`],
+//! [`prm::MAX_USER_PRM_LEN`]); a product asserts [`SlaveConfig::fits`].
+//!
 //! **Pre-staged responses.** The Data_Exchange answer (inputs) and the diagnosis answer are
 //! complete frames kept in double buffers and rebuilt only when their content changes
 //! ([`DpSlave::set_inputs`], a state change). Answering a request only patches the header
@@ -34,15 +40,17 @@
 
 pub mod alarm;
 pub mod cfg;
+pub mod config;
 pub mod diag;
 pub mod global_control;
 pub mod prm;
 pub mod slave_add;
 
-use crate::card::{self, Module};
 use crate::fdl::station::{FdlApplication, Reply};
 use crate::fdl::telegram::{self, DataTelegram, FunctionCode, Header, RequestFunction, ResponseStatus, MAX_FRAME_LEN};
 use crate::time::{BitTimes, Duration, Instant};
+pub use cfg::{AcceptAll, CfgPolicy, Module};
+pub use config::{SlaveConfig, MAX_INPUT_LEN, MAX_OUTPUT_LEN};
 use diag::{DiagError, StandardDiag, Status1, Status2};
 use global_control::{ControlCommand, GlobalControl};
 use prm::{SetPrm, StationStatus};
@@ -148,12 +156,15 @@ const DX0: u8 = 0;
 const DIAG0: u8 = 2;
 const MISC: u8 = 4;
 const N_BUF: usize = 5;
-const MAX_IMAGE: usize =
-    if card::MAX_INPUT_LEN > card::MAX_OUTPUT_LEN { card::MAX_INPUT_LEN } else { card::MAX_OUTPUT_LEN };
+const MAX_IMAGE: usize = if MAX_INPUT_LEN > MAX_OUTPUT_LEN { MAX_INPUT_LEN } else { MAX_OUTPUT_LEN };
+
+/// Real_Cfg of a configuration without modules (never a product's, [`SlaveConfig::fits`]).
+const NO_MODULE: Module = Module { name: "", reference: 0, cfg: &[], inputs: 0, outputs: 0 };
 
 /// The DP slave.
 #[derive(Debug, Clone)]
 pub struct DpSlave {
+    config: &'static SlaveConfig,
     address: u8,
     no_add_chg: bool,
     state: DpState,
@@ -171,7 +182,7 @@ pub struct DpSlave {
     not_supported: bool,
     ext_diag_flag: bool,
     stat_diag: bool,
-    ext_diag: heapless::Vec<u8, { card::MAX_EXT_DIAG_LEN }>,
+    ext_diag: heapless::Vec<u8, { diag::MAX_EXT_DIAG_LEN }>,
     /// New diagnosis for the locking master (→ DH in Data_Exchange).
     diag_new: bool,
     /// Diagnostic alarms (DP-V1, [`alarm`]).
@@ -180,9 +191,9 @@ pub struct DpSlave {
     staged_alarm: bool,
     diag_dirty: bool,
     // Cyclic images.
-    app_inputs: [u8; card::MAX_INPUT_LEN],
-    outputs: [u8; card::MAX_OUTPUT_LEN],
-    pending_outputs: [u8; card::MAX_OUTPUT_LEN],
+    app_inputs: [u8; MAX_INPUT_LEN],
+    outputs: [u8; MAX_OUTPUT_LEN],
+    pending_outputs: [u8; MAX_OUTPUT_LEN],
     has_pending_outputs: bool,
     sync_mode: bool,
     freeze_mode: bool,
@@ -204,15 +215,18 @@ pub struct DpSlave {
 }
 
 impl DpSlave {
-    /// A slave at `address` (0..=126), in Wait_Prm, with an unfrozen address.
-    pub fn new(address: u8) -> Self {
-        Self::with_address_lock(address, false)
+    /// A slave of the product `config` at `address` (0..=126), in Wait_Prm, with an unfrozen
+    /// address.
+    pub fn new(config: &'static SlaveConfig, address: u8) -> Self {
+        Self::with_address_lock(config, address, false)
     }
 
-    /// A slave whose address and No_Add_Chg flag come from an address store.
-    pub fn with_address_lock(address: u8, no_add_chg: bool) -> Self {
+    /// A slave of the product `config` whose address and No_Add_Chg flag come from an
+    /// address store.
+    pub fn with_address_lock(config: &'static SlaveConfig, address: u8, no_add_chg: bool) -> Self {
         let mut s = DpSlave {
-            address: address.min(card::MAX_STATION_ADDRESS),
+            config,
+            address: address.min(telegram::MAX_STATION_ADDRESS),
             no_add_chg,
             state: DpState::WaitPrm,
             master: None,
@@ -231,9 +245,9 @@ impl DpSlave {
             alarms: alarm::Alarms::new(),
             staged_alarm: false,
             diag_dirty: true,
-            app_inputs: [0; card::MAX_INPUT_LEN],
-            outputs: [0; card::MAX_OUTPUT_LEN],
-            pending_outputs: [0; card::MAX_OUTPUT_LEN],
+            app_inputs: [0; MAX_INPUT_LEN],
+            outputs: [0; MAX_OUTPUT_LEN],
+            pending_outputs: [0; MAX_OUTPUT_LEN],
             has_pending_outputs: false,
             sync_mode: false,
             freeze_mode: false,
@@ -254,6 +268,10 @@ impl DpSlave {
         s
     }
 
+    /// The product's configuration the slave checks against.
+    pub fn config(&self) -> &'static SlaveConfig {
+        self.config
+    }
     /// Own station address.
     pub fn address(&self) -> u8 {
         self.address
@@ -327,13 +345,13 @@ impl DpSlave {
     /// module of the accepted Chk_Cfg; outside it the drive's selected telegram
     /// ([`Self::require_module`]) when there is one — the only module the next Chk_Cfg may
     /// select —, else the module of the last accepted Chk_Cfg, else the GSD's first module
-    /// (Standard telegram 1).
+    /// ([`SlaveConfig::modules`]; this card: Standard telegram 1).
     pub fn real_cfg(&self) -> &'static Module {
         match (self.state, self.module, self.required_module) {
             (DpState::DataExch, Some(m), _) => m,
             (_, _, Some(r)) => r,
             (_, Some(m), None) => m,
-            (_, None, None) => &card::MODULES[0],
+            (_, None, None) => self.config.modules.first().unwrap_or(&NO_MODULE),
         }
     }
 
@@ -416,7 +434,7 @@ impl DpSlave {
     /// longer data cut to the configured length. In Freeze mode the master keeps receiving
     /// the frozen inputs until the next Freeze / Unfreeze.
     pub fn set_inputs(&mut self, data: &[u8]) {
-        let n = data.len().min(card::MAX_INPUT_LEN);
+        let n = data.len().min(MAX_INPUT_LEN);
         self.app_inputs[..n].copy_from_slice(&data[..n]);
         self.app_inputs[n..].fill(0);
         if !self.freeze_mode {
@@ -428,7 +446,7 @@ impl DpSlave {
     /// flag ("a diagnosis entry exists"). A change is announced to the master by answering
     /// Data_Exchange with DH. Malformed blocks are refused and change nothing.
     pub fn set_ext_diag(&mut self, blocks: &[u8], ext_diag: bool) -> Result<(), DiagError> {
-        diag::validate_ext_diag(blocks)?;
+        diag::validate_ext_diag(blocks, self.config.max_ext_diag_len())?;
         if self.ext_diag.as_slice() != blocks || self.ext_diag_flag != ext_diag {
             self.ext_diag.clear();
             // Cannot fail: validate_ext_diag bounded the length.
@@ -501,7 +519,13 @@ impl DpSlave {
         s2.set(Status2::WD_ON, self.wd_time.is_some() && self.state != DpState::WaitPrm);
         s2.set(Status2::FREEZE_MODE, self.freeze_mode);
         s2.set(Status2::SYNC_MODE, self.sync_mode);
-        StandardDiag { status1: s1, status2: s2, status3: 0, master_add: self.master.unwrap_or(0xFF) }
+        StandardDiag {
+            status1: s1,
+            status2: s2,
+            status3: 0,
+            master_add: self.master.unwrap_or(0xFF),
+            ident_number: self.config.ident_number,
+        }
     }
 
     /// Run the timers: the DP watchdog (reference §1.6, §3.10).
@@ -608,12 +632,13 @@ impl DpSlave {
     fn restage_diag(&mut self) {
         let id = self.free_of(self.diag_cur, DIAG0);
         let std = self.standard_diag().encode();
-        let mut pdu = [0u8; card::MAX_DIAG_DATA_LEN];
+        let mut pdu = [0u8; diag::MAX_DIAG_DATA_LEN];
+        let max = self.config.max_diag_data_len.clamp(6, diag::MAX_DIAG_DATA_LEN);
         pdu[..6].copy_from_slice(&std);
         let dpv1 = self.prm.is_some_and(|p| p.dpv1_status_1.contains(prm::Dpv1Status1::DPV1_ENABLE));
         let alarm = if dpv1 { self.alarms.to_deliver().copied() } else { None };
         self.staged_alarm = alarm.is_some();
-        let n = 6 + alarm::device_block(&self.ext_diag, dpv1, alarm.as_ref(), &mut pdu[6..]);
+        let n = 6 + alarm::device_block(&self.ext_diag, dpv1, alarm.as_ref(), &mut pdu[6..max]);
         let hdr = Header {
             da: 0,
             sa: self.address,
@@ -785,7 +810,7 @@ impl DpSlave {
             }
             Some(prm::LockRequest::Lock) | None => {}
         }
-        match SetPrm::parse(req.pdu) {
+        match SetPrm::parse(req.pdu, self.config) {
             Err(e) => {
                 self.stats.prm_faults = self.stats.prm_faults.wrapping_add(1);
                 self.prm_fault = true;
@@ -840,11 +865,15 @@ impl DpSlave {
             }
             return Reply::ShortAck;
         }
-        let operate_mode = self.prm.as_ref().map_or(0, |p| p.user[card::PRM_OPERATE_MODE.offset]);
-        let checked = cfg::check_for_mode(req.pdu, operate_mode).and_then(|m| match self.required_module {
-            Some(r) if r.reference != m.reference => Err(cfg::CfgError::NotTheSelectedModule),
-            _ => Ok(m),
-        });
+        // The bytes must be one module, the product's policy must allow it with the Set_Prm
+        // in force, and it must be the drive's selection if there is one.
+        let user_prm: &[u8] = self.prm.as_ref().map_or(&[], |p| p.user.as_slice());
+        let checked = cfg::check(req.pdu, self.config.modules)
+            .and_then(|m| self.config.cfg_policy.check_cfg(m, user_prm).map(|()| m))
+            .and_then(|m| match self.required_module {
+                Some(r) if r.reference != m.reference => Err(cfg::CfgError::NotTheSelectedModule),
+                _ => Ok(m),
+            });
         match checked {
             Ok(m) => {
                 let changed = self.module != Some(m);
@@ -947,7 +976,7 @@ impl DpSlave {
     }
 
     fn set_slave_add(&mut self, req: &DataTelegram<'_>) -> Reply {
-        let checked = SetSlaveAdd::parse(req.pdu).and_then(|s| {
+        let checked = SetSlaveAdd::parse(req.pdu, self.config.ident_number).and_then(|s| {
             if self.no_add_chg {
                 Err(slave_add::SlaveAddError::Frozen)
             } else if self.state != DpState::WaitPrm {

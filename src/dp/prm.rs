@@ -4,14 +4,97 @@
 //! byte 0  Station_Status: b7 Lock_Req, b6 Unlock_Req, b5 Sync_Req, b4 Freeze_Req, b3 WD_On, b2..0 reserved
 //! byte 1  WD_Fact_1      byte 2  WD_Fact_2      byte 3  min_TSDR (bit times, 0 = keep)
 //! byte 4-5 Ident_Number (big-endian)            byte 6  Group_Ident
-//! byte 7-9 DPV1_Status_1..3                     byte 10.. User_Prm_Data (card-specific, src/card.rs)
+//! byte 7-9 DPV1_Status_1..3                     byte 10.. User_Prm_Data (the product's, SlaveConfig)
 //! ```
 //!
-//! [`SetPrm::parse`] checks everything the card can check and returns the reason for a
-//! Prm_Fault ([`PrmError`]); the slave answers SC in every case (reference gotcha 6).
+//! [`SetPrm::parse`] checks everything the slave can check against the product's
+//! [`SlaveConfig`] (ident number, User_Prm_Data length and ranges, the supported features) and
+//! returns the reason for a Prm_Fault ([`PrmError`]); the slave answers SC in every case
+//! (reference gotcha 6).
 
-use crate::card;
+use super::SlaveConfig;
 use crate::time::{BitTimes, Duration};
+
+/// The longest User_Prm_Data counted from DPV1_Status_1 a [`SetPrm`] holds: the Set_Prm DU
+/// is at most 244 octets (reference §3.3), 7 of them standard — the protocol's maximum, so
+/// any product's GSD `Max_User_Prm_Data_Len` fits (its configuration asserts it).
+pub const MAX_USER_PRM_LEN: usize = 244 - 7;
+
+/// One user parameter byte of Set_Prm (a GSD `ExtUserPrmData`), located at `offset` in
+/// User_Prm_Data **counted from DPV1_Status_1** (Set_Prm byte 7), as the GSD's
+/// `Ext_User_Prm_Data_Ref(offset)` counts it. [`SetPrm::parse`] refuses a value outside
+/// `min..=max` ([`PrmError::UserPrm`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct UserPrm {
+    /// GSD `ExtUserPrmData` reference number.
+    pub reference: u16,
+    /// Offset in User_Prm_Data (0..2 are DPV1_Status_1..3).
+    pub offset: usize,
+    /// GSD text.
+    pub name: &'static str,
+    /// Default value (GSD).
+    pub default: u8,
+    /// Smallest allowed value.
+    pub min: u8,
+    /// Largest allowed value.
+    pub max: u8,
+}
+
+/// The User_Prm_Data of an accepted Set_Prm, counted from DPV1_Status_1: exactly the GSD's
+/// `Max_User_Prm_Data_Len` octets ([`SlaveConfig::user_prm_len`]), read as a byte slice.
+#[derive(Clone, Copy)]
+pub struct UserPrmData {
+    len: u8,
+    bytes: [u8; MAX_USER_PRM_LEN],
+}
+
+impl UserPrmData {
+    /// `data` (at most [`MAX_USER_PRM_LEN`] octets; longer is cut).
+    pub fn new(data: &[u8]) -> Self {
+        let n = data.len().min(MAX_USER_PRM_LEN);
+        let mut bytes = [0u8; MAX_USER_PRM_LEN];
+        bytes[..n].copy_from_slice(&data[..n]);
+        UserPrmData { len: n as u8, bytes }
+    }
+
+    /// The octets.
+    pub fn as_slice(&self) -> &[u8] {
+        &self.bytes[..usize::from(self.len)]
+    }
+}
+
+impl core::ops::Deref for UserPrmData {
+    type Target = [u8];
+    fn deref(&self) -> &[u8] {
+        self.as_slice()
+    }
+}
+
+impl core::fmt::Debug for UserPrmData {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        self.as_slice().fmt(f)
+    }
+}
+
+impl PartialEq for UserPrmData {
+    fn eq(&self, other: &Self) -> bool {
+        self.as_slice() == other.as_slice()
+    }
+}
+
+impl Eq for UserPrmData {}
+
+impl<const N: usize> PartialEq<[u8; N]> for UserPrmData {
+    fn eq(&self, other: &[u8; N]) -> bool {
+        self.as_slice() == other
+    }
+}
+
+impl PartialEq<[u8]> for UserPrmData {
+    fn eq(&self, other: &[u8]) -> bool {
+        self.as_slice() == other
+    }
+}
 
 bitflags::bitflags! {
     /// Set_Prm byte 0, Station_Status.
@@ -97,8 +180,8 @@ pub struct SetPrm {
     /// DPV1_Status_3 (kept for DP-V1).
     pub dpv1_status_3: u8,
     /// User_Prm_Data counted from DPV1_Status_1: exactly the GSD's `Max_User_Prm_Data_Len`
-    /// octets.
-    pub user: [u8; card::USER_PRM_LEN],
+    /// octets ([`SlaveConfig::user_prm_len`]).
+    pub user: UserPrmData,
 }
 
 /// Set_Prm byte 3, min_TSDR in bit times: `None` for 0 ("keep"); values below the FDL floor
@@ -153,10 +236,14 @@ impl LockRequest {
 }
 
 impl SetPrm {
-    /// Parse and check a Set_Prm PDU (the DU after the SAP bytes).
+    /// Parse and check a Set_Prm PDU (the DU after the SAP bytes) for the product `config`:
+    /// the Set_Prm ident check (bytes 4–5 = [`SlaveConfig::ident_number`], GSD
+    /// `Ident_Number`), Sync_Req / Freeze_Req against `Sync_Mode_supp` / `Freeze_Mode_supp`,
+    /// the DPV1_Status bits against `DPV1_Slave`, `WD_Base_1ms_supp`, `Fail_Safe` and
+    /// `Diagnostic_Alarm_supp`, every [`SlaveConfig::user_prms`] range.
     ///
     /// **Length.** User_Prm_Data must have exactly the length the GSD declares
-    /// (`Max_User_Prm_Data_Len` = `Ext_User_Prm_Data_Const(0)` = [`card::USER_PRM_LEN`]
+    /// (`Max_User_Prm_Data_Len` = `Ext_User_Prm_Data_Const(0)` = [`SlaveConfig::user_prm_len`]
     /// octets; a configuration tool always sends all of them): shorter or longer is
     /// [`PrmError::Length`] → Prm_Fault. This is what the ASIC slaves' firmware does: the
     /// VPC3+ / SPC3 only bound the Set_Prm buffer (7..244 octets) and hand the telegram to the
@@ -166,8 +253,8 @@ impl SetPrm {
     /// `EvalBoard/DpPrm.c`) accepts the one length its GSD declares and nothing else. Issue 12
     /// item 4g: padding a short telegram with defaults would run the drive on parameters the
     /// master never chose.
-    pub fn parse(pdu: &[u8]) -> Result<SetPrm, PrmError> {
-        if pdu.len() != 7 + card::USER_PRM_LEN {
+    pub fn parse(pdu: &[u8], config: &SlaveConfig) -> Result<SetPrm, PrmError> {
+        if pdu.len() != 7 + config.user_prm_len || config.user_prm_len > MAX_USER_PRM_LEN {
             return Err(PrmError::Length(pdu.len()));
         }
         let status_raw = pdu[0];
@@ -180,45 +267,51 @@ impl SetPrm {
             return Err(PrmError::WatchdogFactor);
         }
         let ident = u16::from_be_bytes([pdu[4], pdu[5]]);
-        if ident != card::IDENT_NUMBER {
+        if ident != config.ident_number {
             return Err(PrmError::Ident(ident));
         }
-        if (status.contains(StationStatus::SYNC_REQ) && !card::SYNC_MODE_SUPP)
-            || (status.contains(StationStatus::FREEZE_REQ) && !card::FREEZE_MODE_SUPP)
+        if (status.contains(StationStatus::SYNC_REQ) && !config.sync_mode_supp)
+            || (status.contains(StationStatus::FREEZE_REQ) && !config.freeze_mode_supp)
         {
             return Err(PrmError::NotSupported);
         }
-        let mut user = [0u8; card::USER_PRM_LEN];
-        user.copy_from_slice(&pdu[7..]);
-        // DPV1_Status_1: what the card supports (reference §3.3).
-        let mut allowed1 = Dpv1Status1::FAIL_SAFE.bits();
-        if card::DPV1_SLAVE {
+        let user = &pdu[7..];
+        // DPV1_Status_1 (present: Max_User_Prm_Data_Len ≥ 3 for every DP-V1 slave;
+        // missing octets read 0): what the product supports (reference §3.3).
+        let status_byte = |i: usize| user.get(i).copied().unwrap_or(0);
+        let (s1, s2, s3) = (status_byte(0), status_byte(1), status_byte(2));
+        let mut allowed1 = 0u8;
+        if config.fail_safe {
+            allowed1 |= Dpv1Status1::FAIL_SAFE.bits();
+        }
+        if config.dpv1_slave {
             allowed1 |= Dpv1Status1::DPV1_ENABLE.bits();
         }
-        if card::WD_BASE_1MS_SUPP {
+        if config.wd_base_1ms_supp {
             allowed1 |= Dpv1Status1::WD_BASE_1MS.bits();
         }
-        if user[0] & !allowed1 != 0 {
-            return Err(PrmError::Dpv1Status { byte: 1, value: user[0] });
+        if s1 & !allowed1 != 0 {
+            return Err(PrmError::Dpv1Status { byte: 1, value: s1 });
         }
-        // DPV1_Status_2: the alarm enables and Check_Cfg_Mode. The card offers the diagnostic
-        // alarm only (card::DIAGNOSTIC_ALARM_SUPP, dp::alarm), and only with DPV1_Enable; a
+        // DPV1_Status_2: the alarm enables and Check_Cfg_Mode. The slave offers the diagnostic
+        // alarm only (`Diagnostic_Alarm_supp`, dp::alarm), and only with DPV1_Enable; a
         // master asking for another alarm type (pull/plug, process, manufacturer, status,
         // update) or for Check_Cfg_Mode gets Prm_Fault (reference §3.3, §4.4).
         let mut allowed2 = 0u8;
-        if card::DIAGNOSTIC_ALARM_SUPP && user[0] & Dpv1Status1::DPV1_ENABLE.bits() != 0 {
+        if config.diagnostic_alarm_supp && s1 & Dpv1Status1::DPV1_ENABLE.bits() != 0 {
             allowed2 |= super::alarm::ENABLE_DIAGNOSTIC_ALARM;
         }
-        if user[1] & !allowed2 != 0 {
-            return Err(PrmError::Dpv1Status { byte: 2, value: user[1] });
+        if s2 & !allowed2 != 0 {
+            return Err(PrmError::Dpv1Status { byte: 2, value: s2 });
         }
         // DPV1_Status_3: Alarm_Mode (b2..b0) is taken (the outstanding limit, capped at
-        // card::ALARM_SEQUENCE_MODE_COUNT); Prm_Structure, IsoM_Req, PrmCmd: not supported.
-        if user[2] & !0x07 != 0 {
-            return Err(PrmError::Dpv1Status { byte: 3, value: user[2] });
+        // dp::alarm::MAX_OUTSTANDING, GSD `Alarm_Sequence_Mode_Count`); Prm_Structure,
+        // IsoM_Req, PrmCmd: not supported.
+        if s3 & !0x07 != 0 {
+            return Err(PrmError::Dpv1Status { byte: 3, value: s3 });
         }
-        for p in card::USER_PRMS {
-            let v = user[p.offset];
+        for p in config.user_prms {
+            let Some(&v) = user.get(p.offset) else { continue };
             if v < p.min || v > p.max {
                 return Err(PrmError::UserPrm { offset: p.offset as u8, value: v });
             }
@@ -229,10 +322,10 @@ impl SetPrm {
             wd_fact_2,
             min_tsdr: min_tsdr_of(pdu[3]),
             group_ident: pdu[6],
-            dpv1_status_1: Dpv1Status1::from_bits_retain(user[0]),
-            dpv1_status_2: user[1],
-            dpv1_status_3: user[2],
-            user,
+            dpv1_status_1: Dpv1Status1::from_bits_retain(s1),
+            dpv1_status_2: s2,
+            dpv1_status_3: s3,
+            user: UserPrmData::new(user),
         })
     }
 
@@ -250,6 +343,12 @@ impl SetPrm {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::card;
+
+    /// Set_Prm checked for the card.
+    fn parse(pdu: &[u8]) -> Result<SetPrm, PrmError> {
+        SetPrm::parse(pdu, &card::SLAVE)
+    }
 
     fn prm(status: u8, user: &[u8]) -> Vec<u8> {
         let mut v = vec![status, 1, 99, 11, (card::IDENT_NUMBER >> 8) as u8, card::IDENT_NUMBER as u8, 0x22];
@@ -260,7 +359,7 @@ mod tests {
     #[test]
     fn felser_example_shape() {
         // B8 01 63 0B <ident> 22: Lock + Sync + Freeze + WD_On, WD 1 × 99 × 10 ms (reference §3.3).
-        let p = SetPrm::parse(&prm(0xB8, &card::USER_PRM_DEFAULTS)).unwrap();
+        let p = parse(&prm(0xB8, &card::USER_PRM_DEFAULTS)).unwrap();
         assert!(p.status.contains(StationStatus::LOCK_REQ | StationStatus::SYNC_REQ | StationStatus::FREEZE_REQ));
         assert_eq!(p.watchdog(), Some(Duration::from_millis(990)));
         assert_eq!(p.min_tsdr, Some(BitTimes(11)));
@@ -270,7 +369,7 @@ mod tests {
 
     #[test]
     fn wd_base_1ms() {
-        let p = SetPrm::parse(&prm(0x88, &[0x04, 0, 0, 1, 2])).unwrap();
+        let p = parse(&prm(0x88, &[0x04, 0, 0, 1, 2])).unwrap();
         assert_eq!(p.watchdog(), Some(Duration::from_millis(99)));
         assert_eq!(p.user[3..], [1, 2]);
     }
@@ -278,32 +377,26 @@ mod tests {
     #[test]
     fn faults() {
         let d = card::USER_PRM_DEFAULTS;
-        assert_eq!(SetPrm::parse(&[0x88, 1, 1]), Err(PrmError::Length(3)));
-        assert_eq!(SetPrm::parse(&prm(0x88, &[0, 0, 0, 0, 0, 0])), Err(PrmError::Length(13)));
-        assert_eq!(SetPrm::parse(&prm(0x89, &d)), Err(PrmError::ReservedStationStatus(0x89)));
+        assert_eq!(parse(&[0x88, 1, 1]), Err(PrmError::Length(3)));
+        assert_eq!(parse(&prm(0x88, &[0, 0, 0, 0, 0, 0])), Err(PrmError::Length(13)));
+        assert_eq!(parse(&prm(0x89, &d)), Err(PrmError::ReservedStationStatus(0x89)));
         let mut bad_ident = prm(0x88, &d);
         bad_ident[5] ^= 1;
-        assert!(matches!(SetPrm::parse(&bad_ident), Err(PrmError::Ident(_))));
+        assert!(matches!(parse(&bad_ident), Err(PrmError::Ident(_))));
         let mut wd0 = prm(0x88, &d);
         wd0[1] = 0;
-        assert_eq!(SetPrm::parse(&wd0), Err(PrmError::WatchdogFactor));
-        assert!(matches!(SetPrm::parse(&prm(0x88, &[0x20, 0, 0, 0, 0])), Err(PrmError::Dpv1Status { byte: 1, .. })));
-        assert!(matches!(SetPrm::parse(&prm(0x88, &[0, 1, 0, 0, 0])), Err(PrmError::Dpv1Status { byte: 2, .. })));
+        assert_eq!(parse(&wd0), Err(PrmError::WatchdogFactor));
+        assert!(matches!(parse(&prm(0x88, &[0x20, 0, 0, 0, 0])), Err(PrmError::Dpv1Status { byte: 1, .. })));
+        assert!(matches!(parse(&prm(0x88, &[0, 1, 0, 0, 0])), Err(PrmError::Dpv1Status { byte: 2, .. })));
         // Alarms: the diagnostic alarm with DPV1_Enable only; every other alarm type refused.
-        assert!(SetPrm::parse(&prm(0x88, &[0x80, 0x20, 0x03, 0, 0])).is_ok());
-        assert!(matches!(SetPrm::parse(&prm(0x88, &[0x00, 0x20, 0, 0, 0])), Err(PrmError::Dpv1Status { byte: 2, .. })));
+        assert!(parse(&prm(0x88, &[0x80, 0x20, 0x03, 0, 0])).is_ok());
+        assert!(matches!(parse(&prm(0x88, &[0x00, 0x20, 0, 0, 0])), Err(PrmError::Dpv1Status { byte: 2, .. })));
         for other in [0x80, 0x40, 0x10, 0x08, 0x04] {
-            assert_eq!(
-                SetPrm::parse(&prm(0x88, &[0x80, other, 0, 0, 0])),
-                Err(PrmError::Dpv1Status { byte: 2, value: other })
-            );
+            assert_eq!(parse(&prm(0x88, &[0x80, other, 0, 0, 0])), Err(PrmError::Dpv1Status { byte: 2, value: other }));
         }
-        assert!(matches!(
-            SetPrm::parse(&prm(0x88, &[0x80, 0x20, 0x08, 0, 0])),
-            Err(PrmError::Dpv1Status { byte: 3, .. })
-        ));
-        assert_eq!(SetPrm::parse(&prm(0x88, &[0, 0, 0, 4, 0])), Err(PrmError::UserPrm { offset: 3, value: 4 }));
-        assert_eq!(SetPrm::parse(&prm(0x88, &[0, 0, 0, 0, 8])), Err(PrmError::UserPrm { offset: 4, value: 8 }));
+        assert!(matches!(parse(&prm(0x88, &[0x80, 0x20, 0x08, 0, 0])), Err(PrmError::Dpv1Status { byte: 3, .. })));
+        assert_eq!(parse(&prm(0x88, &[0, 0, 0, 4, 0])), Err(PrmError::UserPrm { offset: 3, value: 4 }));
+        assert_eq!(parse(&prm(0x88, &[0, 0, 0, 0, 8])), Err(PrmError::UserPrm { offset: 4, value: 8 }));
     }
 
     /// Issue 12 item 4g: every length but the GSD's is a Prm_Fault, none is padded.
@@ -311,9 +404,9 @@ mod tests {
     fn user_prm_data_must_have_the_gsd_length() {
         for n in 0..card::USER_PRM_LEN {
             let p = prm(0x88, &card::USER_PRM_DEFAULTS[..n]);
-            assert_eq!(SetPrm::parse(&p), Err(PrmError::Length(7 + n)), "{n} user octets");
+            assert_eq!(parse(&p), Err(PrmError::Length(7 + n)), "{n} user octets");
         }
-        assert!(SetPrm::parse(&prm(0x88, &card::USER_PRM_DEFAULTS)).is_ok());
+        assert!(parse(&prm(0x88, &card::USER_PRM_DEFAULTS)).is_ok());
     }
 
     #[test]
@@ -337,7 +430,7 @@ mod tests {
     proptest::proptest! {
         #[test]
         fn never_panics(bytes in proptest::collection::vec(proptest::num::u8::ANY, 0..260)) {
-            let _ = SetPrm::parse(&bytes);
+            let _ = parse(&bytes);
             let _ = LockRequest::of(&bytes);
         }
     }

@@ -4,8 +4,6 @@
 //! before parameterization (Wait_Prm) and while the address is not frozen; the new address
 //! and the No_Add_Chg flag must survive a power cut, which is the job of an [`AddressStore`].
 
-use crate::card;
-
 /// The highest address Set_Slave_Add (and the drive's `CONFIG.STATION_ADDRESS`) may set
 /// (126 is only the commissioning default, reference §3.9).
 pub const MAX_NEW_ADDRESS: u8 = 125;
@@ -37,8 +35,9 @@ pub struct SetSlaveAdd {
 }
 
 impl SetSlaveAdd {
-    /// Parse and check the PDU (state checks are the slave's).
-    pub fn parse(pdu: &[u8]) -> Result<SetSlaveAdd, SlaveAddError> {
+    /// Parse and check the PDU (state checks are the slave's); `ident` is the product's GSD
+    /// `Ident_Number` ([`super::SlaveConfig::ident_number`]), which the request must carry.
+    pub fn parse(pdu: &[u8], ident_number: u16) -> Result<SetSlaveAdd, SlaveAddError> {
         if pdu.len() < 4 || pdu.len() > 244 {
             return Err(SlaveAddError::Length);
         }
@@ -46,7 +45,7 @@ impl SetSlaveAdd {
             return Err(SlaveAddError::Address(pdu[0]));
         }
         let ident = u16::from_be_bytes([pdu[1], pdu[2]]);
-        if ident != card::IDENT_NUMBER {
+        if ident != ident_number {
             return Err(SlaveAddError::Ident(ident));
         }
         Ok(SetSlaveAdd { address: pdu[0], no_add_chg: pdu[3] != 0 })

@@ -2,6 +2,7 @@
 //! peer master (profirust) never sends, byte for byte.
 
 use super::*;
+use crate::card;
 use crate::fdl::station::Station;
 use crate::fdl::telegram::{decode, Decoded, Telegram};
 
@@ -27,7 +28,7 @@ enum Ans {
 
 impl Bus {
     fn new() -> Self {
-        Bus { station: Station::new(), slave: DpSlave::new(ME), fcb: [false; 128], now: 0 }
+        Bus { station: Station::new(), slave: DpSlave::new(&card::SLAVE, ME), fcb: [false; 128], now: 0 }
     }
 
     fn raw(&mut self, frame: &[u8]) -> Option<Vec<u8>> {

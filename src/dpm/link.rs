@@ -394,7 +394,7 @@ impl Link {
             status: self.status_of(node),
             outputs,
             outputs_len: n as u8,
-            user_prm: slave.parameters().map_or(USER_PRM_DEFAULTS, |p| p.user),
+            user_prm: slave.parameters().and_then(|p| p.user.as_slice().try_into().ok()).unwrap_or(USER_PRM_DEFAULTS),
         }
     }
 
@@ -753,8 +753,9 @@ impl NodeUpdate {
         self.telegram
     }
 
-    /// A new input image for the DP slave (cut to the largest input image,
-    /// [`crate::card::MAX_INPUT_LEN`], as [`crate::dp::DpSlave::set_inputs`] does).
+    /// A new input image for the DP slave (cut to the card's largest input image,
+    /// [`crate::card::MAX_INPUT_LEN`]; [`crate::dp::DpSlave::set_inputs`] then cuts it to the
+    /// configured module's length).
     pub fn set_inputs(&mut self, bytes: &[u8]) {
         let n = bytes.len().min(MAX_INPUT_LEN);
         self.inputs[..n].copy_from_slice(&bytes[..n]);

@@ -322,7 +322,7 @@ struct Bench {
 impl Bench {
     fn new() -> Self {
         Bench {
-            node: Node::new(DpSlave::new(SLAVE)),
+            node: Node::new(DpSlave::new(&crate::card::SLAVE, SLAVE)),
             dpm: Dpm::new(),
             link: Link::new(),
             now: Instant::from_millis(0),

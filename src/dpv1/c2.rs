@@ -96,10 +96,6 @@ pub const MAX_LEN_DATA_UNIT: u8 = pdu::MAX_DATA_LEN as u8;
 pub const FEATURES_SUPPORTED: [u8; 2] = [0x01, 0x00];
 /// Profile_Features_Supported_1/2 of the Initiate.res: none.
 pub const PROFILE_FEATURES_SUPPORTED: [u8; 2] = [0x00, 0x00];
-/// Profile_Ident_Number of the Initiate.res: the PROFIdrive profile the GSD states
-/// ([`crate::card::PROFILE_IDENT_NUMBER`], 0x3A00), whatever the master asked for (a master
-/// that sends 0 learns the slave's profile from the answer).
-pub const PROFILE_IDENT_NUMBER: u16 = crate::card::PROFILE_IDENT_NUMBER;
 
 /// The RM and Abort frames: SD2 with DSAP, SSAP and a 4-byte PDU.
 const SCRATCH_LEN: usize = telegram::encoded_len(2, 4);
@@ -248,27 +244,28 @@ const fn no_service(srd: bool) -> C2Answer {
 pub struct C2<const N: usize> {
     conns: [Conn; N],
     min_send_timeout: u16,
+    /// Profile_Ident_Number of every Initiate.res.
+    profile_ident_number: u16,
     /// The RM / Abort frame (buffer id `N`).
     scratch: [u8; SCRATCH_LEN],
     stats: C2Stats,
-}
-
-impl<const N: usize> Default for C2<N> {
-    fn default() -> Self {
-        Self::new()
-    }
 }
 
 impl<const N: usize> C2<N> {
     const VALID_N: () = assert!(N >= 1 && N <= HIGHEST_SAP as usize + 1, "1..=49 MSAC_C2 connections");
 
     /// All connections closed, own minimum Send_Timeout [`DEFAULT_MIN_SEND_TIMEOUT`].
-    pub const fn new() -> Self {
+    /// `profile_ident_number` is the Profile_Ident_Number every Initiate.res carries: the
+    /// application profile the product's GSD states (this card: PROFIdrive 0x3A00,
+    /// `card::PROFILE_IDENT_NUMBER`), whatever the master asked for (a master that sends 0
+    /// learns the slave's profile from the answer; reference §4.5).
+    pub const fn new(profile_ident_number: u16) -> Self {
         #[allow(clippy::let_unit_value)]
         let () = Self::VALID_N;
         C2 {
             conns: [Conn::CLOSED; N],
             min_send_timeout: DEFAULT_MIN_SEND_TIMEOUT,
+            profile_ident_number,
             scratch: [0; SCRATCH_LEN],
             stats: C2Stats {
                 reserved: 0,
@@ -509,6 +506,7 @@ impl<const N: usize> C2<N> {
     ) -> C2Answer {
         self.expire(i, now);
         let sap = Self::sap_of(i);
+        let profile_ident_number = self.profile_ident_number;
         let c = &mut self.conns[i];
         if c.state == ConnectionState::Closed {
             self.stats.closed_sap = self.stats.closed_sap.wrapping_add(1);
@@ -552,7 +550,7 @@ impl<const N: usize> C2<N> {
                     c.send_timeout = send_timeout;
                     c.deadline = now + units(send_timeout);
                     c.channel.on_request(req.sa, c.master_sap, own, sap, req.pdu);
-                    c.channel.respond(initiate_response);
+                    c.channel.respond(|r, out| initiate_response(r, out, profile_ident_number));
                     self.stats.initiates = self.stats.initiates.wrapping_add(1);
                     return C2Answer::NotReady;
                 }
@@ -631,14 +629,14 @@ pub fn emit_short_response(
 }
 
 /// Initiate.res to the stored Initiate.req (S and D blocks swapped).
-fn initiate_response(req: &[u8], out: &mut [u8]) -> usize {
+fn initiate_response(req: &[u8], out: &mut [u8], profile_ident_number: u16) -> usize {
     match pdu::parse(req) {
         Ok(Request::Initiate(init)) => Response::Initiate(InitiateResponse::answering(
             &init,
             MAX_LEN_DATA_UNIT,
             FEATURES_SUPPORTED,
             PROFILE_FEATURES_SUPPORTED,
-            PROFILE_IDENT_NUMBER,
+            profile_ident_number,
         ))
         .emit(out)
         .unwrap_or(0),
@@ -719,7 +717,11 @@ mod tests {
 
     impl Bus {
         fn new() -> Self {
-            Bus { c2: C2::new(), mem: Mem::default(), now: Instant::from_millis(1_000) }
+            Bus {
+                c2: C2::new(crate::card::PROFILE_IDENT_NUMBER),
+                mem: Mem::default(),
+                now: Instant::from_millis(1_000),
+            }
         }
         fn advance(&mut self, ms: u64) {
             self.now = self.now + Duration::from_millis(ms);
@@ -789,10 +791,10 @@ mod tests {
 
     #[test]
     fn sap_ownership() {
-        let c2 = C2::<2>::new();
+        let c2 = C2::<2>::new(crate::card::PROFILE_IDENT_NUMBER);
         assert!(c2.owns_sap(49) && c2.owns_sap(48) && c2.owns_sap(47));
         assert!(!c2.owns_sap(46) && !c2.owns_sap(50) && !c2.owns_sap(51) && !c2.owns_sap(0));
-        assert!(C2::<49>::new().owns_sap(0));
+        assert!(C2::<49>::new(crate::card::PROFILE_IDENT_NUMBER).owns_sap(0));
         assert_eq!(Reply::from(C2Answer::NotReady), Reply::ShortAck);
     }
 

@@ -18,11 +18,11 @@
 //! | bytes | field | here |
 //! |---|---|---|
 //! | 0..10 | header | zeros |
-//! | 10..12 | MANUFACTURER_ID | [`card::IM_MANUFACTURER_ID`] |
-//! | 12..32 | ORDER_ID (visible string, blank-padded) | [`card::IM_ORDER_ID`] |
+//! | 10..12 | MANUFACTURER_ID | [`ImDevice::manufacturer_id`] (this card: `card::IM_MANUFACTURER_ID`) |
+//! | 12..32 | ORDER_ID (visible string, blank-padded) | [`ImDevice::order_id`] (`card::IM_ORDER_ID`) |
 //! | 32..48 | SERIAL_NUMBER (visible string) | from the drive (DPM `IDENT`), else blanks |
-//! | 48..50 | HARDWARE_REVISION | from the drive, else [`card::IM_HARDWARE_REVISION`] |
-//! | 50..54 | SOFTWARE_REVISION `V` x y z | [`card::IM_SOFTWARE_REVISION`] |
+//! | 48..50 | HARDWARE_REVISION | from the drive, else [`ImDevice::hardware_revision`] (`card::IM_HARDWARE_REVISION`) |
+//! | 50..54 | SOFTWARE_REVISION `V` x y z | [`ImDevice::software_revision`] (`card::IM_SOFTWARE_REVISION`) |
 //! | 54..56 | REVISION_COUNTER | 0 |
 //! | 56..58 | PROFILE_ID | 0x3A00 PROFIdrive |
 //! | 58..60 | PROFILE_SPECIFIC_TYPE | 0 |
@@ -57,7 +57,6 @@
 
 use super::pdu::ErrorCode1;
 use super::records::RecordHandler;
-use crate::card;
 use crate::time::Instant;
 
 /// The record index of the I&M call (slot 0).
@@ -84,8 +83,31 @@ pub const IM_SUPPORTED: u16 = 0x000F;
 pub const IM_VERSION: u16 = 0x0101;
 /// PROFILE_ID of PROFIdrive.
 pub const PROFILE_ID_PROFIDRIVE: u16 = 0x3A00;
-/// Relations with a call selection of their own: MSAC_C1 and every MSAC_C2 connection.
-pub const RELATIONS: usize = 1 + card::C2_MAX_COUNT_CHANNELS;
+/// Relations with a call selection of their own: MSAC_C1 and every MSAC_C2 connection, as
+/// many as the protocol allows (49 MSAC_C2 SAPs, [`super::c2::C2`]), so any product's GSD
+/// `C2_Max_Count_Channels` fits.
+pub const RELATIONS: usize = 1 + super::c2::HIGHEST_SAP as usize + 1;
+
+/// The product's own I&M0 values ([`im0`]): what the GSD and the product's order data say
+/// (this card: `card::IM`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ImDevice {
+    /// I&M0 MANUFACTURER_ID: the PI vendor ID.
+    pub manufacturer_id: u16,
+    /// I&M0 ORDER_ID (≤ 20 characters, blank-padded; longer is cut): the GSD's `OrderNumber`.
+    pub order_id: &'static str,
+    /// I&M0 HARDWARE_REVISION when the drive reports none (the GSD's `Hardware_Release`).
+    pub hardware_revision: u16,
+    /// I&M0 SOFTWARE_REVISION: `V` + major, minor, patch (the GSD's `Software_Release`).
+    pub software_revision: [u8; 4],
+}
+
+impl ImDevice {
+    /// Nothing known from the drive: blank serial number, the product's hardware revision.
+    pub const fn unknown_ident(&self) -> DeviceIdent {
+        DeviceIdent { serial_number: [b' '; 16], hardware_revision: self.hardware_revision }
+    }
+}
 
 /// I&M1 … I&M4 content (54 bytes each, without the header): what is writable and stored.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -137,22 +159,16 @@ pub struct DeviceIdent {
     pub hardware_revision: u16,
 }
 
-impl DeviceIdent {
-    /// Nothing known from the drive: blank serial number, the card's hardware revision.
-    pub const UNKNOWN: DeviceIdent =
-        DeviceIdent { serial_number: [b' '; 16], hardware_revision: card::IM_HARDWARE_REVISION };
-}
-
-/// The I&M0 record for `ident`.
-pub fn im0(ident: &DeviceIdent) -> [u8; RECORD_LEN] {
+/// The I&M0 record of the product `device` for `ident`.
+pub fn im0(device: &ImDevice, ident: &DeviceIdent) -> [u8; RECORD_LEN] {
     let mut r = [0u8; RECORD_LEN];
-    r[10..12].copy_from_slice(&card::IM_MANUFACTURER_ID.to_be_bytes());
+    r[10..12].copy_from_slice(&device.manufacturer_id.to_be_bytes());
     r[12..32].fill(b' ');
-    let n = card::IM_ORDER_ID.len().min(20);
-    r[12..12 + n].copy_from_slice(&card::IM_ORDER_ID.as_bytes()[..n]);
+    let n = device.order_id.len().min(20);
+    r[12..12 + n].copy_from_slice(&device.order_id.as_bytes()[..n]);
     r[32..48].copy_from_slice(&ident.serial_number);
     r[48..50].copy_from_slice(&ident.hardware_revision.to_be_bytes());
-    r[50..54].copy_from_slice(&card::IM_SOFTWARE_REVISION);
+    r[50..54].copy_from_slice(&device.software_revision);
     // REVISION_COUNTER 54..56 = 0; PROFILE_SPECIFIC_TYPE 58..60 = 0.
     r[56..58].copy_from_slice(&PROFILE_ID_PROFIDRIVE.to_be_bytes());
     r[60..62].copy_from_slice(&IM_VERSION.to_be_bytes());
@@ -245,6 +261,7 @@ pub struct ImStats {
 /// The card's I&M function: the records, the drive's identity and each relation's selection.
 #[derive(Debug, Clone)]
 pub struct Im {
+    device: &'static ImDevice,
     data: ImData,
     ident: DeviceIdent,
     selected: [Option<u16>; RELATIONS],
@@ -253,18 +270,14 @@ pub struct Im {
     stats: ImStats,
 }
 
-impl Default for Im {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
 impl Im {
-    /// Records as shipped, no identity from the drive, nothing selected.
-    pub const fn new() -> Self {
+    /// Records as shipped, no identity from the drive, nothing selected, for the product
+    /// `device`.
+    pub const fn new(device: &'static ImDevice) -> Self {
         Im {
+            device,
             data: ImData::DEFAULT,
-            ident: DeviceIdent::UNKNOWN,
+            ident: device.unknown_ident(),
             selected: [None; RELATIONS],
             relation: 0,
             changed: false,
@@ -310,7 +323,7 @@ impl Im {
 
     fn record(&self, fi_index: u16) -> [u8; RECORD_LEN] {
         match fi_index {
-            FI_IM0 => im0(&self.ident),
+            FI_IM0 => im0(self.device, &self.ident),
             fi => {
                 let mut r = [0u8; RECORD_LEN];
                 let i = ((fi - FI_IM0 - 1) as usize).min(3);
@@ -405,6 +418,7 @@ impl<R: RecordHandler> RecordHandler for WithIm<'_, R> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::card;
     use crate::dpv1::records::NoRecords;
     use std::vec::Vec;
 
@@ -418,7 +432,7 @@ mod tests {
     #[test]
     fn im0_layout() {
         let ident = DeviceIdent { serial_number: *b"SN-0001         ", hardware_revision: 3 };
-        let r = im0(&ident);
+        let r = im0(&card::IM, &ident);
         assert_eq!(&r[..10], &[0; 10], "manufacturer-specific header");
         assert_eq!(&r[10..12], &card::IM_MANUFACTURER_ID.to_be_bytes());
         assert_eq!(&r[12..19], b"ODC-PB1");
@@ -435,14 +449,14 @@ mod tests {
 
     #[test]
     fn call_then_read_per_relation() {
-        let mut im = Im::new();
+        let mut im = Im::new(&card::IM);
         let mut out = [0u8; 240];
         assert_eq!(im.read(0, &mut out), Err(ImError::NoCall));
         im.write(0, &[0x08, 0x00, 0xFD, 0xE8]).unwrap();
         let n = im.read(0, &mut out).unwrap();
         assert_eq!(n, 68);
         assert_eq!(&out[..4], &[0x08, 0x00, 0xFD, 0xE8]);
-        assert_eq!(&out[4..68], &im0(&DeviceIdent::UNKNOWN));
+        assert_eq!(&out[4..68], &im0(&card::IM, &card::IM.unknown_ident()));
         // Read again: the selection stays.
         assert_eq!(im.read(0, &mut out), Ok(68));
         // Another relation has made no call.
@@ -455,7 +469,7 @@ mod tests {
 
     #[test]
     fn write_im1_to_im4() {
-        let mut im = Im::new();
+        let mut im = Im::new(&card::IM);
         let mut out = [0u8; 68];
         for fi in 65001..=65004u16 {
             let mut rec = [0xEEu8; RECORD_LEN];
@@ -474,7 +488,7 @@ mod tests {
         im.write(0, &call(65001, &[&[0u8; 10][..], &stored.records[0]].concat())).unwrap();
         assert_eq!(im.take_changed(), None);
         // Defaults: I&M1 blanks, I&M4 zeros.
-        let mut fresh = Im::new();
+        let mut fresh = Im::new(&card::IM);
         fresh.write(0, &call(65001, &[])).unwrap();
         fresh.read(0, &mut out).unwrap();
         assert!(out[14..68].iter().all(|&b| b == b' '));
@@ -485,7 +499,7 @@ mod tests {
 
     #[test]
     fn errors_are_the_guidelines() {
-        let mut im = Im::new();
+        let mut im = Im::new(&card::IM);
         let mut out = [0u8; 240];
         let e = |r: Result<(), ImError>| r.map_err(ImError::error_code1);
         assert_eq!(e(im.write(1, &call(65000, &[]))), Err(ErrorCode1::INVALID_SLOT));
@@ -508,7 +522,7 @@ mod tests {
 
     #[test]
     fn other_indices_go_to_the_inner_handler() {
-        let mut im = Im::new();
+        let mut im = Im::new(&card::IM);
         let mut inner = NoRecords;
         let mut h = im.with(&mut inner);
         let now = Instant::from_millis(0);
@@ -523,7 +537,7 @@ mod tests {
         /// returns the selected FI_Index.
         #[test]
         fn any_call(bytes in proptest::collection::vec(proptest::num::u8::ANY, 0..80), slot in 0u8..3) {
-            let mut im = Im::new();
+            let mut im = Im::new(&card::IM);
             let mut out = [0u8; 240];
             match im.write(slot, &bytes) {
                 Ok(()) => {

@@ -537,8 +537,8 @@ pub struct Coverage {
 #[allow(clippy::result_large_err)]
 pub fn run(data: &[u8], mode: Mode, max_ops: usize) -> Result<Coverage, Mismatch> {
     let mut src = Src(data);
-    let mut alone = Node::new(DpSlave::new(ME));
-    let mut split = Node::new(DpSlave::new(ME));
+    let mut alone = Node::new(DpSlave::new(&crate::card::SLAVE, ME));
+    let mut split = Node::new(DpSlave::new(&crate::card::SLAVE, ME));
     let mut shared = Shared::new();
     let (mut fast, mut core) = shared.split(&mut split);
     let mut rig = Rig { fcb: [false; 128], next: None, last: None, initiate: None };

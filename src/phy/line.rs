@@ -627,7 +627,7 @@ mod tests {
         use crate::dp::DpSlave;
         use crate::phy::autobaud::Supervision;
         let t0 = Instant::from_millis(0);
-        let mut node = Node::new(DpSlave::new(5));
+        let mut node = Node::new(DpSlave::new(&crate::card::SLAVE, 5));
         let mut ab = Autobaud::new(t0);
         let fdl_status = sd1(5, 0x49);
         // Traffic for others, a token, SC, a broadcast: never an answer.
@@ -671,7 +671,7 @@ mod tests {
     #[test]
     fn nothing_is_sent_without_a_rate() {
         use crate::dp::DpSlave;
-        let mut node = Node::new(DpSlave::new(5));
+        let mut node = Node::new(DpSlave::new(&crate::card::SLAVE, 5));
         assert!(answer(&mut node, &mut NeverLocked, Instant::from_millis(0), &sd1(5, 0x49)).is_none());
         assert_eq!(node.station().stats().fdl_status, 1, "the station saw the request");
     }
@@ -686,7 +686,7 @@ mod tests {
             let mut now = Instant::from_millis(0);
             let mut ab = Autobaud::new(now);
             let mut rx = Receiver::new();
-            let mut node = Node::new(DpSlave::new(5));
+            let mut node = Node::new(DpSlave::new(&crate::card::SLAVE, 5));
             let req = sd1(5, 0x49);
             let mut answered = false;
             // A full scan lasts 1.533 s: every rate is reached within it.

@@ -25,7 +25,7 @@
 //! ST20 runs in PROFIdrive mode only (§5.1.5): [`Cyclic::new`] refuses Bypass / Echo with it
 //! ([`CyclicError::ModeNotAllowed`]). A mode forced by the master (Remote Bypass / Echo in
 //! Set_Prm) never gets here with ST20: Chk_Cfg already refused the pair with Cfg_Fault
-//! (`dp::cfg::check_for_mode`). The error is for a mode chosen locally in the drive (operate
+//! (the card's Chk_Cfg rule, `card::OperateModePolicy`). The error is for a mode chosen locally in the drive (operate
 //! mode 0 "Local"): the caller then keeps the card's fault image (ZSW1 fault) and reports it.
 //!
 //! The PKW channel (PPO 1/2/5, INVT) is the same in PROFIdrive and Bypass mode: the request
