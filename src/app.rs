@@ -909,7 +909,7 @@ pub(crate) mod tests {
         b.app.set_baudrate(Some(Baudrate::B1500k));
         let mut card = Card::new();
         card.set_baudrate(Some(Baudrate::B1500k));
-        let mut node = Node::new(DpSlave::new(SLAVE));
+        let mut node = Node::new(DpSlave::new(&card::SLAVE, SLAVE));
         let mut fcb = false;
         let mut now = Instant::from_millis(0);
         // One request to both nodes, a step of `ms` on both; the responses must agree.

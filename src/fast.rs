@@ -1251,7 +1251,7 @@ mod tests {
     /// min_TSDR travels in the staging: the node's value after the core judged a Set_Prm.
     #[test]
     fn min_tsdr_is_staged() {
-        let mut node = Node::new(DpSlave::new(8));
+        let mut node = Node::new(DpSlave::new(&card::SLAVE, 8));
         let mut shared = Shared::new();
         let (mut fast, mut core) = shared.split(&mut node);
         assert_eq!(fast.min_tsdr(), node.min_tsdr());
@@ -1268,7 +1268,7 @@ mod tests {
     /// does not reopen (it did, answering Data_Exchange RS once per 2^31 telegrams).
     #[test]
     fn the_not_ready_window_survives_the_sequence_wrap() {
-        let mut node = Node::new(DpSlave::new(8));
+        let mut node = Node::new(DpSlave::new(&card::SLAVE, 8));
         let mut shared = Shared::new();
         let (mut fast, mut core) = shared.split(&mut node);
         let mut m = ScriptedMaster::new(2, 8);
