@@ -307,6 +307,8 @@ pub struct SimLine {
     fault: Option<FaultHook>,
     /// Answer waiting for min_TSDR: (bytes, due µs, request end µs).
     pending_tx: Option<(Vec<u8>, u64, u64)>,
+    /// The min_TSDR the pending answer waits for (bit times).
+    pending_min_tsdr: u32,
     /// End of the last character seen or sent (µs, step resolution).
     last_activity_us: u64,
     idle_reported: bool,
@@ -331,6 +333,7 @@ impl SimLine {
             address,
             fault: None,
             pending_tx: None,
+            pending_min_tsdr: 0,
             last_activity_us: 0,
             idle_reported: false,
             transmitting: false,
@@ -430,6 +433,8 @@ impl SimLine {
             }
         }
         let due = now_us + self.rate.bits_to_duration(delay).as_micros();
+        // The judge's bound follows the slave's min_TSDR, not a fault's delay.
+        self.pending_min_tsdr = min_tsdr.0.max(BitTimes::MIN_TSDR_DEFAULT.0);
         self.pending_tx = Some((resp, due, now_us));
     }
 
@@ -451,7 +456,12 @@ impl SimLine {
         // adds one step.
         let delay_us = now_us - req_end_us + self.step_us;
         let delay_bits = self.rate.duration_to_bits(Duration::from_micros(delay_us));
-        let max = u64::from(card::max_tsdr(self.rate));
+        // The latest start: the GSD's MaxTsdr — or min_TSDR when the master set it higher (the
+        // slave may not answer before it; it then starts at min_TSDR, which the master's own
+        // max_TSDR ≥ min_TSDR + 1 and slot time allow), plus the two steps of the simulation's
+        // resolution (the due step and the bound's own step).
+        let step_bits = self.rate.duration_to_bits(Duration::from_micros(self.step_us));
+        let max = u64::from(card::max_tsdr(self.rate)).max(u64::from(self.pending_min_tsdr) + 2 * step_bits);
         if delay_bits > max {
             panic!(
                 "slave #{} answered after up to {delay_bits} bit times > max_TSDR {max} at {:?}: {}\n{}",
