@@ -106,6 +106,24 @@ pub const GSD_FROM_MODEL: bool = true;
 /// customary value (README "Board budget"). The host simulator holds every response to them;
 /// the line drops a response later than this (`TxDrop::TooLate`).
 pub const fn max_tsdr(rate: Baudrate) -> u16 {
+    // A table computed at compile time: the line reads it per response, with no division.
+    MAX_TSDR[rate as usize]
+}
+
+/// [`max_tsdr`] per rate, indexed by the `Baudrate` discriminant (`Baudrate::ALL` order).
+const MAX_TSDR: [u16; 10] = {
+    let mut t = [0u16; 10];
+    let mut i = 0;
+    while i < 10 {
+        let rate = Baudrate::ALL[i];
+        t[rate as usize] = declared_max_tsdr(rate);
+        i += 1;
+    }
+    t
+};
+
+/// The value [`max_tsdr`] declares (see there).
+const fn declared_max_tsdr(rate: Baudrate) -> u16 {
     let ceiling = customary_max_tsdr(rate);
     let m = modelled_tsdr(rate, LINE_BUDGET_INSTRUCTIONS);
     if !GSD_FROM_MODEL || m > ceiling as u32 {
