@@ -9,6 +9,7 @@ use pbcard::dp::{DpSlave, DpState};
 use pbcard::fdl::telegram::{FunctionCode, Header};
 use pbcard::node::Node;
 use pbcard::profile::param::{ErrorValue, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
+use pbcard::profile::records::CardRecords;
 use pbcard::testkit::{self, ScriptedMaster, SetPrm};
 use pbcard::time::Instant;
 
@@ -50,6 +51,8 @@ impl ParameterAccess for Drive {
 
 struct Master {
     node: Node,
+    /// The card's data records (records 47 / 48), owned by the application.
+    records: CardRecords,
     drive: Drive,
     master: ScriptedMaster,
     now: u64,
@@ -59,6 +62,7 @@ impl Master {
     fn new() -> Self {
         Master {
             node: Node::new(DpSlave::new(&pbcard::card::SLAVE, ME)),
+            records: CardRecords::new(),
             drive: Drive { p100: 50 },
             master: ScriptedMaster::new(M1, ME),
             now: 0,
@@ -80,7 +84,7 @@ impl Master {
 
     /// Let the card's DP-V1 task run.
     fn process(&mut self) {
-        self.node.process_acyclic(Instant::from_micros(self.now), &mut self.drive);
+        self.node.process_acyclic(Instant::from_micros(self.now), &mut self.records.with(&mut self.drive));
     }
 
     /// Request, then poll until the response (at most 3 polls), as a class-1 master does.
@@ -288,7 +292,7 @@ use pbcard::drive::params::{self, DriveTable};
 /// Request, process with `table` as the drive, poll: one MSAC_C1 exchange.
 fn table_transact(m: &mut Master, table: &mut DriveTable, pdu: &[u8]) -> Vec<u8> {
     assert_eq!(m.c1(M1, pdu), Ans::Sc, "request acknowledged with SC");
-    m.node.process_acyclic(Instant::from_micros(m.now), table);
+    m.node.process_acyclic(Instant::from_micros(m.now), &mut m.records.with(table));
     match m.c1(M1, &[]) {
         Ans::Pdu(p) => p,
         other => panic!("poll after processing: {other:?}"),
