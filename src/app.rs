@@ -907,10 +907,14 @@ pub(crate) mod tests {
         // reader (issue 15 item 10) ≈ 40 B; the host's mailbox fragments of the CYCLIC
         // exchange (a request being assembled from fragments, a response on its way, issue 16)
         // ≈ 0.5 KiB; the simulated drive's last DRIVE_STATE (sent again by the first of its two
-        // CYCLIC exchanges a cycle) ≈ 60 B.
+        // CYCLIC exchanges a cycle) ≈ 60 B. The card's data records (records 47 / 48: the
+        // job, the response being built and one response per relation, 240 B each, with the
+        // card's values for its PNUs, ≈ 1.3 KiB) moved here from the node.
         let n = core::mem::size_of::<Application>();
+        let records = core::mem::size_of::<CardRecords>();
+        assert!(records <= 1408, "CardRecords is {records} bytes");
         assert!(
-            n <= 4608 + 4 * crate::dpm::spi::MAX_TRANSACTION + 384 + 256 + 64 + 520 + 64,
+            n <= 4608 + 4 * crate::dpm::spi::MAX_TRANSACTION + 384 + 256 + 64 + 520 + 64 + records,
             "Application is {n} bytes"
         );
         // The shipped card: no SPI frame transport, no simulated drive, no host state.
