@@ -14,12 +14,11 @@
 //! card's composition passes the PROFIdrive records 47 / 48 (`profile::records::CardRecords`
 //! bound to the drive's parameter table).
 
-use crate::card;
 use crate::dp::{DpSlave, Events, Module};
 use crate::dpv1::c1::{self, C1};
 use crate::dpv1::c2::{C2Answer, C2};
 use crate::dpv1::channel::Answer;
-use crate::dpv1::im::Im;
+use crate::dpv1::im::{Im, ImDevice};
 use crate::dpv1::records::{relation_c2, NoRecords, RecordHandler, RELATION_C1};
 use crate::fdl::framer::{Framer, Push};
 use crate::fdl::station::{FdlApplication, Reply, Station, Tx};
@@ -34,7 +33,7 @@ pub struct Node {
     station: Station,
     slave: DpSlave,
     c1: C1,
-    c2: C2<{ card::C2_MAX_COUNT_CHANNELS }>,
+    c2: C2<C2_CHANNELS>,
     /// I&M0–I&M4 at slot 0 / index 255, in front of the application's [`DataRecords`].
     im: Im,
     baudrate: Option<Baudrate>,
@@ -94,6 +93,11 @@ pub trait DataRecords: RecordHandler {
 
 impl DataRecords for NoRecords {}
 
+/// The MSAC_C2 connections a node keeps (GSD `C2_Max_Count_Channels`, which the card states as
+/// `card::C2_MAX_COUNT_CHANNELS`, checked equal at compile time): one MSAC_C2 SAP, timer and
+/// I&M / record relation each.
+pub const C2_CHANNELS: usize = 2;
+
 /// Frame id of the MSAC_C1 response (the DP slave uses ids below it).
 const C1_FRAME: u8 = 8;
 /// Frame ids of MSAC_C2 start here.
@@ -103,7 +107,7 @@ const C2_FRAMES: u8 = 16;
 struct Router<'a> {
     dp: &'a mut DpSlave,
     c1: &'a mut C1,
-    c2: &'a mut C2<{ card::C2_MAX_COUNT_CHANNELS }>,
+    c2: &'a mut C2<C2_CHANNELS>,
     /// False: the fast path already answered this DP-V1 frame with SC (hand out nothing).
     deliver: bool,
 }
@@ -154,13 +158,7 @@ impl FdlApplication for Router<'_> {
     }
 }
 
-fn frame_of<'a>(
-    dp: &'a DpSlave,
-    c1: &'a C1,
-    c2: &'a C2<{ card::C2_MAX_COUNT_CHANNELS }>,
-    id: u8,
-    len: u16,
-) -> &'a [u8] {
+fn frame_of<'a>(dp: &'a DpSlave, c1: &'a C1, c2: &'a C2<C2_CHANNELS>, id: u8, len: u16) -> &'a [u8] {
     match id {
         C1_FRAME => c1.frame(len),
         id if id >= C2_FRAMES => c2.frame(id - C2_FRAMES, len),
@@ -169,15 +167,18 @@ fn frame_of<'a>(
 }
 
 impl Node {
-    /// A node at station `address` (see [`DpSlave::with_address_lock`] for a stored one).
-    pub fn new(slave: DpSlave) -> Self {
+    /// A node over `slave` (see [`DpSlave::with_address_lock`] for a stored address) for the
+    /// product `device` (its I&M0 values, [`ImDevice`]) whose MSAC_C2 Initiate.res carries
+    /// `profile_ident_number` (the GSD's application profile, reference §4.5). The card's
+    /// `Node::new(slave)` (in `card`, the product's configuration) passes its own.
+    pub const fn with_device(slave: DpSlave, device: &'static ImDevice, profile_ident_number: u16) -> Self {
         Node {
             framer: Framer::new(),
             station: Station::new(),
             slave,
             c1: C1::new(),
-            c2: C2::new(card::PROFILE_IDENT_NUMBER),
-            im: Im::new(&card::IM),
+            c2: C2::new(profile_ident_number),
+            im: Im::new(device),
             baudrate: None,
             records_busy: false,
         }
@@ -220,7 +221,7 @@ impl Node {
         if !C1::is_open(&self.slave) {
             self.im.end_relation(RELATION_C1);
         }
-        for n in 0..card::C2_MAX_COUNT_CHANNELS {
+        for n in 0..C2_CHANNELS {
             if self.c2.connection(n).is_none_or(|c| c.state != crate::dpv1::c2::ConnectionState::Open) {
                 self.im.end_relation(relation_c2(n));
             }
@@ -338,7 +339,7 @@ impl Node {
         &self.c1
     }
     /// The MSAC_C2 connections (states, timers, ready responses).
-    pub fn c2(&self) -> &C2<{ card::C2_MAX_COUNT_CHANNELS }> {
+    pub fn c2(&self) -> &C2<C2_CHANNELS> {
         &self.c2
     }
     /// The FDL station (counters).
