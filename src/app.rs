@@ -29,7 +29,8 @@
 //! its [`Card`], so every card method is an application method.
 //!
 //! PROFIdrive parameters not owned by the card go to the drive through the DPM parameter
-//! mailbox: [`Card::parameters`] is the table for [`Node::process_acyclic`]; the PKW channel
+//! mailbox: [`Card::parameters`] is the table behind the card's data records
+//! ([`Card::records`], which the DP-V1 task passes to [`Node::process_acyclic`]); the PKW channel
 //! of the PPO / INVT telegrams uses the same mailbox with its own answer cache.
 
 use core::ops::{Deref, DerefMut};
@@ -48,6 +49,7 @@ use crate::node::Node;
 use crate::profile::cyclic::OperateMode;
 use crate::profile::drive_if::CommandFlags;
 use crate::profile::profidrive::State;
+use crate::profile::records::{CardRecords, WithTable};
 use crate::profile::references::References;
 use crate::profile::runtime::{AnyProfile, Runtime, Scales, Selection};
 use crate::profile::telegram::DataProfile;
@@ -109,6 +111,9 @@ pub struct Card<I = Dpm> {
     /// through the record-47 answer cache `params`, so neither takes the other's answers).
     refs: References,
     runtime: Runtime,
+    /// The card's DP-V1 data records behind I&M (PROFIdrive record 47, WEG record 48), with the
+    /// fault buffer and process view [`apply`](Self::apply) hands them.
+    records: CardRecords,
     /// Events of [`Self::step_publish`] for [`Self::step_collect`].
     events: Events,
 }
@@ -142,12 +147,25 @@ impl<I: CardImage> Card<I> {
             pkw_params: ParamCache::new(),
             refs: References::new(),
             runtime: Runtime::new(Scales::DEFAULT),
+            records: CardRecords::new(),
             events: Events::empty(),
         }
     }
 
+    /// The card's DP-V1 data records (PROFIdrive record 47, WEG record 48: the card's own PNUs in
+    /// front of [`parameters`](Self::parameters) at `now`), for [`Node::process_acyclic`].
+    pub fn records(&mut self, now: Instant) -> WithTable<'_, MailboxParams<'_>> {
+        let table = MailboxParams::new(now, &mut self.link, self.image.dpm_mut(), &mut self.params);
+        self.records.with(table)
+    }
+
+    /// The card's data records' state (records 47 / 48, fault buffer, process view).
+    pub fn card_records(&self) -> &CardRecords {
+        &self.records
+    }
+
     /// The drive's parameters (behind the card's own PNUs) through the DPM parameter mailbox
-    /// at `now`, for [`Node::process_acyclic`]: never waits; a value not there yet makes the
+    /// at `now`, for the card's data records ([`records`](Self::records)): never waits; a value not there yet makes the
     /// job pending, a drive that does not answer makes it fail with 0x11 after the mailbox
     /// timeout.
     pub fn parameters(&mut self, now: Instant) -> MailboxParams<'_> {
@@ -250,12 +268,13 @@ impl<I: CardImage> Card<I> {
 
     /// The node's last part (call it with the lock held; it only copies): the drive's
     /// diagnosis and the new input image ([`Link::apply`]), and the profile layer's fault
-    /// buffer for PNU 944 / 947 ([`Node::set_fault_buffer`]).
+    /// buffer for PNU 944 / 947 and the process view for the card's data records
+    /// ([`CardRecords::set_fault_buffer`], [`CardRecords::set_process_view`]).
     pub fn apply(&mut self, node: &mut Node, update: &NodeUpdate) {
         self.link.apply(node, update);
         let faults = self.runtime.faults();
-        node.set_fault_buffer(faults.counter(), faults.numbers());
-        node.set_process_view(self.runtime.process_view());
+        self.records.set_fault_buffer(faults.counter(), faults.numbers());
+        self.records.set_process_view(self.runtime.process_view());
     }
 
     /// The panic / hard-fault path (ARCHITECTURE §2 "supervision"): the DPM OUTPUTS block to
@@ -621,10 +640,11 @@ pub(crate) mod tests {
             r[9..r.len() - 2].to_vec()
         }
 
-        /// The DP-V1 task: process_acyclic with the mailbox-backed parameters.
+        /// The DP-V1 task: process_acyclic over the card's records with the mailbox-backed
+        /// parameters.
         pub(crate) fn acyclic(&mut self) {
             let now = self.now;
-            self.node.process_acyclic(now, &mut self.app.parameters(now));
+            self.node.process_acyclic(now, &mut self.app.records(now));
         }
 
         /// DS_Write `req` to record 47 (checking the write response).
@@ -887,10 +907,14 @@ pub(crate) mod tests {
         // reader (issue 15 item 10) ≈ 40 B; the host's mailbox fragments of the CYCLIC
         // exchange (a request being assembled from fragments, a response on its way, issue 16)
         // ≈ 0.5 KiB; the simulated drive's last DRIVE_STATE (sent again by the first of its two
-        // CYCLIC exchanges a cycle) ≈ 60 B.
+        // CYCLIC exchanges a cycle) ≈ 60 B. The card's data records (records 47 / 48: the
+        // job, the response being built and one response per relation, 240 B each, with the
+        // card's values for its PNUs, ≈ 1.3 KiB) moved here from the node.
         let n = core::mem::size_of::<Application>();
+        let records = core::mem::size_of::<CardRecords>();
+        assert!(records <= 1408, "CardRecords is {records} bytes");
         assert!(
-            n <= 4608 + 4 * crate::dpm::spi::MAX_TRANSACTION + 384 + 256 + 64 + 520 + 64,
+            n <= 4608 + 4 * crate::dpm::spi::MAX_TRANSACTION + 384 + 256 + 64 + 520 + 64 + records,
             "Application is {n} bytes"
         );
         // The shipped card: no SPI frame transport, no simulated drive, no host state.

@@ -521,6 +521,17 @@ pub const IM: crate::dpv1::im::ImDevice = crate::dpv1::im::ImDevice {
 };
 // The MSAC_C2 connections fit the I&M relations (1 + C2_Max_Count_Channels).
 const _: () = assert!(C2_MAX_COUNT_CHANNELS < crate::dpv1::im::RELATIONS);
+// The node keeps exactly the connections the GSD states.
+const _: () = assert!(C2_MAX_COUNT_CHANNELS == crate::node::C2_CHANNELS);
+
+impl crate::node::Node {
+    /// This card's node over `slave` (see [`dp::DpSlave::with_address_lock`] for a stored
+    /// address): its I&M0 values ([`IM`]) and PROFIdrive as the MSAC_C2 Profile_Ident_Number
+    /// ([`PROFILE_IDENT_NUMBER`]), [`Node::with_device`](crate::node::Node::with_device).
+    pub const fn new(slave: dp::DpSlave) -> Self {
+        Self::with_device(slave, &IM, PROFILE_IDENT_NUMBER)
+    }
+}
 /// GSD `Ident_Maintenance_supp`: I&M0–I&M4 at slot 0 / index 255 over MSAC_C1 and MSAC_C2.
 pub const IDENT_MAINTENANCE_SUPP: bool = true;
 

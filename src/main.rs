@@ -17,7 +17,7 @@
 //! | 16 | QEMU: `usart1` (USART1 interrupt per character) | the per-byte line with the same fast path (`bsp/qemu.rs` `on_usart_fast`) → response after the quiet window |
 //! | 15 | both: `core_step` (bound to the unused I2C1_EV interrupt, pended by `usart1` and by every task that changed the node) | `CoreLink`: republish the staging, `Node::on_frame` for every queued telegram, the staging after each; a deferred (DP-V1) answer back to the line (pends USART1); after a Data_Exchange spawns `app_step`, after a DP-V1 request `acyclic` |
 //! | 11 | F411: `spi_frame` (software task, spawned by `spi_nss` at 12 on NSS rising) | one DPM SPI transaction against its own image (`dpm::spi::WireImage`), the reply armed for the next one |
-//! | 8 | `acyclic` (software task) | `Node::process_acyclic`: DP-V1 records at slot 0, PROFIdrive parameter access (card PNUs, then the drive's through the DPM parameter mailbox, `Application::parameters`; a job waiting for the drive is retried on the next spawn) |
+//! | 8 | `acyclic` (software task) | `Node::process_acyclic`: DP-V1 records at slot 0, PROFIdrive parameter access (the application's `Application::records`: card PNUs, then the drive's through the DPM parameter mailbox, `Application::parameters`; a job waiting for the drive is retried on the next spawn) |
 //! | 1 | `housekeeping` (async, every 1 ms) | the application step with two short Node locks (`Application::snapshot`: node timers + a copy; unlocked: DPM publish, drive, profile cycle, PKW, DRIVE_CMD; `Application::apply`: diagnosis + input image), then pends `core_step` (staging); STATUS.CORRUPT_FRAMES from the line's atomics, events, logs; F411: the autobaud machine (`RateKeeper::poll`: the line's counts, the timers, the gate's verdict; a rate switch asked of the line through `board::switch_rate`, no lock), LEDs, IWDG, address journal (line silence / restart through the mailbox) |
 //! | 1 | `app_step` (software task) | one application step (as above) right after a Data_Exchange (the drive sees new outputs at once) |
 //! | – | `idle` | WFI |
@@ -645,7 +645,8 @@ mod app {
 
     /// DP-V1: data records at slot 0 (PROFIdrive parameter access, WEG record 48) for MSAC_C1
     /// and MSAC_C2. The master polls until the response is there ("not ready" meanwhile). The
-    /// drive's parameters go through the DPM parameter mailbox (`Application::parameters`);
+    /// card's records (`Application::records`, owned by the application) reach the drive's
+    /// parameters through the DPM parameter mailbox (`Application::parameters`);
     /// a job still waiting for the drive keeps `Node::has_acyclic_work` true, so the
     /// housekeeping step spawns this task again.
     #[task(priority = 8, shared = [node, drive], local = [acyclic_clock])]
@@ -657,9 +658,9 @@ mod app {
         // The application (priority ceiling 8) for the DPM mailbox, the node (masks the
         // core task, not the line) for one pass over the waiting requests.
         drive.lock(|d| {
-            let mut params = d.app.parameters(now);
+            let mut records = d.app.records(now);
             node.lock(|n| {
-                let ((), _n) = measured(|| n.process_acyclic(now, &mut params));
+                let ((), _n) = measured(|| n.process_acyclic(now, &mut records));
                 #[cfg(feature = "bench")]
                 {
                     instr = _n;

@@ -1,5 +1,6 @@
 //! One PROFIBUS slave node as every platform runs it: [`Framer`] → [`Station`] → [`DpSlave`]
-//! and the DP-V1 services ([`C1`]) with the drive's data records ([`DriveRecords`]).
+//! and the DP-V1 services ([`C1`], [`C2`]) with the I&M records in front of the application's
+//! data records ([`DataRecords`]).
 //!
 //! The board firmware, the QEMU build, the soft slave and the host tests all drive the
 //! protocol core through this one type, so the same code decides on every platform. The
@@ -8,23 +9,21 @@
 //! for a character with a parity/framing/noise/overrun error, [`Node::on_idle`] when the line
 //! was idle, and [`Node::poll`] for the timers. DP-V1 requests are acknowledged on the
 //! decision path and worked on by [`Node::process_acyclic`] (the middle-priority task of the
-//! firmware), which reaches the drive's parameters through a
-//! [`ParameterAccess`](crate::profile::param::ParameterAccess) table.
+//! firmware) over the data records the application owns and passes in (the way smoltcp's
+//! `Interface::poll` takes the application's sockets): the node keeps no profile state; the
+//! card's composition passes the PROFIdrive records 47 / 48 (`profile::records::CardRecords`
+//! bound to the drive's parameter table).
 
-use crate::card;
-use crate::dp::{DpSlave, Events};
+use crate::dp::{DpSlave, Events, Module};
 use crate::dpv1::c1::{self, C1};
 use crate::dpv1::c2::{C2Answer, C2};
 use crate::dpv1::channel::Answer;
-use crate::dpv1::im::Im;
-use crate::dpv1::records::{relation_c2, RELATION_C1};
+use crate::dpv1::im::{Im, ImDevice};
+use crate::dpv1::records::{relation_c2, NoRecords, RecordHandler, RELATION_C1};
 use crate::fdl::framer::{Framer, Push};
 use crate::fdl::station::{FdlApplication, Reply, Station, Tx};
 use crate::fdl::telegram::{DataTelegram, RequestFunction, ResponseStatus};
 use crate::phy::line::{classify, RateControl};
-use crate::profile::param::ParameterAccess;
-use crate::profile::pnu::{CardInfo, CardTable, ProcessView, FAULT_BUFFER_LEN};
-use crate::profile::records::DriveRecords;
 use crate::time::{Baudrate, BitTimes, Instant};
 
 /// A slave node: framer, FDL station and DP slave.
@@ -34,19 +33,70 @@ pub struct Node {
     station: Station,
     slave: DpSlave,
     c1: C1,
-    c2: C2<{ card::C2_MAX_COUNT_CHANNELS }>,
-    records: DriveRecords,
-    /// I&M0–I&M4 at slot 0 / index 255, in front of `records`.
+    c2: C2<C2_CHANNELS>,
+    /// I&M0–I&M4 at slot 0 / index 255, in front of the application's [`DataRecords`].
     im: Im,
     baudrate: Option<Baudrate>,
-    /// The profile layer's fault buffer as the DP-V1 task reports it (PNU 944 / 947),
-    /// handed in by [`Node::set_fault_buffer`].
-    fault_counter: u16,
-    faults: [u16; FAULT_BUFFER_LEN],
-    /// The profile layer's data profile and cyclic words (PNU 915 / 916 / 922 / 944 / 964 per
-    /// product, PNU 10100 … 10108), handed in by [`Node::set_process_view`].
-    process: ProcessView,
+    /// [`DataRecords::is_busy`] of the records the last [`Node::process_acyclic`] served (a
+    /// job's state changes only there), for [`Node::has_acyclic_work`].
+    records_busy: bool,
 }
+
+/// What the node knows of the station when [`Node::process_acyclic`] starts: the context a
+/// data record may depend on (the card's PNUs 918, 922, 963 …).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct StationInfo {
+    /// The station address (Set_Slave_Add / the stored one).
+    pub address: u8,
+    /// The module the drive selected ([`DpSlave::required_module`]; Chk_Cfg can only select
+    /// it), else the module of the last Chk_Cfg ([`DpSlave::module`]); `None` before any.
+    pub module: Option<&'static Module>,
+    /// The rate the platform listens at ([`Node::set_baudrate`]; `None` while searching).
+    pub baudrate: Option<Baudrate>,
+}
+
+/// The application's DP-V1 data records as [`Node::process_acyclic`] serves them: the
+/// DP-V1 services Read (DS_Read, function 0x5E) and Write (DS_Write, 0x5F) of a data record
+/// addressed by slot and index over MSAC_C1 and MSAC_C2 (IEC 61158-6 DP-V1; reference §4.2).
+/// A failed access returns its Error_Code_1 ([`ErrorCode1`](crate::dpv1::pdu::ErrorCode1), class | code, e.g. 0xB0 invalid
+/// index, 0xB2 invalid slot, 0xB5 state conflict, 0xC2 resource busy); the channel answers it
+/// as the error PDU `function | 0x80, Error_Decode 0x80 (DP-V1), Error_Code_1, Error_Code_2 0`.
+///
+/// The node serves I&M (slot 0 / index 255, [`Im`]) itself and hands every other access to
+/// these records ([`RecordHandler::read`] / [`RecordHandler::write`], with
+/// [`RecordHandler::set_relation`] before the accesses of each relation). The application owns
+/// them and passes them to every [`Node::process_acyclic`] call (the card: PROFIdrive records
+/// 47 / 48 over its PNUs and the drive's parameters, `profile::records::CardRecords`);
+/// [`NoRecords`] answers every access 0xB2.
+pub trait DataRecords: RecordHandler {
+    /// Before the waiting requests of one [`Node::process_acyclic`] are served (only when
+    /// there is work): the station's context, and the time to go on with a job that waits
+    /// for values ([`is_busy`](Self::is_busy)). Default: nothing.
+    fn begin(&mut self, now: Instant, station: &StationInfo) {
+        let _ = (now, station);
+    }
+
+    /// The application relation `relation` ended ([`RELATION_C1`]: MSAC_C1 left data
+    /// exchange; [`relation_c2`]`(n)`: MSAC_C2 connection n was aborted or timed out): forget
+    /// its per-relation state before a request of a new relation is served. Default: nothing.
+    fn end_relation(&mut self, relation: u8) {
+        let _ = relation;
+    }
+
+    /// Whether a job waits without a request (a record whose values an asynchronous table has
+    /// not delivered yet): the node reports work ([`Node::has_acyclic_work`]) until it is
+    /// done. Default: never.
+    fn is_busy(&self) -> bool {
+        false
+    }
+}
+
+impl DataRecords for NoRecords {}
+
+/// The MSAC_C2 connections a node keeps (GSD `C2_Max_Count_Channels`, which the card states as
+/// `card::C2_MAX_COUNT_CHANNELS`, checked equal at compile time): one MSAC_C2 SAP, timer and
+/// I&M / record relation each.
+pub const C2_CHANNELS: usize = 2;
 
 /// Frame id of the MSAC_C1 response (the DP slave uses ids below it).
 const C1_FRAME: u8 = 8;
@@ -57,7 +107,7 @@ const C2_FRAMES: u8 = 16;
 struct Router<'a> {
     dp: &'a mut DpSlave,
     c1: &'a mut C1,
-    c2: &'a mut C2<{ card::C2_MAX_COUNT_CHANNELS }>,
+    c2: &'a mut C2<C2_CHANNELS>,
     /// False: the fast path already answered this DP-V1 frame with SC (hand out nothing).
     deliver: bool,
 }
@@ -108,13 +158,7 @@ impl FdlApplication for Router<'_> {
     }
 }
 
-fn frame_of<'a>(
-    dp: &'a DpSlave,
-    c1: &'a C1,
-    c2: &'a C2<{ card::C2_MAX_COUNT_CHANNELS }>,
-    id: u8,
-    len: u16,
-) -> &'a [u8] {
+fn frame_of<'a>(dp: &'a DpSlave, c1: &'a C1, c2: &'a C2<C2_CHANNELS>, id: u8, len: u16) -> &'a [u8] {
     match id {
         C1_FRAME => c1.frame(len),
         id if id >= C2_FRAMES => c2.frame(id - C2_FRAMES, len),
@@ -123,20 +167,20 @@ fn frame_of<'a>(
 }
 
 impl Node {
-    /// A node at station `address` (see [`DpSlave::with_address_lock`] for a stored one).
-    pub fn new(slave: DpSlave) -> Self {
+    /// A node over `slave` (see [`DpSlave::with_address_lock`] for a stored address) for the
+    /// product `device` (its I&M0 values, [`ImDevice`]) whose MSAC_C2 Initiate.res carries
+    /// `profile_ident_number` (the GSD's application profile, reference §4.5). The card's
+    /// `Node::new(slave)` (in `card`, the product's configuration) passes its own.
+    pub const fn with_device(slave: DpSlave, device: &'static ImDevice, profile_ident_number: u16) -> Self {
         Node {
             framer: Framer::new(),
             station: Station::new(),
             slave,
             c1: C1::new(),
-            c2: C2::new(card::PROFILE_IDENT_NUMBER),
-            records: DriveRecords::new(),
-            im: Im::new(&card::IM),
+            c2: C2::new(profile_ident_number),
+            im: Im::new(device),
             baudrate: None,
-            fault_counter: 0,
-            faults: [0; FAULT_BUFFER_LEN],
-            process: ProcessView::EMPTY,
+            records_busy: false,
         }
     }
 
@@ -177,7 +221,7 @@ impl Node {
         if !C1::is_open(&self.slave) {
             self.im.end_relation(RELATION_C1);
         }
-        for n in 0..card::C2_MAX_COUNT_CHANNELS {
+        for n in 0..C2_CHANNELS {
             if self.c2.connection(n).is_none_or(|c| c.state != crate::dpv1::c2::ConnectionState::Open) {
                 self.im.end_relation(relation_c2(n));
             }
@@ -205,74 +249,50 @@ impl Node {
         self.baudrate = rate;
     }
 
-    /// The profile layer's PROFIdrive fault buffer (OPTE3/E5 §6.4.6 Table 112; reference
-    /// §5.2): PNU 944 `counter` (fault message counter) and PNU 947 `numbers` (fault
-    /// numbers), as [`process_acyclic`](Self::process_acyclic) answers them over DP-V1. The
-    /// application hands it in with every step ([`crate::app::Card::apply`]); a copy of
-    /// 66 bytes.
-    pub fn set_fault_buffer(&mut self, counter: u16, numbers: &[u16; FAULT_BUFFER_LEN]) {
-        self.fault_counter = counter;
-        self.faults = *numbers;
-    }
-
-    /// The profile layer's view for the card's PNUs ([`ProcessView`]): the drive's data profile
-    /// and the cyclic words of the last cycle. The application hands it in with every step.
-    pub fn set_process_view(&mut self, view: ProcessView) {
-        self.process = view;
-    }
-
-    /// Whether a DP-V1 request waits for [`process_acyclic`](Self::process_acyclic), or a
-    /// record-47 job for the drive's values (call it again then).
+    /// Whether a DP-V1 request waits for [`process_acyclic`](Self::process_acyclic), or a job
+    /// of the data records it served last ([`DataRecords::is_busy`], e.g. a record-47 job for
+    /// the drive's values; call it again then).
     pub fn has_acyclic_work(&self) -> bool {
-        self.c1.has_pending() || self.c2.has_pending() || self.records.is_busy()
+        self.c1.has_pending() || self.c2.has_pending() || self.records_busy
     }
 
-    /// Work on waiting DP-V1 requests: data records at slots 0 and 1 (PROFIdrive record 47, WEG
-    /// record 48) over the card's own PNUs in front of the drive's `parameters`. The
-    /// response is handed out at the master's next poll. A record-47 job whose values an
-    /// asynchronous `parameters` table has not delivered yet
-    /// ([`ParameterAccess::pending`]) is built again on every call until it is complete.
-    pub fn process_acyclic(&mut self, now: Instant, parameters: &mut impl ParameterAccess) {
-        self.end_relations();
-        if !self.has_acyclic_work() {
-            return;
+    /// Work on waiting DP-V1 requests (DS_Read / DS_Write of data records over MSAC_C1 and
+    /// MSAC_C2): I&M at slot 0 / index 255, every other record from the application's
+    /// `records` ([`DataRecords`]; the card: PROFIdrive record 47 and WEG record 48 at slots 0
+    /// and 1 over the card's own PNUs in front of the drive's parameters). The response is
+    /// handed out at the master's next poll. A job the records report busy
+    /// ([`DataRecords::is_busy`], a record-47 job whose values an asynchronous table has not
+    /// delivered yet) keeps [`has_acyclic_work`](Self::has_acyclic_work) true; it is taken up
+    /// again ([`DataRecords::begin`]) on every call until it is complete.
+    pub fn process_acyclic(&mut self, now: Instant, records: &mut impl DataRecords) {
+        self.end_relations(records);
+        let work = self.c1.has_pending() || self.c2.has_pending() || records.is_busy();
+        if work {
+            let station = StationInfo {
+                address: self.slave.address(),
+                module: self.slave.required_module().or(self.slave.module()),
+                baudrate: self.baudrate,
+            };
+            records.begin(now, &station);
+            self.track_relations();
+            let mut records = self.im.with(records);
+            self.c1.process(now, &mut self.slave, &mut records);
+            self.c2.process(now, &mut records);
         }
-        let info = CardInfo {
-            address: self.slave.address(),
-            // The telegram the drive selected (DPM CONFIG.TELEGRAM; Chk_Cfg can only select
-            // its module), else the module of the last Chk_Cfg.
-            telegram: self
-                .slave
-                .required_module()
-                .or(self.slave.module())
-                .and_then(crate::dpm::Telegram::of_module)
-                .unwrap_or(crate::dpm::Telegram::None),
-            baud_p963: self.baudrate.map_or(5, |b| u16::from(b.p0963_code())),
-            fault_counter: self.fault_counter,
-            faults: self.faults,
-            process: self.process,
-        };
-        self.records.set_errors(crate::profile::records::RecordErrors::for_telegram(info.telegram));
-        let mut table = CardTable { info, drive: parameters };
-        self.records.retry(&mut table);
-        self.track_relations();
-        let mut drive_records = self.records.with(&mut table);
-        let mut records = self.im.with(&mut drive_records);
-        self.c1.process(now, &mut self.slave, &mut records);
-        self.c2.process(now, &mut records);
+        self.records_busy = records.is_busy();
     }
 
     /// Forget the record state of every relation that ended since the last call (before any
     /// request of a new relation is served).
-    fn end_relations(&mut self) {
+    fn end_relations(&mut self, records: &mut impl DataRecords) {
         if self.c1.take_ended() {
-            self.records.end_relation(crate::dpv1::records::RELATION_C1);
+            records.end_relation(RELATION_C1);
         }
         let mut ended = self.c2.take_ended();
         while ended != 0 {
             let i = ended.trailing_zeros() as usize;
             ended &= ended - 1;
-            self.records.end_relation(crate::dpv1::records::relation_c2(i));
+            records.end_relation(relation_c2(i));
         }
     }
 
@@ -319,7 +339,7 @@ impl Node {
         &self.c1
     }
     /// The MSAC_C2 connections (states, timers, ready responses).
-    pub fn c2(&self) -> &C2<{ card::C2_MAX_COUNT_CHANNELS }> {
+    pub fn c2(&self) -> &C2<C2_CHANNELS> {
         &self.c2
     }
     /// The FDL station (counters).

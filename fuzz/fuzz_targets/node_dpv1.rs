@@ -35,6 +35,7 @@ use pbcard::dpv1::c1::C1;
 use pbcard::dpv1::pdu::{Function, Response, ERROR_BIT, ERROR_DECODE_DPV1};
 use pbcard::fdl::telegram::{self, Decoded, FunctionCode, Header, RequestFunction, Telegram, MAX_FRAME_LEN};
 use pbcard::node::Node;
+use pbcard::profile::records::CardRecords;
 use pbcard::testkit::{self, ScriptedMaster, SetPrm};
 use pbcard::time::{BitTimes, Instant};
 use src::Src;
@@ -88,6 +89,8 @@ fn sets_last(f: RequestFunction) -> bool {
 
 struct Bus {
     node: Node,
+    /// The card's data records (records 47 / 48), owned by the application.
+    records: CardRecords,
     table: FakeDrive,
     master: ScriptedMaster,
     now: u64,
@@ -275,7 +278,7 @@ impl Bus {
 
     fn process(&mut self) {
         let now = Instant::from_micros(self.now);
-        self.node.process_acyclic(now, &mut self.table);
+        self.node.process_acyclic(now, &mut self.records.with(&mut self.table));
         trace!("t={}us process_acyclic", self.now);
         assert!(!self.node.has_acyclic_work(), "work left after process_acyclic");
     }
@@ -475,6 +478,7 @@ fuzz_target!(|data: &[u8]| {
     let mut src = Src::new(data);
     let mut bus = Bus {
         node: Node::new(DpSlave::new(&pbcard::card::SLAVE, ME)),
+        records: CardRecords::new(),
         table: FakeDrive::new(),
         master: ScriptedMaster::new(M1, ME),
         now: 1_000,

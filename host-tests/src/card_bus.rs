@@ -140,7 +140,7 @@ impl Endpoint for CardEndpoint {
             let now = Instant::from_micros(now_us);
             ev = self.app.step(now, &mut self.node);
             if self.node.has_acyclic_work() {
-                self.node.process_acyclic(now, &mut self.app.parameters(now));
+                self.node.process_acyclic(now, &mut self.app.records(now));
             }
             // The fast path answers from the node as it is now.
             self.core.note_events(ev);

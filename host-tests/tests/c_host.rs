@@ -96,7 +96,7 @@ impl Bench {
         assert_eq!(testkit::feed(&mut self.node, self.now, &f).as_deref(), Some(&[telegram::SC][..]));
         let now = self.now;
         let (node, drive) = (&mut self.node, &mut self.drive);
-        node.process_acyclic(now, &mut drive.bus_mut().app.parameters(now));
+        node.process_acyclic(now, &mut drive.bus_mut().app.records(now));
         let f = self.master.request(MASTER, Some(51), Some(51), &[], true);
         let r = testkit::feed(&mut self.node, self.now, &f).expect("a response");
         assert_eq!(r[0], 0x68, "a response PDU: {r:02X?}");

@@ -6,9 +6,11 @@
 use host_tests::scripted::Ans;
 use pbcard::card;
 use pbcard::dp::{DpSlave, DpState};
+use pbcard::dpv1::pdu::ErrorCode1;
 use pbcard::fdl::telegram::{FunctionCode, Header};
 use pbcard::node::Node;
 use pbcard::profile::param::{ErrorValue, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
+use pbcard::profile::records::CardRecords;
 use pbcard::testkit::{self, ScriptedMaster, SetPrm};
 use pbcard::time::Instant;
 
@@ -50,6 +52,8 @@ impl ParameterAccess for Drive {
 
 struct Master {
     node: Node,
+    /// The card's data records (records 47 / 48), owned by the application.
+    records: CardRecords,
     drive: Drive,
     master: ScriptedMaster,
     now: u64,
@@ -59,6 +63,7 @@ impl Master {
     fn new() -> Self {
         Master {
             node: Node::new(DpSlave::new(&pbcard::card::SLAVE, ME)),
+            records: CardRecords::new(),
             drive: Drive { p100: 50 },
             master: ScriptedMaster::new(M1, ME),
             now: 0,
@@ -80,7 +85,7 @@ impl Master {
 
     /// Let the card's DP-V1 task run.
     fn process(&mut self) {
-        self.node.process_acyclic(Instant::from_micros(self.now), &mut self.drive);
+        self.node.process_acyclic(Instant::from_micros(self.now), &mut self.records.with(&mut self.drive));
     }
 
     /// Request, then poll until the response (at most 3 polls), as a class-1 master does.
@@ -288,7 +293,7 @@ use pbcard::drive::params::{self, DriveTable};
 /// Request, process with `table` as the drive, poll: one MSAC_C1 exchange.
 fn table_transact(m: &mut Master, table: &mut DriveTable, pdu: &[u8]) -> Vec<u8> {
     assert_eq!(m.c1(M1, pdu), Ans::Sc, "request acknowledged with SC");
-    m.node.process_acyclic(Instant::from_micros(m.now), table);
+    m.node.process_acyclic(Instant::from_micros(m.now), &mut m.records.with(table));
     match m.c1(M1, &[]) {
         Ans::Pdu(p) => p,
         other => panic!("poll after processing: {other:?}"),
@@ -553,4 +558,98 @@ fn diagnostic_alarm_and_alarm_ack_on_sap_51() {
     assert_eq!(m.transact(&[0x5C, 0x00, 0x01, 0x02]), [0xDC, 0x80, 0xB5, 0x00], "wrong specifier");
     assert_eq!(m.transact(&[0x5C, 0x00, 0x01, 0x01]), [0x5C, 0x00, 0x01, 0x01]);
     assert_eq!(m.transact(&[0x5C, 0x00, 0x01, 0x01]), [0xDC, 0x80, 0xB5, 0x00], "acknowledged once");
+}
+
+// ----- The data-record seam (node::DataRecords): a product's own records behind I&M -----
+
+/// A product's record: slot 3 / index 9 holds 2 bytes; a DS_Write makes it busy until the next
+/// DP-V1 pass (an asynchronous job); the node's context and ended relations are recorded.
+#[derive(Default)]
+struct OwnRecords {
+    value: [u8; 2],
+    busy: bool,
+    begins: u32,
+    station: Option<pbcard::node::StationInfo>,
+    ended: Vec<u8>,
+}
+
+impl pbcard::dpv1::records::RecordHandler for OwnRecords {
+    fn read(&mut self, _: Instant, slot: u8, index: u8, out: &mut [u8]) -> Result<usize, ErrorCode1> {
+        match (slot, index) {
+            (3, 9) if out.len() >= 2 => {
+                out[..2].copy_from_slice(&self.value);
+                Ok(2)
+            }
+            (3, 9) => Err(ErrorCode1::WRITE_LENGTH_ERROR),
+            (3, _) => Err(ErrorCode1::INVALID_INDEX),
+            _ => Err(ErrorCode1::INVALID_SLOT),
+        }
+    }
+    fn write(&mut self, _: Instant, slot: u8, index: u8, data: &[u8]) -> Result<(), ErrorCode1> {
+        if (slot, index) != (3, 9) {
+            return Err(ErrorCode1::INVALID_SLOT);
+        }
+        self.value.copy_from_slice(data.get(..2).ok_or(ErrorCode1::WRITE_LENGTH_ERROR)?);
+        self.busy = true;
+        Ok(())
+    }
+}
+
+impl pbcard::node::DataRecords for OwnRecords {
+    fn begin(&mut self, _: Instant, station: &pbcard::node::StationInfo) {
+        self.begins += 1;
+        self.station = Some(*station);
+    }
+    fn end_relation(&mut self, relation: u8) {
+        self.ended.push(relation);
+    }
+    fn is_busy(&self) -> bool {
+        self.busy
+    }
+}
+
+/// Request, one DP-V1 pass over `records`, poll: one MSAC_C1 exchange.
+fn exchange(m: &mut Master, records: &mut impl pbcard::node::DataRecords, pdu: &[u8]) -> Vec<u8> {
+    assert_eq!(m.c1(M1, pdu), Ans::Sc, "request acknowledged with SC");
+    m.node.process_acyclic(Instant::from_micros(m.now), records);
+    match m.c1(M1, &[]) {
+        Ans::Pdu(p) => p,
+        other => panic!("poll after processing: {other:?}"),
+    }
+}
+
+/// The node serves I&M itself and every other record from the records the application
+/// passes in: their Error_Code_1 goes out as the DP-V1 error PDU (Error_Decode 0x80), a busy
+/// job keeps the node's work flag up, the records learn the station's context and the end of
+/// a relation; without records ([`NoRecords`]) every record but I&M is 0xB2 "invalid slot".
+#[test]
+fn a_products_own_data_records_behind_im() {
+    use pbcard::dpv1::records::NoRecords;
+    let mut m = Master::new();
+    m.bring_up(0x80);
+    let mut own = OwnRecords::default();
+    let w = exchange(&mut m, &mut own, &[0x5F, 3, 9, 2, 0x12, 0x34]);
+    assert_eq!(w, [0x5F, 3, 9, 2]);
+    assert!(m.node.has_acyclic_work(), "the records' job keeps the DP-V1 task running");
+    own.busy = false;
+    let r = exchange(&mut m, &mut own, &[0x5E, 3, 9, 240]);
+    assert_eq!(r, [0x5E, 3, 9, 2, 0x12, 0x34]);
+    assert!(!m.node.has_acyclic_work());
+    let e = exchange(&mut m, &mut own, &[0x5E, 3, 8, 240]);
+    assert_eq!(e, [0xDE, 0x80, 0xB0, 0x00]);
+    // I&M0 (slot 0 / index 255) is the node's: a call, then the read.
+    let call = exchange(&mut m, &mut own, &[0x5F, 0, 255, 4, 0x08, 0x00, 0xFD, 0xE8]);
+    assert_eq!(call, [0x5F, 0, 255, 4]);
+    let im0 = exchange(&mut m, &mut own, &[0x5E, 0, 255, 240]);
+    assert_eq!(im0[..4], [0x5E, 0, 255, 68], "I&M0: 4 header bytes and 64 bytes of record");
+    assert_eq!(own.station.map(|s| s.address), Some(ME));
+    assert_eq!(own.station.and_then(|s| s.module).map(|md| md.cfg), Some(card::MODULES[0].cfg));
+    assert_eq!(own.begins, 5);
+    // Without records.
+    let e = exchange(&mut m, &mut NoRecords, &[0x5E, 0, 47, 240]);
+    assert_eq!(e, [0xDE, 0x80, 0xB2, 0x00]);
+    // MSAC_C1 ends with a new Set_Prm: the records hear of it at the next pass.
+    m.bring_up(0x80);
+    m.node.process_acyclic(Instant::from_micros(m.now), &mut own);
+    assert_eq!(own.ended, [pbcard::dpv1::records::RELATION_C1]);
 }

@@ -109,7 +109,7 @@ impl Slave {
             self.next_tick_us = now_us + 1000;
             self.app.step(now, &mut self.node);
             if self.node.has_acyclic_work() {
-                self.node.process_acyclic(now, &mut self.app.parameters(now));
+                self.node.process_acyclic(now, &mut self.app.records(now));
             }
         }
     }

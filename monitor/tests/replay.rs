@@ -84,7 +84,7 @@ impl Bus {
         let now = Instant::from_micros(self.t_us);
         self.app.step(now, &mut self.node);
         if self.node.has_acyclic_work() {
-            self.node.process_acyclic(now, &mut self.app.parameters(now));
+            self.node.process_acyclic(now, &mut self.app.records(now));
         }
         answer
     }

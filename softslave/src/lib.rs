@@ -256,7 +256,7 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
                 // parameters through the DPM mailbox (a job waiting for the drive is retried
                 // here every step); the master's next poll fetches the response.
                 if st.node.has_acyclic_work() {
-                    st.node.process_acyclic(now_pb(now), &mut st.app.parameters(now_pb(now)));
+                    st.node.process_acyclic(now_pb(now), &mut st.app.records(now_pb(now)));
                 }
                 // The fast path answers from the node as it is now.
                 st.publish(events);

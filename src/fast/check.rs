@@ -50,6 +50,7 @@ use crate::fdl::telegram::{
     self, Decoded, FunctionCode, Header, RequestFunction, ResponseStatus, Telegram, MAX_FRAME_LEN,
 };
 use crate::node::Node;
+use crate::profile::records::CardRecords;
 use crate::testkit::{Frame, SetPrm};
 use crate::time::Instant;
 
@@ -548,6 +549,9 @@ pub fn run(data: &[u8], mode: Mode, max_ops: usize) -> Result<Coverage, Mismatch
     // The DP-V1 task's parameters of each card.
     let mut pa_alone: DriveTable = SIM_DRIVE_TABLE;
     let mut pa_split: DriveTable = SIM_DRIVE_TABLE;
+    // Each card's data records (records 47 / 48), owned by the application.
+    let mut rec_alone = CardRecords::new();
+    let mut rec_split = CardRecords::new();
     // A DP-V1 poll the split answered "not ready" while the core alone delivered: the core
     // alone's answer and the master's next poll, which must deliver exactly that.
     let mut owed: Option<(Frame, Frame)> = None;
@@ -559,8 +563,8 @@ pub fn run(data: &[u8], mode: Mode, max_ops: usize) -> Result<Coverage, Mismatch
             // The master polls again once the card had time: the held response goes out now.
             core.run(&mut split);
             let t = Instant::from_micros(now);
-            alone.process_acyclic(t, &mut pa_alone);
-            split.process_acyclic(t, &mut pa_split);
+            alone.process_acyclic(t, &mut rec_alone.with(&mut pa_alone));
+            split.process_acyclic(t, &mut rec_split.with(&mut pa_split));
             core.publish(&mut split);
             now += 150;
             let t = Instant::from_micros(now);
@@ -585,11 +589,11 @@ pub fn run(data: &[u8], mode: Mode, max_ops: usize) -> Result<Coverage, Mismatch
         match next_action(&mut src, &mut rig, &alone) {
             Action::Process { split_behind } => {
                 let t = Instant::from_micros(now);
-                alone.process_acyclic(t, &mut pa_alone);
+                alone.process_acyclic(t, &mut rec_alone.with(&mut pa_alone));
                 if mode == Mode::Sync || !split_behind {
                     core.run(&mut split);
                 }
-                split.process_acyclic(t, &mut pa_split);
+                split.process_acyclic(t, &mut rec_split.with(&mut pa_split));
                 core.publish(&mut split);
             }
             Action::Tick(us) => {

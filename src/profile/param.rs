@@ -715,6 +715,31 @@ pub trait ParameterAccess {
     fn start_job(&mut self) {}
 }
 
+/// A borrowed table is a table (for [`super::records::CardRecords::with`]).
+impl<T: ParameterAccess + ?Sized> ParameterAccess for &mut T {
+    fn has_axis(&self, axis: u8) -> bool {
+        (**self).has_axis(axis)
+    }
+    fn read_value(&mut self, axis: u8, addr: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        (**self).read_value(axis, addr, out)
+    }
+    fn write_value(&mut self, axis: u8, addr: &ParamAddress, values: &ValueBlock<'_>) -> Result<(), ParamError> {
+        (**self).write_value(axis, addr, values)
+    }
+    fn read_description(&mut self, axis: u8, addr: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        (**self).read_description(axis, addr, out)
+    }
+    fn read_text(&mut self, axis: u8, addr: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        (**self).read_text(axis, addr, out)
+    }
+    fn pending(&self) -> bool {
+        (**self).pending()
+    }
+    fn start_job(&mut self) {
+        (**self).start_job();
+    }
+}
+
 /// Execute a valid parameter request against `table` and write the parameter response into
 /// `out`. Returns the response length (4..=240).
 ///

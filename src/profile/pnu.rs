@@ -141,8 +141,8 @@ const CARD_DESCRIPTIONS: Table<{ slots(CARD_DEFS) }> = Table::new(CARD_DEFS);
 /// Elements of PNU 947 (4 fault situations × 8 messages).
 pub const FAULT_BUFFER_LEN: usize = 32;
 
-/// What the profile layer reports for the card's PNUs (handed to the node with every step,
-/// `node::Node::set_process_view`): the active data profile (PNU 915 / 916, P0922, P0944,
+/// What the profile layer reports for the card's PNUs (handed to the card's data records with every step,
+/// [`super::records::CardRecords::set_process_view`]): the active data profile (PNU 915 / 916, P0922, P0944,
 /// P0964 per product) and the cyclic words of the last cycle (PNU 10100 … 10108).
 ///
 /// PNU 10100 … 10108 (OPTE3/E5 Table 108) are the last evaluated output image's control word

@@ -24,12 +24,22 @@
 //! leaves data exchange, an MSAC_C2 connection is aborted or times out) its response and its
 //! job are dropped ([`DriveRecords::end_relation`]). Record 48 answers 0xC2 "resource busy" while a value is pending
 //! (the master repeats the access).
+//!
+//! [`CardRecords`] is what the card's composition owns and passes to
+//! [`Node::process_acyclic`](crate::node::Node::process_acyclic) ([`CardRecords::with`] the
+//! drive's parameter table): records 47 / 48 over the card's own PNUs ([`CardTable`]: the
+//! station context the node hands in, the fault buffer and the [`ProcessView`] the application
+//! hands in) in front of the drive's parameters — the [`DataRecords`] the node serves behind
+//! I&M.
 
 use super::param::{respond, ParamRequest, ParameterAccess, MAX_LEN};
+use super::pnu::{CardInfo, CardTable, ProcessView, FAULT_BUFFER_LEN};
+use super::selection::Telegram;
 use super::weg48::SimpleAccess;
 use crate::card;
 use crate::dpv1::pdu::ErrorCode1;
 use crate::dpv1::records::RecordHandler;
+use crate::node::{DataRecords, StationInfo};
 use crate::time::Instant;
 
 /// PROFIdrive parameter access record.
@@ -280,4 +290,121 @@ fn weg_done<R>(
         table.start_job();
     }
     result
+}
+
+/// The card's data records behind I&M (PROFIdrive record 47, WEG record 48, [`DriveRecords`])
+/// with what they report besides the drive's parameters: the profile layer's fault buffer
+/// (PNU 944 / 947) and [`ProcessView`], handed in by the application with every step, and the
+/// station context the node hands in ([`DataRecords::begin`]: PNU 918, 922 from the module,
+/// 963). The application owns it and passes it bound to the drive's parameter table
+/// ([`with`](Self::with)) to every [`Node::process_acyclic`](crate::node::Node::process_acyclic).
+#[derive(Debug, Clone)]
+pub struct CardRecords {
+    records: DriveRecords,
+    /// The card's values as of the last [`DataRecords::begin`].
+    info: CardInfo,
+}
+
+impl Default for CardRecords {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl CardRecords {
+    /// No response waiting, an empty fault buffer, no process view ([`ProcessView::EMPTY`]).
+    pub const fn new() -> Self {
+        CardRecords {
+            records: DriveRecords::new(),
+            info: CardInfo {
+                address: 0,
+                telegram: Telegram::None,
+                baud_p963: 5,
+                fault_counter: 0,
+                faults: [0; FAULT_BUFFER_LEN],
+                process: ProcessView::EMPTY,
+            },
+        }
+    }
+
+    /// The profile layer's PROFIdrive fault buffer (OPTE3/E5 §6.4.6 Table 112; reference
+    /// §5.2): PNU 944 `counter` (fault message counter) and PNU 947 `numbers` (fault
+    /// numbers), as the records answer them over DP-V1. The application hands it in with every
+    /// step ([`crate::app::Card::apply`]); a copy of 66 bytes.
+    pub fn set_fault_buffer(&mut self, counter: u16, numbers: &[u16; FAULT_BUFFER_LEN]) {
+        self.info.fault_counter = counter;
+        self.info.faults = *numbers;
+    }
+
+    /// The profile layer's view for the card's PNUs ([`ProcessView`]): the drive's data profile
+    /// and the cyclic words of the last cycle. The application hands it in with every step.
+    pub fn set_process_view(&mut self, view: ProcessView) {
+        self.info.process = view;
+    }
+
+    /// Records 47 and 48 (the parameter channel's state).
+    pub fn drive_records(&self) -> &DriveRecords {
+        &self.records
+    }
+
+    /// These records over the drive's parameter `table` (behind the card's own PNUs): the
+    /// [`DataRecords`] for one [`Node::process_acyclic`](crate::node::Node::process_acyclic).
+    pub fn with<T: ParameterAccess>(&mut self, table: T) -> WithTable<'_, T> {
+        WithTable { card: self, table }
+    }
+}
+
+/// [`CardRecords`] over the drive's parameter table `T` (a table by value, or `&mut` one): the
+/// [`DataRecords`] the node serves behind I&M.
+pub struct WithTable<'a, T> {
+    card: &'a mut CardRecords,
+    table: T,
+}
+
+impl<T: ParameterAccess> WithTable<'_, T> {
+    /// The card's PNUs in front of the drive's, and records 47 / 48 over them.
+    fn parts(&mut self) -> (&mut DriveRecords, CardTable<'_, T>) {
+        (&mut self.card.records, CardTable { info: self.card.info, drive: &mut self.table })
+    }
+}
+
+impl<T: ParameterAccess> RecordHandler for WithTable<'_, T> {
+    fn read(&mut self, now: Instant, slot: u8, index: u8, out: &mut [u8]) -> Result<usize, ErrorCode1> {
+        let (records, mut table) = self.parts();
+        records.with(&mut table).read(now, slot, index, out)
+    }
+
+    fn write(&mut self, now: Instant, slot: u8, index: u8, data: &[u8]) -> Result<(), ErrorCode1> {
+        let (records, mut table) = self.parts();
+        records.with(&mut table).write(now, slot, index, data)
+    }
+
+    fn set_relation(&mut self, relation: u8) {
+        self.card.records.relation = relation;
+    }
+}
+
+impl<T: ParameterAccess> DataRecords for WithTable<'_, T> {
+    /// The card's values for this pass (address, the telegram of the module — PNU 922 and the
+    /// product's error list, [`RecordErrors::for_telegram`] —, P0963), then the busy job again
+    /// ([`DriveRecords::retry`]).
+    fn begin(&mut self, _now: Instant, station: &StationInfo) {
+        let info = &mut self.card.info;
+        info.address = station.address;
+        // The telegram the drive selected (DPM CONFIG.TELEGRAM; Chk_Cfg can only select its
+        // module), else the module of the last Chk_Cfg.
+        info.telegram = station.module.and_then(Telegram::of_module).unwrap_or(Telegram::None);
+        info.baud_p963 = station.baudrate.map_or(5, |b| u16::from(b.p0963_code()));
+        self.card.records.set_errors(RecordErrors::for_telegram(info.telegram));
+        let (records, mut table) = self.parts();
+        records.retry(&mut table);
+    }
+
+    fn end_relation(&mut self, relation: u8) {
+        self.card.records.end_relation(relation);
+    }
+
+    fn is_busy(&self) -> bool {
+        self.card.records.is_busy()
+    }
 }

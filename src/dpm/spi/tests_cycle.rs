@@ -127,7 +127,7 @@ impl CardRig {
         let f = self.master.request(MASTER, Some(51), Some(51), pdu, true);
         assert_eq!(feed(&mut self.node, self.now, &f).as_deref(), Some(&[crate::fdl::telegram::SC][..]));
         let now = self.now;
-        self.node.process_acyclic(now, &mut self.app.parameters(now));
+        self.node.process_acyclic(now, &mut self.app.records(now));
         let f = self.master.request(MASTER, Some(51), Some(51), &[], true);
         let r = feed(&mut self.node, self.now, &f).expect("a response");
         r[9..r.len() - 2].to_vec()
