@@ -372,3 +372,53 @@ fn configure(fd: RawFd, rate: Baudrate) -> io::Result<(bool, u32)> {
     let back = get(fd)?;
     Ok((parity, back.c_ospeed))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The line contract over a pseudo-terminal: characters in as events with their time, a
+    /// response out through the transmitter, the rate switched.
+    #[test]
+    fn contract_over_a_pty() {
+        let mut port = Port::create_pty(Baudrate::B19200).unwrap();
+        let mut peer =
+            OpenOptions::new().read(true).write(true).custom_flags(libc::O_NOCTTY).open(port.path()).unwrap();
+        assert_eq!(port.rate(), Baudrate::B19200);
+        assert!(port.poll_event().is_none());
+        peer.write_all(&[0x10, 0x02, 0xFF]).unwrap();
+        assert!(port.wait_readable(Duration::from_secs(2)).unwrap());
+        let mut got = Vec::new();
+        while got.len() < 3 {
+            match port.poll_event() {
+                Some(LineEvent::Byte { byte, idle_before, .. }) => {
+                    assert_eq!(idle_before, BitTimes(0));
+                    got.push(byte);
+                }
+                Some(e) => panic!("unexpected {e:?}"),
+                None => assert!(port.wait_readable(Duration::from_secs(2)).unwrap()),
+            }
+        }
+        assert_eq!(got, [0x10, 0x02, 0xFF]);
+        port.take_error().unwrap();
+
+        // Due a little later: the transmitter waits for the instant, then writes.
+        let t = StdInstant::now();
+        let not_before = port.ticks().wrapping_add(2_000);
+        port.start_tx(&[0xE5], not_before).unwrap();
+        assert!(t.elapsed() >= Duration::from_millis(2));
+        assert!(!port.tx_busy());
+        // The peer is raw with VMIN = 0: a read may come back empty before the byte is there.
+        let mut b = [0u8; 1];
+        let deadline = StdInstant::now() + Duration::from_secs(2);
+        while peer.read(&mut b).unwrap() == 0 {
+            assert!(StdInstant::now() < deadline, "the response never reached the peer");
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        assert_eq!(b, [0xE5]);
+        assert_eq!(port.start_tx(&[], 0), Err(TxError::BadLength));
+
+        port.set_rate(Baudrate::B1500k).unwrap();
+        assert_eq!(port.rate(), Baudrate::B1500k);
+    }
+}
