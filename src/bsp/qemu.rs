@@ -416,17 +416,19 @@ fn publish_stats(stats: &LineStats, framer: &Framer) {
     }
 }
 
-impl QemuLine {
-    /// The (nominal) line rate.
-    pub fn baud(&self) -> Baudrate {
+/// The line's rate is its port's (QEMU ignores it; the QEMU build runs at a fixed rate,
+/// `FixedRate`).
+impl LineRate for QemuLine {
+    fn rate(&self) -> Baudrate {
         self.port.rate()
     }
 
-    /// Switch the rate (QEMU ignores it).
-    pub fn set_baud(&mut self, rate: Baudrate) -> Result<(), UnsupportedRate> {
+    fn set_rate(&mut self, rate: Baudrate) -> Result<(), UnsupportedRate> {
         self.port.set_rate(rate)
     }
+}
 
+impl QemuLine {
     /// Counters.
     pub fn stats(&self) -> LineStats {
         self.stats
