@@ -2,8 +2,8 @@
 //!
 //! Wiring only, no protocol decisions (ARCHITECTURE §3): bytes from the PROFIBUS line go
 //! into a [`pbcard::node::Node`] (framer → FDL station → DP slave, DP-V1); the response comes
-//! back as bytes for the board's [`bsp::BusPort`]. Behind the node sits the card
-//! ([`CardApp`]): the F411 build without `sim-drive` runs [`pbcard::app::Card`] alone (the
+//! back as bytes for the board's line port (the board contract `pbcard::phy::port`, README
+//! "Hardware"). Behind the node sits the card ([`CardApp`]): the F411 build without `sim-drive` runs [`pbcard::app::Card`] alone (the
 //! DPM image, the card-side link, the profile layer; the drive's control board is the SPI
 //! master and writes the host blocks, block "DPM SPI transport" below; nothing of
 //! `pbcard::drive` is linked, `scripts/footprint.sh`). QEMU and the F411 with the `sim-drive`
@@ -114,6 +114,7 @@ mod app {
 
     use crate::CardApp;
     use pbcard::dp::{DpSlave, DpState, Events};
+    use pbcard::dpm::spi::SlavePort;
     use pbcard::dpm::CommState;
     #[cfg(any(feature = "qemu", feature = "sim-drive"))]
     use pbcard::drive::DriveConfig;
@@ -850,15 +851,51 @@ mod app {
     /// The SPI port (QEMU: none; its transport is in-process, `pbcard::dpm::spi::Loopback`).
     #[cfg(not(feature = "board-f411"))]
     type DpmSpiPort = NoSpiPort;
-    /// QEMU has no SPI port.
+    /// QEMU has no SPI port: its DPM transport is in process (`pbcard::dpm::spi::Loopback`
+    /// inside `pbcard::app::Application`).
     #[cfg(not(feature = "board-f411"))]
     pub struct NoSpiPort;
-    /// A received SPI frame (QEMU: none).
-    #[cfg(feature = "board-f411")]
-    type DpmSpiFrame = crate::bsp::spi::Frame;
-    /// A received SPI frame (QEMU: none).
+    /// No transaction and no reply buffer ever exists on a board without an SPI port.
     #[cfg(not(feature = "board-f411"))]
-    type DpmSpiFrame = ();
+    pub enum NoSpiFrame {}
+    #[cfg(not(feature = "board-f411"))]
+    impl AsRef<[u8]> for NoSpiFrame {
+        fn as_ref(&self) -> &[u8] {
+            match *self {}
+        }
+    }
+    #[cfg(not(feature = "board-f411"))]
+    impl AsMut<[u8]> for NoSpiFrame {
+        fn as_mut(&mut self) -> &mut [u8] {
+            match *self {}
+        }
+    }
+    /// The board contract's DPM transport on a board without one (the documented fallback):
+    /// no transaction ever ends, no reply buffer, no IRQ line.
+    #[cfg(not(feature = "board-f411"))]
+    impl SlavePort for NoSpiPort {
+        type Frame = NoSpiFrame;
+        type Reply = NoSpiFrame;
+        fn on_nss_rise(&mut self) -> Option<NoSpiFrame> {
+            None
+        }
+        fn reply_buffer(&mut self) -> Option<NoSpiFrame> {
+            None
+        }
+        fn reply_ready(&mut self, buf: NoSpiFrame, _len: usize) -> bool {
+            match buf {}
+        }
+        fn give_back(&mut self, frame: NoSpiFrame) {
+            match frame {}
+        }
+        fn drop_frame(&mut self, frame: NoSpiFrame) {
+            match frame {}
+        }
+        fn set_irq(&mut self, _asserted: bool) {}
+    }
+    /// A received SPI frame (QEMU: none).
+    #[cfg_attr(not(feature = "board-f411"), allow(dead_code))]
+    type DpmSpiFrame = <DpmSpiPort as SlavePort>::Frame;
 
     /// Bring up the SPI port on the peripherals the board handed over and start the IRQ
     /// task (from `init`).

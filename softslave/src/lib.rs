@@ -36,7 +36,7 @@ use pbcard::time::{BitTimes, Instant};
 
 pub use args::{parse_args, ArgError, Command, Options, USAGE};
 pub use monitor::hex;
-use parmrk::{Parmrk, Rx};
+use pbcard::phy::port::{CharReceiver, LineEvent, Transmitter};
 use serial::Port;
 pub use station::{ConfigError, Station, StationConfig};
 
@@ -127,13 +127,13 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
     restored.into_iter().for_each(&mut emit);
     emit("waiting for a DP master (Ctrl-C stops)".into());
 
-    let mut decoder = Parmrk::new(port.parity());
+    // The port's bit timer and its characters' times count from the run's start.
+    port.set_epoch(t0);
     let to_us = |d: pbcard::time::Duration| Duration::from_micros(d.as_micros());
     let idle =
         opts.idle.unwrap_or_else(|| to_us(rate.bits_to_duration(BitTimes::TSYN.0)).max(Duration::from_millis(10)));
     let now_pb = |t: StdInstant| Instant::from_micros(t.duration_since(t0).as_micros() as u64);
 
-    let mut buf = [0u8; 512];
     let mut last_activity = t0;
     let mut idle_reported = true;
     let mut tx: Option<(StdInstant, Vec<u8>)> = None;
@@ -155,17 +155,20 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
         }
         let mut got = false;
         if port.wait_readable(timeout)? {
-            loop {
-                let n = port.read(&mut buf)?;
-                if n == 0 {
-                    break;
-                }
+            // The line contract's receiver (`pbcard::phy::port::CharReceiver`): every
+            // character of one read with the read's time; a read error ends the events.
+            while let Some(rx) = port.poll_event() {
+                let (now, t) = match rx {
+                    LineEvent::Byte { at, .. } => (at, t0 + Duration::from_micros(at.as_micros())),
+                    _ => {
+                        let t = StdInstant::now();
+                        (now_pb(t), t)
+                    }
+                };
                 got = true;
-                let t = StdInstant::now();
                 last_activity = t;
                 idle_reported = false;
-                let now = now_pb(t);
-                decoder.feed(&buf[..n], |rx| {
+                {
                     // A character after the request and before its answer: the line was not
                     // idle after the request, so it is not answered (module documentation).
                     if let Some((_, r)) = tx.take() {
@@ -179,7 +182,7 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
                         }
                     }
                     match rx {
-                        Rx::Byte(b) => {
+                        LineEvent::Byte { byte: b, .. } => {
                             for (i, st) in stations.iter_mut().enumerate() {
                                 let frames = st.framer.stats().frames;
                                 let response = st.on_byte(now, b);
@@ -195,10 +198,12 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
                                 }
                             }
                         }
-                        Rx::Error => stations.iter_mut().for_each(|st| st.framer.line_error()),
+                        LineEvent::Error(_) => stations.iter_mut().for_each(|st| st.framer.line_error()),
+                        LineEvent::TxDone => {}
                     }
-                });
+                }
             }
+            port.take_error()?;
         }
         let now = StdInstant::now();
         if !got && !idle_reported && now.saturating_duration_since(last_activity) >= idle {
@@ -230,7 +235,10 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
                 }
                 let (_, bytes) = tx.take().unwrap_or((at, Vec::new()));
                 let sent = StdInstant::now();
-                port.write_all(&bytes)?;
+                // Due now: the contract's transmitter writes at once (`at` has passed).
+                if port.start_tx(&bytes, port.ticks_at(at)).is_err() {
+                    port.take_error()?;
+                }
                 responses = responses.wrapping_add(1);
                 let late = (sent - at).as_micros() as u64;
                 if let Some(st) = stations.get_mut(tx_station) {

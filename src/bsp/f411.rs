@@ -3,7 +3,7 @@
 //!
 //! USART1 is programmed through the PAC directly: 9-bit word with parity (= 8 data bits +
 //! even parity, PROFIBUS's 11-bit character), 1 stop bit, at the rate the autobaud search asks
-//! for ([`DmaLine::set_baud`], divisors from `pbcard::phy::divisor`).
+//! for ([`DmaLine::set_rate`], divisors from `pbcard::phy::divisor`).
 //!
 //! **Receive.** DMA2 stream 2 channel 4 copies every character into a circular
 //! [`RX_RING`]-byte buffer, independently of the CPU (it is stopped only for a rate switch
@@ -26,12 +26,12 @@
 //! interrupt reads SR only; the DMA's own read of DR for the next character completes the
 //! sequence. Until then the flag stays set, so its interrupt is switched off and the next
 //! segment's first RXNE switches it on again ([`RxIrqGate`], host-tested in
-//! `pbcard::phy::timing`). DR is read by the CPU only in [`DmaLine::set_baud`], with the
+//! `pbcard::phy::timing`). DR is read by the CPU only in [`DmaLine::set_rate`], with the
 //! receive DMA stopped. Cost: one more (short) interrupt per segment.
 //!
 //! At each IDLE the TIM5 compare 2 is armed **first** — before the segment is copied or cut —
 //! at [`LineTicks::tsyn_check_at`] (the per-rate tick tables are computed once in
-//! [`DmaLine::new`] and picked at [`DmaLine::set_baud`]: one addition, no division), with the ring position of the segment's end: if the DMA
+//! [`DmaLine::new`] and picked at [`DmaLine::set_rate`]: one addition, no division), with the ring position of the segment's end: if the DMA
 //! position has not moved from it by then, the line has been idle for at least T_SYN (33 bit
 //! times) and the receiver accepts start delimiters again ([`Receiver::on_tsyn`]). A compare
 //! that has already passed when it is armed ([`compare_passed`]) is fired at once by a
@@ -78,7 +78,7 @@
 //! from flash to RAM, so they run from SRAM without flash wait states or ART cache misses
 //! (lld inserts the long-branch thunks between the two regions). Still in flash: the
 //! RTIC vector stubs, `memcpy` (compiler_builtins) of the segment and queue copies, the panic
-//! paths, and `set_baud` (the restart command). A flash stall is not bridged by this — the
+//! paths, and `set_rate` (the restart command). A flash stall is not bridged by this — the
 //! vector table is in flash — which is why the line is silenced around flash writes.
 //!
 //! **Flash stalls** (issue 11 item 3b). Programming or erasing the address journal (low
@@ -111,7 +111,7 @@ use stm32f4xx_hal::rcc::{Enable, Reset};
 
 use super::clock::SysTickClock;
 use super::divisor::usart_brr;
-use super::{DriverEnable, UnsupportedRate};
+use super::{BitTimer, DriverEnable, LineRate, Transmitter, TxError, UnsupportedRate};
 
 /// USART1 TX pin (AF7).
 pub type TxPin = PA9<stm32f4xx_hal::gpio::Alternate<7>>;
@@ -217,7 +217,7 @@ pub struct DmaLine {
     de: DePin,
     pclk_hz: u32,
     clock: BitClock,
-    /// The tick table of `rate` (taken from `tables` at `set_baud`).
+    /// The tick table of `rate` (taken from `tables` at `set_rate`).
     table: LineTicks,
     /// The tick tables of every rate, computed once in `new` (the line's only divisions —
     /// 64-bit ones — happen there, never in a line interrupt).
@@ -364,7 +364,7 @@ impl DmaLine {
             silent: false,
         };
         line.usart.cr2().write(|w| w.stop().stop1());
-        line.set_baud(rate)?;
+        line.set_rate(rate)?;
         Ok(line)
     }
 
@@ -378,16 +378,6 @@ impl DmaLine {
     /// The APB2 clock the divisors are computed from.
     pub fn pclk_hz(&self) -> u32 {
         self.pclk_hz
-    }
-
-    /// The bit timer.
-    pub fn bit_clock(&self) -> BitClock {
-        self.clock
-    }
-
-    /// The current line rate.
-    pub fn baud(&self) -> Baudrate {
-        self.rate
     }
 
     /// Counters (the published atomics, [`monitor::stats`]).
@@ -414,12 +404,6 @@ impl DmaLine {
         }
     }
 
-    /// TIM5 now.
-    #[inline(always)]
-    pub fn ticks(&self) -> u32 {
-        self.tim.cnt().read().bits()
-    }
-
     /// Whether the receive DMA and the USART are running as programmed (supervision: the
     /// housekeeping task feeds the IWDG only then).
     pub fn is_healthy(&self) -> bool {
@@ -433,43 +417,6 @@ impl DmaLine {
     #[inline(always)]
     fn ring_pos(&self) -> usize {
         ring_pos(&self.dma)
-    }
-
-    /// Switch the line to `rate`: abort a response, reprogram the divisor, restart the
-    /// receiver (whatever was received is dropped; T_SYN is awaited again).
-    pub fn set_baud(&mut self, rate: Baudrate) -> Result<(), UnsupportedRate> {
-        // Divisor and tick table from the tables computed in `new` (no division here, so no
-        // line interrupt ever reaches a 64-bit division, not even the restart after a flash
-        // write).
-        let i = Baudrate::ALL.iter().position(|&r| r == rate).ok_or(UnsupportedRate(rate))?;
-        let (over8, brr) = self.divisors[i].ok_or(UnsupportedRate(rate))?;
-        self.abort_tx();
-        self.stop_rx_dma();
-        // OVER8 may only change while UE = 0 (RM0383 §19.6.4): disable, program, enable.
-        self.usart.cr1().write(|w| w.ue().clear_bit());
-        self.usart.cr3().reset();
-        self.usart.brr().write(|w| w.div_mantissa().set(brr >> 4).div_fraction().set((brr & 0xF) as u8));
-        // The receive interrupts (RXNEIE, IDLEIE, PEIE, EIE) are the gate's ([`RxIrqGate`]).
-        self.usart.cr1().write(|w| {
-            w.over8().bit(over8);
-            w.m().m9(); // 9-bit word: 8 data bits + the parity bit
-            w.pce().enabled().ps().even();
-            w.te().enabled().re().enabled();
-            w.ue().enabled()
-        });
-        // Receive by DMA.
-        self.usart.cr3().write(|w| w.dmar().enabled());
-        // The receive DMA is stopped: the CPU owns the receiver, so this DR read (clearing
-        // stale IDLE / error flags) takes nothing from the DMA.
-        let _ = self.usart.sr().read();
-        let _ = self.usart.dr().read();
-        self.rate = rate;
-        self.table = self.tables[i];
-        self.start_rx_dma();
-        // Resynchronise: T_SYN + one character of quiet from now proves T_SYN.
-        let now = self.ticks();
-        self.arm_tsyn_check(self.table.tsyn_check_after_stop(now), 0);
-        Ok(())
     }
 
     fn stop_rx_dma(&mut self) {
@@ -503,12 +450,12 @@ impl DmaLine {
     /// proof armed from now).
     pub fn restart_rx(&mut self) {
         self.silent = false;
-        let _ = self.set_baud(self.rate);
+        let _ = self.set_rate(self.rate);
     }
 
     /// The line silent for a flash operation: a response in flight aborted (DE low, transmit
     /// DMA off), the receiver and its interrupts off, the receive DMA stopped, both compares
-    /// off. Only [`DmaLine::restart_rx`] (or `set_baud`) brings it back.
+    /// off. Only [`DmaLine::restart_rx`] (or `set_rate`) brings it back.
     fn silence(&mut self) {
         self.abort_tx();
         self.usart.cr1().modify(|_, w| w.re().disabled().rxneie().disabled().idleie().disabled().peie().disabled());
@@ -533,7 +480,7 @@ impl DmaLine {
             if let Some(rate) = self.rate_tap.as_mut().and_then(|t| t.take_switch()) {
                 // Every rate has a divisor at the board's PCLK2 (`new` computed them; the
                 // keeper's caller logs an unreachable one): an error leaves the old rate.
-                let _ = self.set_baud(rate);
+                let _ = self.set_rate(rate);
             }
         }
     }
@@ -743,6 +690,87 @@ impl DmaLine {
     }
 }
 
+impl LineRate for DmaLine {
+    fn rate(&self) -> Baudrate {
+        self.rate
+    }
+
+    /// Abort a response, reprogram the divisor, restart the receiver (whatever was received
+    /// is dropped; T_SYN is awaited again, proven by a compare armed from now).
+    fn set_rate(&mut self, rate: Baudrate) -> Result<(), UnsupportedRate> {
+        // Divisor and tick table from the tables computed in `new` (no division here, so no
+        // line interrupt ever reaches a 64-bit division, not even the restart after a flash
+        // write).
+        let i = Baudrate::ALL.iter().position(|&r| r == rate).ok_or(UnsupportedRate(rate))?;
+        let (over8, brr) = self.divisors[i].ok_or(UnsupportedRate(rate))?;
+        self.abort_tx();
+        self.stop_rx_dma();
+        // OVER8 may only change while UE = 0 (RM0383 §19.6.4): disable, program, enable.
+        self.usart.cr1().write(|w| w.ue().clear_bit());
+        self.usart.cr3().reset();
+        self.usart.brr().write(|w| w.div_mantissa().set(brr >> 4).div_fraction().set((brr & 0xF) as u8));
+        // The receive interrupts (RXNEIE, IDLEIE, PEIE, EIE) are the gate's ([`RxIrqGate`]).
+        self.usart.cr1().write(|w| {
+            w.over8().bit(over8);
+            w.m().m9(); // 9-bit word: 8 data bits + the parity bit
+            w.pce().enabled().ps().even();
+            w.te().enabled().re().enabled();
+            w.ue().enabled()
+        });
+        // Receive by DMA.
+        self.usart.cr3().write(|w| w.dmar().enabled());
+        // The receive DMA is stopped: the CPU owns the receiver, so this DR read (clearing
+        // stale IDLE / error flags) takes nothing from the DMA.
+        let _ = self.usart.sr().read();
+        let _ = self.usart.dr().read();
+        self.rate = rate;
+        self.table = self.tables[i];
+        self.start_rx_dma();
+        // Resynchronise: T_SYN + one character of quiet from now proves T_SYN.
+        let now = self.ticks();
+        self.arm_tsyn_check(self.table.tsyn_check_after_stop(now), 0);
+        Ok(())
+    }
+}
+
+/// TIM5, free-running at the timer clock (96 MHz): compare 1 starts a delayed response,
+/// compare 2 proves T_SYN (module documentation).
+impl BitTimer for DmaLine {
+    fn clock(&self) -> BitClock {
+        self.clock
+    }
+
+    #[inline(always)]
+    fn ticks(&self) -> u32 {
+        self.tim.cnt().read().bits()
+    }
+}
+
+/// The DMA transmitter (DMA2 stream 7, DE on PA8, TC releases it). The line's own answers go
+/// through `Sender::respond` (`pbcard::phy::line::tx_plan` first: line active, max_TSDR),
+/// which starts them the same way.
+impl Transmitter for DmaLine {
+    /// A line that may not transmit (after a crystal failure: listen only) or is silenced for
+    /// a flash write refuses with [`TxError::Busy`]. A delayed start is dropped if a character
+    /// arrives before it.
+    fn start_tx(&mut self, bytes: &[u8], not_before: u32) -> Result<(), TxError> {
+        if self.tx != Tx::Idle || !self.transmit || self.silent {
+            return Err(TxError::Busy);
+        }
+        if bytes.is_empty() || bytes.len() > MAX_FRAME_LEN {
+            return Err(TxError::BadLength);
+        }
+        let at = (!compare_passed(self.ticks(), not_before)).then_some(not_before);
+        let ring_pos = self.ring_pos() as u16;
+        sender!(self).send(bytes, at, ring_pos);
+        Ok(())
+    }
+
+    fn tx_busy(&self) -> bool {
+        self.tx != Tx::Idle
+    }
+}
+
 impl Sender<'_> {
     /// Send `bytes` as the response to `request` (the fast path's or the core's answer), no earlier
     /// than `min_tsdr` after its last stop bit and no later than `max_tsdr` — or not at all
@@ -766,26 +794,33 @@ impl Sender<'_> {
             TxPlan::Drop(TxDrop::LineActive) => add(DROPPED_LINE_ACTIVE, 1),
             TxPlan::Drop(TxDrop::TooLate) => add(DROPPED_TOO_LATE, 1),
             TxPlan::Drop(TxDrop::Busy) => add(DROPPED_BUSY, 1),
-            TxPlan::Now | TxPlan::At(_) => {
-                self.buf[..bytes.len()].copy_from_slice(bytes);
-                let st = self.dma.st(TX_STREAM);
-                st.ndtr().write(|w| unsafe { w.bits(bytes.len() as u32) });
-                if let TxPlan::At(t) = plan {
-                    *self.tx = Tx::Armed { ring_pos: request.seg_end };
-                    self.tim.ccr(0).write(|w| unsafe { w.bits(t) });
-                    self.tim.sr().write(|w| unsafe { w.bits(!TIM_CC1) });
-                    self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() | TIM_CC1) });
-                    // The compare may have passed while it was being armed.
-                    if compare_passed(self.tim.cnt().read().bits(), t) {
-                        self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() & !TIM_CC1) });
-                        self.start_now();
-                    }
-                } else {
-                    self.start_now();
-                }
-            }
+            TxPlan::Now => self.send(bytes, None, request.seg_end),
+            TxPlan::At(t) => self.send(bytes, Some(t), request.seg_end),
         }
         plan
+    }
+
+    /// Copy `bytes` (checked: 1..=MAX_FRAME_LEN) into the transmit buffer and start them now
+    /// (`at` = `None`) or arm TIM5 compare 1 at `at`; the armed start is dropped when the ring
+    /// has moved from `ring_pos` by then (`DmaLine::on_timer`).
+    #[inline(always)]
+    fn send(&mut self, bytes: &[u8], at: Option<u32>, ring_pos: u16) {
+        self.buf[..bytes.len()].copy_from_slice(bytes);
+        let st = self.dma.st(TX_STREAM);
+        st.ndtr().write(|w| unsafe { w.bits(bytes.len() as u32) });
+        if let Some(t) = at {
+            *self.tx = Tx::Armed { ring_pos };
+            self.tim.ccr(0).write(|w| unsafe { w.bits(t) });
+            self.tim.sr().write(|w| unsafe { w.bits(!TIM_CC1) });
+            self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() | TIM_CC1) });
+            // The compare may have passed while it was being armed.
+            if compare_passed(self.tim.cnt().read().bits(), t) {
+                self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() & !TIM_CC1) });
+                self.start_now();
+            }
+        } else {
+            self.start_now();
+        }
     }
 
     /// Drive the bus and start the transmit DMA (NDTR already set, data in `tx_buf`).

@@ -52,7 +52,11 @@ use stm32f4xx_hal::rcc::{self, Enable, RccExt, Reset};
 
 use super::clock::{self, SysTickClock};
 use super::divisor::usart_brr;
-use super::{BusPort, Clock, LineError, LineEvent, TxError, UnsupportedRate};
+use pbcard::phy::line::BitClock;
+
+use super::{
+    BitTimer, CharReceiver, Clock, DriverEnable, LineError, LineEvent, LineRate, Transmitter, TxError, UnsupportedRate,
+};
 
 /// Board name for the boot log.
 pub const NAME: &str = "QEMU netduinoplus2 (STM32F405), USART1 per byte, no line timing";
@@ -85,7 +89,7 @@ pub fn init(dp: pac::Peripherals, syst: SYST, rate: Baudrate) -> Board {
     #[cfg(feature = "bench")]
     bench::start(dp.TIM2, &mut rcc);
     let port = QemuUsart1::new(dp.USART1, clock, pclk2, rate, &mut rcc);
-    defmt::info!("USART1 {} (QEMU ignores the rate), HSI {=u32} Hz, SysTick {=u32} Hz", port.baud(), pclk2, SYSTICK_HZ);
+    defmt::info!("USART1 {} (QEMU ignores the rate), HSI {=u32} Hz, SysTick {=u32} Hz", port.rate(), pclk2, SYSTICK_HZ);
     Board { line: QemuLine::new(port), clock }
 }
 
@@ -412,17 +416,19 @@ fn publish_stats(stats: &LineStats, framer: &Framer) {
     }
 }
 
+/// The line's rate is its port's (QEMU ignores it; the QEMU build runs at a fixed rate,
+/// `FixedRate`).
+impl LineRate for QemuLine {
+    fn rate(&self) -> Baudrate {
+        self.port.rate()
+    }
+
+    fn set_rate(&mut self, rate: Baudrate) -> Result<(), UnsupportedRate> {
+        self.port.set_rate(rate)
+    }
+}
+
 impl QemuLine {
-    /// The (nominal) line rate.
-    pub fn baud(&self) -> Baudrate {
-        self.port.baud()
-    }
-
-    /// Switch the rate (QEMU ignores it).
-    pub fn set_baud(&mut self, rate: Baudrate) -> Result<(), UnsupportedRate> {
-        self.port.set_baud(rate)
-    }
-
     /// Counters.
     pub fn stats(&self) -> LineStats {
         self.stats
@@ -507,7 +513,10 @@ enum Tx {
     Draining,
 }
 
-/// USART1 as a [`BusPort`] under QEMU: one interrupt per character, no timing.
+/// USART1 under QEMU: one interrupt per character, no timing — the board contract's
+/// [`LineRate`], [`CharReceiver`] and [`Transmitter`], with the fallbacks of a port without a
+/// bit timer ([`BitTimer`]: the protocol clock's microseconds) and without DE
+/// ([`DriverEnable`]: no-ops).
 pub struct QemuUsart1<C: Clock> {
     usart: USART1,
     clock: C,
@@ -544,7 +553,7 @@ impl<C: Clock> QemuUsart1<C> {
         port.usart.cr2().write(|w| w.stop().stop1());
         port.usart.cr3().reset();
         // Every rate is "supported": QEMU ignores the divisor.
-        let _ = port.set_baud(rate);
+        let _ = port.set_rate(rate);
         port
     }
 
@@ -599,8 +608,9 @@ impl<C: Clock> QemuUsart1<C> {
     }
 }
 
-impl<C: Clock> BusPort for QemuUsart1<C> {
-    fn set_baud(&mut self, rate: Baudrate) -> Result<(), UnsupportedRate> {
+impl<C: Clock> LineRate for QemuUsart1<C> {
+    /// QEMU ignores the divisor: every rate is accepted.
+    fn set_rate(&mut self, rate: Baudrate) -> Result<(), UnsupportedRate> {
         self.abort_tx();
         self.usart.cr1().write(|w| w.ue().clear_bit());
         // QEMU ignores BRR; program the nearest divisor the HSI clock allows, for a real F405.
@@ -621,12 +631,34 @@ impl<C: Clock> BusPort for QemuUsart1<C> {
         Ok(())
     }
 
-    fn baud(&self) -> Baudrate {
+    fn rate(&self) -> Baudrate {
         self.rate
     }
+}
 
-    /// Starts at once: there is no line timing to keep under QEMU (see the module comment).
-    fn start_tx(&mut self, bytes: &[u8], _min_gap: BitTimes) -> Result<(), TxError> {
+/// Fallback: QEMU has no bit timer (and no line timing to keep): the counter is the protocol
+/// clock's microseconds ([`Clock::now`], truncated to 32 bits), 1 MHz.
+impl<C: Clock> BitTimer for QemuUsart1<C> {
+    fn clock(&self) -> BitClock {
+        BitClock { hz: 1_000_000 }
+    }
+
+    fn ticks(&self) -> u32 {
+        self.clock.now().as_micros() as u32
+    }
+}
+
+/// Fallback: QEMU's netduinoplus2 has no transceiver: DE is a no-op.
+impl<C: Clock> DriverEnable for QemuUsart1<C> {
+    fn enable(&mut self) {}
+    fn disable(&mut self) {}
+}
+
+impl<C: Clock> Transmitter for QemuUsart1<C> {
+    /// Fallback: starts at once, whatever `not_before` says — there is no compare to wait for
+    /// and no line timing to keep under QEMU (the module comment); `QemuLine` stages its
+    /// answers for a quiet window instead ([`QemuUsart1::stage_tx`]).
+    fn start_tx(&mut self, bytes: &[u8], _not_before: u32) -> Result<(), TxError> {
         self.stage_tx(bytes)?;
         self.start_staged();
         Ok(())
@@ -635,7 +667,9 @@ impl<C: Clock> BusPort for QemuUsart1<C> {
     fn tx_busy(&self) -> bool {
         self.tx != Tx::Idle
     }
+}
 
+impl<C: Clock> CharReceiver for QemuUsart1<C> {
     /// Order matters under QEMU, where TC is set the moment the last character is written and
     /// the host may have sent the next request before this handler gets to it: the end of our
     /// response is reported before received characters (so a request that arrives meanwhile

@@ -51,7 +51,7 @@
 
 use core::sync::atomic::{compiler_fence, Ordering};
 
-use pbcard::dpm::spi::{PipelineStats, ReplyPipeline, SpiStats, WireImage, MAX_REPLY, MAX_TRANSACTION};
+use pbcard::dpm::spi::{PipelineStats, ReplyPipeline, SlavePort, SpiStats, WireImage, MAX_REPLY, MAX_TRANSACTION};
 use pbcard::dpm::Dpm;
 use rtic::Mutex;
 use stm32f4xx_hal::gpio::{Alternate, Edge, ExtiPin, Output, PinState, PushPull, Speed, PB0, PB12, PB13, PB14, PB15};
@@ -78,6 +78,12 @@ const TX_STREAM: usize = 4;
 pub struct Frame {
     buf: &'static mut RxBuf,
     len: usize,
+}
+
+impl AsRef<[u8]> for Frame {
+    fn as_ref(&self) -> &[u8] {
+        self.bytes()
+    }
 }
 
 impl Frame {
@@ -118,61 +124,11 @@ pub struct SpiPort {
 }
 
 impl SpiPort {
-    /// Handle the end of a transaction (NSS rising; call from the EXTI15_10 interrupt):
-    /// re-arm for the next one and return what was received, if the frame task can take it.
-    pub fn on_nss_rise(&mut self) -> Option<Frame> {
-        self.nss.clear_interrupt_pending_bit();
-        let remaining = usize::from(self.dma.st(RX_STREAM).ndtr().read().ndt().bits());
-        let len = RX_LEN.saturating_sub(remaining);
-        self.stop();
-        let mut frame = None;
-        if len == 0 {
-            self.stats.empty = self.stats.empty.wrapping_add(1);
-        } else {
-            self.stats.transactions = self.stats.transactions.wrapping_add(1);
-            match (self.rx_spare.take(), self.rx.take()) {
-                (Some(spare), Some(full)) => {
-                    self.rx = Some(spare);
-                    frame = Some(Frame { buf: full, len });
-                }
-                (spare, full) => {
-                    // The frame task still holds the spare: drop this transaction.
-                    self.rx_spare = spare;
-                    self.rx = full;
-                    self.stats.dropped = self.stats.dropped.wrapping_add(1);
-                }
-            }
-        }
-        self.tx.transaction_end();
-        self.start();
-        frame
-    }
-
-    /// A buffer for the next reply (`None` only if the frame task already holds both).
-    pub fn reply_buffer(&mut self) -> Option<&'static mut TxBuf> {
-        self.tx.buffer()
-    }
-
     /// Whether no transaction has begun since the last NSS rise: NSS high and no byte
     /// received.
     fn idle(&self) -> bool {
         let remaining = usize::from(self.dma.st(RX_STREAM).ndtr().read().ndt().bits());
         self.nss.is_high() && remaining == RX_LEN
-    }
-
-    /// The reply in `buf` (its first `len` bytes; the rest is zeroed here) goes out in the
-    /// next transaction if that has not begun yet; else it is late and discarded (the
-    /// master sees `0x00` and repeats its request). Returns whether it was armed.
-    pub fn reply_ready(&mut self, buf: &'static mut TxBuf, len: usize) -> bool {
-        buf[len.min(TX_LEN)..].fill(0);
-        let idle = self.idle();
-        if self.tx.ready(buf, idle).is_none() {
-            return false;
-        }
-        // Re-program SPI2 with the TX DMA on the armed reply (nothing was clocked yet).
-        self.stop();
-        self.start();
-        true
     }
 
     /// A CYCLIC reply rebuilt after a card step (`SpiSlave::refresh` on a copy of the armed
@@ -195,27 +151,6 @@ impl SpiPort {
     /// the request the frame task handled last.
     fn generation(&self) -> u32 {
         self.stats.transactions.wrapping_add(self.stats.empty)
-    }
-
-    /// The frame task is done with a received frame.
-    pub fn give_back(&mut self, frame: Frame) {
-        self.rx_spare = Some(frame.buf);
-    }
-
-    /// A received frame nobody could handle (the frame task was still running): count it
-    /// dropped and take its buffer back.
-    pub fn drop_frame(&mut self, frame: Frame) {
-        self.stats.dropped = self.stats.dropped.wrapping_add(1);
-        self.give_back(frame);
-    }
-
-    /// Drive the IRQ line: `true` = asserted (low).
-    pub fn set_irq(&mut self, asserted: bool) {
-        if asserted {
-            self.irq.set_low();
-        } else {
-            self.irq.set_high();
-        }
     }
 
     /// The port's counters.
@@ -326,6 +261,83 @@ pub struct SpiParts {
     pub miso: PB14,
     /// SPI2_MOSI.
     pub mosi: PB15,
+}
+
+/// The board contract's DPM transport (`pbcard::dpm::spi::SlavePort`): SPI2 slave + DMA1.
+impl SlavePort for SpiPort {
+    type Frame = Frame;
+    type Reply = &'static mut TxBuf;
+
+    /// Handle the end of a transaction (NSS rising; call from the EXTI15_10 interrupt):
+    /// re-arm for the next one and return what was received, if the frame task can take it.
+    fn on_nss_rise(&mut self) -> Option<Frame> {
+        self.nss.clear_interrupt_pending_bit();
+        let remaining = usize::from(self.dma.st(RX_STREAM).ndtr().read().ndt().bits());
+        let len = RX_LEN.saturating_sub(remaining);
+        self.stop();
+        let mut frame = None;
+        if len == 0 {
+            self.stats.empty = self.stats.empty.wrapping_add(1);
+        } else {
+            self.stats.transactions = self.stats.transactions.wrapping_add(1);
+            match (self.rx_spare.take(), self.rx.take()) {
+                (Some(spare), Some(full)) => {
+                    self.rx = Some(spare);
+                    frame = Some(Frame { buf: full, len });
+                }
+                (spare, full) => {
+                    // The frame task still holds the spare: drop this transaction.
+                    self.rx_spare = spare;
+                    self.rx = full;
+                    self.stats.dropped = self.stats.dropped.wrapping_add(1);
+                }
+            }
+        }
+        self.tx.transaction_end();
+        self.start();
+        frame
+    }
+
+    /// A buffer for the next reply (`None` only if the frame task already holds both).
+    fn reply_buffer(&mut self) -> Option<&'static mut TxBuf> {
+        self.tx.buffer()
+    }
+
+    /// The reply in `buf` (its first `len` bytes; the rest is zeroed here) goes out in the
+    /// next transaction if that has not begun yet; else it is late and discarded (the
+    /// master sees `0x00` and repeats its request). Returns whether it was armed.
+    fn reply_ready(&mut self, buf: &'static mut TxBuf, len: usize) -> bool {
+        buf[len.min(TX_LEN)..].fill(0);
+        let idle = self.idle();
+        if self.tx.ready(buf, idle).is_none() {
+            return false;
+        }
+        // Re-program SPI2 with the TX DMA on the armed reply (nothing was clocked yet).
+        self.stop();
+        self.start();
+        true
+    }
+
+    /// The frame task is done with a received frame.
+    fn give_back(&mut self, frame: Frame) {
+        self.rx_spare = Some(frame.buf);
+    }
+
+    /// A received frame nobody could handle (the frame task was still running): count it
+    /// dropped and take its buffer back.
+    fn drop_frame(&mut self, frame: Frame) {
+        self.stats.dropped = self.stats.dropped.wrapping_add(1);
+        self.give_back(frame);
+    }
+
+    /// Drive the IRQ line: `true` = asserted (low).
+    fn set_irq(&mut self, asserted: bool) {
+        if asserted {
+            self.irq.set_low();
+        } else {
+            self.irq.set_high();
+        }
+    }
 }
 
 /// Between two application steps (the 1 ms IRQ task, at the step's priority), with the

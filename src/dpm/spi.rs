@@ -810,6 +810,46 @@ pub trait SpiBus {
     fn transfer(&mut self, mosi: &[u8], miso: &mut [u8]) -> Result<(), BusFault>;
 }
 
+/// The card's end of the DPM SPI link — the board contract of the DPM transport (issue 13
+/// item 3; README "Hardware"): the board's SPI slave peripheral with its DMA buffers, its
+/// reply pipeline ([`ReplyPipeline`]) and the IRQ line to the host. The protocol is
+/// [`WireImage::handle`]'s; the port only moves the bytes (`docs/SPI.md`).
+///
+/// No method waits for the bus. On the F411 (`bsp/spi.rs`) [`on_nss_rise`](SlavePort::on_nss_rise)
+/// runs in the NSS interrupt (priority 12), the frame task (11) takes a reply buffer, arms the
+/// reply and gives the frame back, and [`set_irq`](SlavePort::set_irq) runs there and in the
+/// 1 ms IRQ task. A platform whose transport is in process (QEMU, the soft slave:
+/// [`Loopback`]) has no port.
+pub trait SlavePort {
+    /// One received transaction, lent by the port until [`give_back`](SlavePort::give_back)
+    /// or [`drop_frame`](SlavePort::drop_frame): its MOSI bytes.
+    type Frame: AsRef<[u8]>;
+    /// A reply buffer lent by the port ([`MAX_REPLY`] bytes).
+    type Reply: AsMut<[u8]>;
+
+    /// A transaction ended (NSS rose): re-arm the receiver for the next one and return what
+    /// was received — `None` for an empty transaction or when the frame task still holds the
+    /// spare buffer (the transaction is dropped and counted).
+    fn on_nss_rise(&mut self) -> Option<Self::Frame>;
+
+    /// A buffer for the next reply (`None` when the frame task already holds every free one).
+    fn reply_buffer(&mut self) -> Option<Self::Reply>;
+
+    /// The reply in the first `len` bytes of `buf` (the rest is zeroed) goes out in the next
+    /// transaction if that has not begun yet; else it is late and discarded (the host sees
+    /// `0x00` and repeats its request). Returns whether it was armed.
+    fn reply_ready(&mut self, buf: Self::Reply, len: usize) -> bool;
+
+    /// The frame task is done with `frame`.
+    fn give_back(&mut self, frame: Self::Frame);
+
+    /// A received frame nobody could handle: counted dropped, its buffer taken back.
+    fn drop_frame(&mut self, frame: Self::Frame);
+
+    /// Drive the IRQ line to the host: `true` = asserted ([`WireImage::irq`]).
+    fn set_irq(&mut self, asserted: bool);
+}
+
 /// Why a host access failed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(target_os = "none", derive(defmt::Format))]

@@ -10,11 +10,13 @@
 //! computes: the per-rate tick table, the "already passed?" check of a compare, the ring
 //! reader and the receive-interrupt gate. [`rate_link`] splits the rate control between the line
 //! interrupt (classifies telegrams, gates answers, carries out rate switches) and a lower task
-//! that owns [`autobaud::Autobaud`], lock-free.
+//! that owns [`autobaud::Autobaud`], lock-free. [`port`] is the board contract of the line:
+//! the traits the F411, QEMU and the soft slave implement for their RS485 ports.
 
 pub mod autobaud;
 pub mod divisor;
 pub mod line;
+pub mod port;
 pub mod rate_link;
 #[cfg(test)]
 mod tests_props;

@@ -55,7 +55,18 @@ use crate::fdl::telegram::MAX_STATION_ADDRESS;
 
 pub mod im;
 
-/// A flash device with two erasable sectors (NOR semantics).
+/// A flash device with two erasable sectors (NOR semantics) — the board contract of the
+/// store (issue 13 item 3; README "Hardware"): the F411's sectors 1 and 2
+/// (`bsp/flash.rs` `JournalFlash`), the soft slave's state file (`softslave/src/state.rs`
+/// `FileFlash`); QEMU has no store (RAM only).
+///
+/// The one method of the contract that **blocks**: an erase or program returns when the
+/// operation is complete (F411: up to ≈ 0.5 s for a 16 KiB erase, every instruction fetch from
+/// flash stalled meanwhile; the file: written through and synced). So the journal runs at the
+/// lowest priority only (the firmware's housekeeping task, after silencing the line; the
+/// soft slave's loop between two steps), never from the line or the protocol core. An
+/// operation cut by a power loss may leave any mix of old and new bits (only 1 → 0 for a
+/// program, only 0 → 1 for an erase): the journal's slot checks rely on that, nothing more.
 pub trait Flash {
     /// Bytes per sector (the journal uses `SECTOR_SIZE / SLOT_SIZE` slots per sector).
     const SECTOR_SIZE: u32;

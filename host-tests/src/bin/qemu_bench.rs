@@ -10,7 +10,7 @@
 //! decoded defmt log and prints a Markdown table (the README's "Benchmark" section).
 //!
 //! Measured path: RTIC handler entry → SR/DR read → `Node::on_byte` (framer, telegram decode
-//! and checksum, FDL station, DP or DP-V1 service, response staging) → `BusPort::start_tx`
+//! and checksum, FDL station, DP or DP-V1 service, response staging) → `QemuUsart1::stage_tx`
 //! (copy into the TX buffer) → first DR write. Not included: interrupt entry latency before
 //! the handler, min_TSDR (the QEMU port does not wait: no line timing), the application's
 //! input update and the DP-V1 work (lower-priority tasks, after the first byte is out).
