@@ -904,8 +904,9 @@ impl<'a> FastPath<'a> {
                 }
             }
             Some(sap::GET_CFG) => {
-                let modules = self.config.modules;
-                let cfg = modules.get(usize::from(st.module)).or(modules.first()).map_or(&[][..], |m| m.cfg);
+                // The staged index is one of the configuration's modules (0 when the slave's
+                // Real_Cfg is none of them).
+                let cfg = self.config.modules.get(usize::from(st.module)).map_or(&[][..], |m| m.cfg);
                 let hdr = Header::response_to(t, ResponseStatus::Dl);
                 match telegram::emit(&mut self.buf, &hdr, cfg) {
                     Ok(n) => n as u16,
