@@ -194,18 +194,20 @@ fn store_words(words: &[AtomicU32], bytes: &[u8]) {
 
 /// Load `dst.len()` bytes from `words` (zeros past their end).
 fn load_words(words: &[AtomicU32], dst: &mut [u8]) {
-    let mut chunks = dst.chunks_exact_mut(4);
-    let mut words = words.iter();
-    for c in &mut chunks {
-        let w = words.next().map_or(0, |w| w.load(Ordering::Relaxed));
-        c.copy_from_slice(&w.to_le_bytes());
+    // The whole words first (no "past the end?" test per word), then the rest: the partial
+    // last word (< 4 bytes), or zeros when the words ran out (a read past the slot's end).
+    let n = (dst.len() / 4).min(words.len());
+    let (head, tail) = dst.split_at_mut(n * 4);
+    for (c, w) in head.chunks_exact_mut(4).zip(words) {
+        c.copy_from_slice(&w.load(Ordering::Relaxed).to_le_bytes());
     }
-    let rem = chunks.into_remainder();
-    if !rem.is_empty() {
-        let w = words.next().map_or(0, |w| w.load(Ordering::Relaxed)).to_le_bytes();
-        for (d, s) in rem.iter_mut().zip(w) {
+    let w = words.get(n).map_or(0, |w| w.load(Ordering::Relaxed)).to_le_bytes();
+    if tail.len() < 4 {
+        for (d, s) in tail.iter_mut().zip(w) {
             *d = s;
         }
+    } else {
+        tail.fill(0);
     }
 }
 
@@ -1156,6 +1158,20 @@ mod tests {
         let data = hex("003f34653434dcc9c9c90403feffffffd3000302004397000207ffffffff07fffb00ede6");
         for mode in [Mode::Sync, Mode::Lag] {
             assert_eq!(check::run(&data, mode, 400).map(|_| ()), Ok(()));
+        }
+    }
+
+    /// `load_words` gives the packed bytes of the words, then zeros past their end, for every
+    /// length (whole words, a partial last word, reads past the end).
+    #[test]
+    fn load_words_reads_packed_bytes_then_zeros() {
+        let words = [AtomicU32::new(0x0403_0201), AtomicU32::new(0x0807_0605)];
+        for n in 0..=13 {
+            let mut dst = [0xEEu8; 13];
+            load_words(&words, &mut dst[..n]);
+            let want: std::vec::Vec<u8> = (1..=13u8).map(|b| if b <= 8 { b } else { 0 }).take(n).collect();
+            assert_eq!(dst[..n], want[..], "{n} bytes");
+            assert!(dst[n..].iter().all(|&b| b == 0xEE), "{n}: nothing written past dst");
         }
     }
 
