@@ -89,10 +89,9 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use heapless::spsc::{Consumer, Producer, Queue};
 
-use crate::card;
-use crate::dp::diag::Status1;
+use crate::dp::diag::{Status1, MAX_DIAG_DATA_LEN};
 use crate::dp::slave_add::SetSlaveAdd;
-use crate::dp::{sap, DpState, Events};
+use crate::dp::{sap, DpState, Events, SlaveConfig, MAX_OUTPUT_LEN};
 use crate::fdl::telegram::{
     self, Decoded, FunctionCode, Header, RequestFunction, ResponseStatus, Telegram, MAX_FRAME_LEN,
 };
@@ -195,18 +194,20 @@ fn store_words(words: &[AtomicU32], bytes: &[u8]) {
 
 /// Load `dst.len()` bytes from `words` (zeros past their end).
 fn load_words(words: &[AtomicU32], dst: &mut [u8]) {
-    let mut chunks = dst.chunks_exact_mut(4);
-    let mut words = words.iter();
-    for c in &mut chunks {
-        let w = words.next().map_or(0, |w| w.load(Ordering::Relaxed));
-        c.copy_from_slice(&w.to_le_bytes());
+    // The whole words first (no "past the end?" test per word), then the rest: the partial
+    // last word (< 4 bytes), or zeros when the words ran out (a read past the slot's end).
+    let n = (dst.len() / 4).min(words.len());
+    let (head, tail) = dst.split_at_mut(n * 4);
+    for (c, w) in head.chunks_exact_mut(4).zip(words) {
+        c.copy_from_slice(&w.load(Ordering::Relaxed).to_le_bytes());
     }
-    let rem = chunks.into_remainder();
-    if !rem.is_empty() {
-        let w = words.next().map_or(0, |w| w.load(Ordering::Relaxed)).to_le_bytes();
-        for (d, s) in rem.iter_mut().zip(w) {
+    let w = words.get(n).map_or(0, |w| w.load(Ordering::Relaxed)).to_le_bytes();
+    if tail.len() < 4 {
+        for (d, s) in tail.iter_mut().zip(w) {
             *d = s;
         }
+    } else {
+        tail.fill(0);
     }
 }
 
@@ -224,11 +225,16 @@ const ST_LENS: usize = 3;
 /// Word 4: Data_Exchange frame length (u16), min_TSDR in bit times (u16, upper half).
 const ST_DXLEN: usize = 4;
 const DX_AT: usize = 20;
-const DIAG_ROOM: usize = round4(card::MAX_DIAG_DATA_LEN + 11);
+/// The staged Slave_Diag frame: an SD2 frame of up to the DP slave's
+/// [`MAX_DIAG_DATA_LEN`] octets (any product's `Max_Diag_Data_Len`, [`SlaveConfig::fits`]).
+const DIAG_ROOM: usize = round4(MAX_DIAG_DATA_LEN + 11);
 const DIAG_AT: usize = DX_AT + round4(MAX_FRAME_LEN);
 const OUT_AT: usize = DIAG_AT + DIAG_ROOM;
+/// The outputs read-back (Rd_Outp): up to the DP slave's [`MAX_OUTPUT_LEN`] octets (any
+/// product's `Max_Output_Len`).
+const OUT_ROOM: usize = round4(MAX_OUTPUT_LEN);
 /// The DP-V1 relations ([`dpv1`]).
-const DPV1_AT: usize = OUT_AT + round4(card::MAX_OUTPUT_LEN);
+const DPV1_AT: usize = OUT_AT + OUT_ROOM;
 const STAGE_BYTES: usize = DPV1_AT + dpv1::DPV1_BYTES;
 /// Words of one staging.
 pub const STAGE_WORDS: usize = STAGE_BYTES / 4;
@@ -304,7 +310,11 @@ impl Shared {
 
     /// The line half and the core half. The core half publishes the first staging from
     /// `node` at once, so the line answers from the node's state from the first telegram on.
+    /// The line keeps the node's product configuration ([`crate::dp::DpSlave::config`]: the
+    /// modules Get_Cfg answers from, the ident number Set_Slave_Add checks), which a node
+    /// never changes.
     pub fn split<'a>(&'a mut self, node: &mut Node) -> (FastPath<'a>, CoreLink<'a>) {
+        let config = node.slave().config();
         let Shared { to_core, slots, to_line, staging } = self;
         let slots: &Slots = slots;
         let (qp, qc) = to_core.split();
@@ -318,7 +328,6 @@ impl Shared {
             staging: sw,
             done_seq: 0,
             epoch: 0,
-            scratch: [0; STAGE_BYTES],
             answer: [0; MAX_FRAME_LEN],
             stats: CoreStats::default(),
         };
@@ -328,7 +337,8 @@ impl Shared {
             slots,
             from_core: dc,
             staging: sr,
-            st: Staged::EMPTY,
+            config,
+            st: Staged { address: config.default_address, ..Staged::EMPTY },
             seq: 0,
             judge_seq: 0,
             diag_consumed: None,
@@ -420,7 +430,7 @@ impl Staged {
     const EMPTY: Staged = Staged {
         done_seq: 0,
         epoch: 0,
-        address: card::DEFAULT_ADDRESS,
+        address: 0,
         state: 0,
         master: 0xFF,
         flags: 0,
@@ -486,6 +496,8 @@ pub struct FastPath<'a> {
     slots: &'a Slots,
     from_core: Consumer<'a, Deferred>,
     staging: TripleReader<'a, STAGE_WORDS>,
+    /// The node's product configuration (Get_Cfg's modules, Set_Slave_Add's ident number).
+    config: &'static SlaveConfig,
     st: Staged,
     seq: u32,
     /// Sequence number of the last queued Set_Prm / Chk_Cfg (the not-ready window).
@@ -884,7 +896,7 @@ impl<'a> FastPath<'a> {
             }
             Some(sap::SET_PRM) | Some(sap::CHK_CFG) => self.sc(),
             Some(sap::SET_SLAVE_ADD) => {
-                let ok = SetSlaveAdd::parse(t.pdu, card::IDENT_NUMBER).is_ok()
+                let ok = SetSlaveAdd::parse(t.pdu, self.config.ident_number).is_ok()
                     && st.flags & FLAG_NO_ADD_CHG == 0
                     && st.state() == DpState::WaitPrm;
                 if ok {
@@ -894,7 +906,9 @@ impl<'a> FastPath<'a> {
                 }
             }
             Some(sap::GET_CFG) => {
-                let cfg = card::MODULES.get(usize::from(st.module)).unwrap_or(&card::MODULES[0]).cfg;
+                // The staged index is one of the configuration's modules (0 when the slave's
+                // Real_Cfg is none of them).
+                let cfg = self.config.modules.get(usize::from(st.module)).map_or(&[][..], |m| m.cfg);
                 let hdr = Header::response_to(t, ResponseStatus::Dl);
                 match telegram::emit(&mut self.buf, &hdr, cfg) {
                     Ok(n) => n as u16,
@@ -950,7 +964,6 @@ pub struct CoreLink<'a> {
     staging: TripleWriter<'a, STAGE_WORDS>,
     done_seq: u32,
     epoch: u32,
-    scratch: [u8; STAGE_BYTES],
     answer: [u8; MAX_FRAME_LEN],
     stats: CoreStats,
 }
@@ -1036,20 +1049,20 @@ impl CoreLink<'_> {
     /// Publish the staging from `node` (after anything changed the node: an application
     /// step, new inputs or diagnosis, the address).
     pub fn publish(&mut self, node: &mut Node) {
-        let s = &mut self.scratch;
-        let slave = node.slave_mut();
-        let diag = slave.staged_diag_frame();
+        // Straight into the back slot (no one sees it before `publish`), only what this
+        // staging uses: the header words and the three frames.
+        let diag = node.slave_mut().staged_diag_frame();
         let diag_len = diag.len().min(DIAG_ROOM);
-        s[DIAG_AT..DIAG_AT + diag_len].copy_from_slice(&diag[..diag_len]);
+        self.staging.write(DIAG_AT / 4, &diag[..diag_len]);
         let slave = node.slave();
         let dx = slave.staged_dx_frame();
         let dx_len = dx.len().min(MAX_FRAME_LEN);
-        s[DX_AT..DX_AT + dx_len].copy_from_slice(&dx[..dx_len]);
+        self.staging.write(DX_AT / 4, &dx[..dx_len]);
         let out = slave.outputs();
-        let out_len = out.len().min(card::MAX_OUTPUT_LEN);
-        s[OUT_AT..OUT_AT + out_len].copy_from_slice(&out[..out_len]);
+        let out_len = out.len().min(OUT_ROOM);
+        self.staging.write(OUT_AT / 4, &out[..out_len]);
         let real = slave.real_cfg();
-        let module = card::MODULES.iter().position(|m| m.reference == real.reference).unwrap_or(0);
+        let module = slave.config().modules.iter().position(|m| m.reference == real.reference).unwrap_or(0);
         let mut flags = 0;
         if slave.has_new_diag() {
             flags |= FLAG_DIAG_NEW;
@@ -1057,21 +1070,19 @@ impl CoreLink<'_> {
         if slave.no_add_chg() {
             flags |= FLAG_NO_ADD_CHG;
         }
-        s[0..4].copy_from_slice(&self.done_seq.to_le_bytes());
-        s[4..8].copy_from_slice(&self.epoch.to_le_bytes());
-        s[8..12].copy_from_slice(&[
+        let mut h = [0u8; DX_AT];
+        h[0..4].copy_from_slice(&self.done_seq.to_le_bytes());
+        h[4..8].copy_from_slice(&self.epoch.to_le_bytes());
+        h[8..12].copy_from_slice(&[
             slave.address(),
             state_code(slave.state()),
             slave.master_address().unwrap_or(0xFF),
             flags,
         ]);
-        s[12..16].copy_from_slice(&[slave.input_len() as u8, out_len as u8, module as u8, diag_len as u8]);
+        h[12..16].copy_from_slice(&[slave.input_len() as u8, out_len as u8, module as u8, diag_len as u8]);
         let min_tsdr = node.min_tsdr().0.min(u32::from(u16::MAX));
-        s[16..20].copy_from_slice(&(dx_len as u32 | (min_tsdr << 16)).to_le_bytes());
-        // Only what this staging uses: the header words and the three frames.
-        self.staging.write(0, &s[..DX_AT + dx_len]);
-        self.staging.write(DIAG_AT / 4, &s[DIAG_AT..DIAG_AT + diag_len]);
-        self.staging.write(OUT_AT / 4, &s[OUT_AT..OUT_AT + out_len]);
+        h[16..20].copy_from_slice(&(dx_len as u32 | (min_tsdr << 16)).to_le_bytes());
+        self.staging.write(0, &h);
         self.stage_dpv1(node);
         self.staging.publish();
         self.stats.publications = self.stats.publications.wrapping_add(1);
@@ -1082,6 +1093,7 @@ impl CoreLink<'_> {
 mod tests {
     use super::check::{self, Mode};
     use super::*;
+    use crate::card;
     use crate::dp::DpSlave;
     use crate::testkit::{ScriptedMaster, SetPrm};
     use proptest::prelude::*;
@@ -1146,6 +1158,20 @@ mod tests {
         let data = hex("003f34653434dcc9c9c90403feffffffd3000302004397000207ffffffff07fffb00ede6");
         for mode in [Mode::Sync, Mode::Lag] {
             assert_eq!(check::run(&data, mode, 400).map(|_| ()), Ok(()));
+        }
+    }
+
+    /// `load_words` gives the packed bytes of the words, then zeros past their end, for every
+    /// length (whole words, a partial last word, reads past the end).
+    #[test]
+    fn load_words_reads_packed_bytes_then_zeros() {
+        let words = [AtomicU32::new(0x0403_0201), AtomicU32::new(0x0807_0605)];
+        for n in 0..=13 {
+            let mut dst = [0xEEu8; 13];
+            load_words(&words, &mut dst[..n]);
+            let want: std::vec::Vec<u8> = (1..=13u8).map(|b| if b <= 8 { b } else { 0 }).take(n).collect();
+            assert_eq!(dst[..n], want[..], "{n} bytes");
+            assert!(dst[n..].iter().all(|&b| b == 0xEE), "{n}: nothing written past dst");
         }
     }
 

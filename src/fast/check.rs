@@ -39,9 +39,8 @@
 
 use heapless::Vec;
 
-use super::{CoreLink, FastPath, Shared, Verdict};
-use crate::card;
-use crate::dp::DpSlave;
+use super::{dpv1::C2_CONNECTIONS, CoreLink, FastPath, Shared, Verdict};
+use crate::dp::{DpSlave, SlaveConfig};
 use crate::dpv1::c1;
 use crate::dpv1::c2::{self, ConnectionState};
 use crate::dpv1::pdu::{AddressBlock, InitiateRequest};
@@ -53,6 +52,9 @@ use crate::node::Node;
 use crate::profile::records::CardRecords;
 use crate::testkit::{Frame, SetPrm};
 use crate::time::Instant;
+
+/// The product both cards run (the operation mix's Set_Prm is the card's, [`SetPrm::CARD`]).
+const CARD: &SlaveConfig = &crate::card::SLAVE;
 
 /// The station address of both cards.
 pub const ME: u8 = 8;
@@ -192,7 +194,7 @@ fn next_action(src: &mut Src<'_>, rig: &mut Rig, alone: &Node) -> Action {
             // The start-up pair at once: Set_Prm (the card's) then Chk_Cfg (module 0) — the
             // second telegram follows as the next operation through `rig.next`.
             let pdu = SetPrm::CARD.pdu();
-            let cfg = rig.request(da, m, Some(62), Some(62), card::MODULES[0].cfg, srd);
+            let cfg = rig.request(da, m, Some(62), Some(62), CARD.modules[0].cfg, srd);
             rig.next = Some(cfg);
             rig.request(da, m, Some(61), Some(62), &pdu, srd)
         }
@@ -201,7 +203,7 @@ fn next_action(src: &mut Src<'_>, rig: &mut Rig, alone: &Node) -> Action {
             rig.request(da, m, Some(61), Some(62), &pdu, srd)
         }
         1 => {
-            let module = &card::MODULES[usize::from(src.u8()) % card::MODULES.len()];
+            let module = &CARD.modules[usize::from(src.u8()) % CARD.modules.len()];
             let mut cfg: Vec<u8, 32> = Vec::new();
             let _ = cfg.extend_from_slice(module.cfg);
             let mangle = src.u8();
@@ -276,7 +278,7 @@ fn next_action(src: &mut Src<'_>, rig: &mut Rig, alone: &Node) -> Action {
         }
         11 => {
             let new = src.u8() % 130;
-            let ident = if src.u8() & 0x80 == 0 { card::IDENT_NUMBER } else { 0x1234 };
+            let ident = if src.u8() & 0x80 == 0 { CARD.ident_number } else { 0x1234 };
             let lock = src.u8() & 1;
             let [hi, lo] = ident.to_be_bytes();
             rig.request(da, m, Some(55), Some(62), &[new, hi, lo, lock], srd)
@@ -320,12 +322,12 @@ fn next_action(src: &mut Src<'_>, rig: &mut Rig, alone: &Node) -> Action {
 /// A DP-V1 poll (SRD without data on SAP 51 or a connection SAP).
 fn poll_of(f: &[u8]) -> bool {
     matches!(telegram::decode(f), Decoded::Frame(Telegram::Data(t), _)
-        if t.pdu.is_empty() && t.dsap.is_some_and(|d| d == c1::SAP || (c2::HIGHEST_SAP + 1 - card::C2_MAX_COUNT_CHANNELS as u8..=c2::HIGHEST_SAP).contains(&d)))
+        if t.pdu.is_empty() && t.dsap.is_some_and(|d| d == c1::SAP || (c2::HIGHEST_SAP + 1 - C2_CONNECTIONS as u8..=c2::HIGHEST_SAP).contains(&d)))
 }
 
 /// The connection SAP and master SAP the core alone holds for master `m`.
 fn conn_of(alone: &Node, m: u8) -> Option<(u8, u8)> {
-    (0..card::C2_MAX_COUNT_CHANNELS)
+    (0..C2_CONNECTIONS)
         .filter_map(|i| alone.c2().connection(i))
         .find(|c| c.state != ConnectionState::Closed && c.master == m)
         .map(|c| (c.sap, c.master_sap))
@@ -397,7 +399,7 @@ fn dpv1_action(src: &mut Src<'_>, rig: &mut Rig, alone: &Node, da: u8, m: u8) ->
         0 => {
             // Set_Prm with DPV1_Enable, then Chk_Cfg: MSAC_C1 opens.
             let pdu = SetPrm::CARD.dpv1_status_1(0x80).pdu();
-            rig.next = Some(rig.request(da, m, Some(62), Some(62), card::MODULES[0].cfg, srd));
+            rig.next = Some(rig.request(da, m, Some(62), Some(62), CARD.modules[0].cfg, srd));
             rig.request(da, m, Some(61), Some(62), &pdu, srd)
         }
         1..=3 => {
@@ -538,8 +540,8 @@ pub struct Coverage {
 #[allow(clippy::result_large_err)]
 pub fn run(data: &[u8], mode: Mode, max_ops: usize) -> Result<Coverage, Mismatch> {
     let mut src = Src(data);
-    let mut alone = Node::new(DpSlave::new(&crate::card::SLAVE, ME));
-    let mut split = Node::new(DpSlave::new(&crate::card::SLAVE, ME));
+    let mut alone = Node::new(DpSlave::new(CARD, ME));
+    let mut split = Node::new(DpSlave::new(CARD, ME));
     let mut shared = Shared::new();
     let (mut fast, mut core) = shared.split(&mut split);
     let mut rig = Rig { fcb: [false; 128], next: None, last: None, initiate: None };

@@ -4,7 +4,7 @@
 //! DP-V1 is built for this split (reference §4.3): a request PDU is acknowledged with SC at
 //! once and worked on later; the master polls (SRD without data) and gets SC until the
 //! response is there. The staging ([`CoreLink::publish`](super::CoreLink::publish)) therefore carries, per relation
-//! (MSAC_C1 and each of the [`card::C2_MAX_COUNT_CHANNELS`] MSAC_C2 connections), whether it
+//! (MSAC_C1 and each of the node's [`C2_CONNECTIONS`] MSAC_C2 connections), whether it
 //! is open, for which master and SAP, its timer and its ready response frame; and the RM's
 //! Poll_Timeout. The line answers:
 //!
@@ -44,7 +44,6 @@
 //!   a second master's Initiate racing the first one's.
 
 use super::{after, round4, CoreLink, FastPath, DPV1_AT, QUEUE_LEN};
-use crate::card;
 use crate::dpv1::c1;
 use crate::dpv1::c2::{self, ConnectionState};
 use crate::dpv1::pdu::{Abort, AbortReason, Function, Instance, Response, Subnet};
@@ -52,8 +51,16 @@ use crate::fdl::telegram::{DataTelegram, ResponseStatus, MAX_FRAME_LEN};
 use crate::node::Node;
 use crate::time::Instant;
 
+/// The MSAC_C2 connections of the node (`N` of its [`C2<N>`](c2::C2), [`Node::c2`]): read off
+/// the node's type, so the line stages as many as the core runs without naming the product.
+pub(super) const C2_CONNECTIONS: usize = connections(Node::c2);
+
+const fn connections<const N: usize>(_: for<'a> fn(&'a Node) -> &'a c2::C2<N>) -> usize {
+    N
+}
+
 /// Relations: MSAC_C1, then the MSAC_C2 connections (connection `i` = relation `1 + i`).
-pub(super) const RELS: usize = 1 + card::C2_MAX_COUNT_CHANNELS;
+pub(super) const RELS: usize = 1 + C2_CONNECTIONS;
 /// Per relation: `[kind, master, master SAP, abort reason]`, `[frame length u16, Send_Timeout
 /// u16]`, the timer's deadline (µs, u64), then the ready response frame.
 const REL_HDR: usize = 16;
@@ -124,7 +131,7 @@ pub(super) enum Dpv1 {
 /// Connection index of a connection SAP (48, 47, …).
 fn conn_of(sap: u8) -> Option<usize> {
     let i = usize::from(c2::HIGHEST_SAP.checked_sub(sap)?);
-    (i < card::C2_MAX_COUNT_CHANNELS).then_some(i)
+    (i < C2_CONNECTIONS).then_some(i)
 }
 
 impl FastPath<'_> {
@@ -200,7 +207,7 @@ impl FastPath<'_> {
             }
             let mut same = None;
             let mut free = None;
-            for i in 0..card::C2_MAX_COUNT_CHANNELS {
+            for i in 0..C2_CONNECTIONS {
                 let v = self.staged_view(1 + i, now);
                 if v.kind == K_CLOSED {
                     free = free.or(Some(i));
@@ -294,9 +301,7 @@ impl CoreLink<'_> {
     /// Stage the DP-V1 relations of `node` into the scratch and the back slot (part of
     /// [`CoreLink::publish`]).
     pub(super) fn stage_dpv1(&mut self, node: &Node) {
-        let s = &mut self.scratch;
-        s[DPV1_AT..DPV1_AT + 4].copy_from_slice(&u32::from(node.c2().min_send_timeout()).to_le_bytes());
-        self.staging.write(DPV1_AT / 4, &s[DPV1_AT..DPV1_AT + 4]);
+        self.staging.write(DPV1_AT / 4, &u32::from(node.c2().min_send_timeout()).to_le_bytes());
         let slave = node.slave();
         for r in 0..RELS {
             let (kind, master, ssap, reason, send_timeout, deadline, frame) = if r == 0 {
@@ -319,12 +324,13 @@ impl CoreLink<'_> {
             let at = rel_at(r);
             let frame = frame.unwrap_or(&[]);
             let n = frame.len().min(MAX_FRAME_LEN);
-            s[at..at + 4].copy_from_slice(&[kind, master, ssap, reason]);
-            s[at + 4..at + 6].copy_from_slice(&(n as u16).to_le_bytes());
-            s[at + 6..at + 8].copy_from_slice(&send_timeout.to_le_bytes());
-            s[at + 8..at + 16].copy_from_slice(&deadline.to_le_bytes());
-            s[at + REL_HDR..at + REL_HDR + n].copy_from_slice(&frame[..n]);
-            self.staging.write(at / 4, &s[at..at + REL_HDR + n]);
+            let mut h = [0u8; REL_HDR];
+            h[0..4].copy_from_slice(&[kind, master, ssap, reason]);
+            h[4..6].copy_from_slice(&(n as u16).to_le_bytes());
+            h[6..8].copy_from_slice(&send_timeout.to_le_bytes());
+            h[8..16].copy_from_slice(&deadline.to_le_bytes());
+            self.staging.write(at / 4, &h);
+            self.staging.write((at + REL_HDR) / 4, &frame[..n]);
         }
     }
 }
