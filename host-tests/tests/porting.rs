@@ -15,30 +15,15 @@ use other_drive::{Fc20, BASIC, EXTENDED, IDENT_NUMBER, MONITOR, OTHER, OTHER_IM,
 use pbcard::dp::diag::Status1;
 use pbcard::dp::{DpSlave, DpState};
 use pbcard::dpv1::im::Im;
+use pbcard::dpv1::records::NoRecords;
 use pbcard::fast::{CoreLink, FastPath, Shared, Verdict};
 use pbcard::fdl::telegram::{self, Decoded, ResponseStatus, Telegram};
 use pbcard::node::Node;
-use pbcard::profile::param::{ErrorValue, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
 use pbcard::testkit::{ScriptedMaster, SetPrm};
 use pbcard::time::Instant;
 
 const ME: u8 = 7;
 const MASTER: u8 = 2;
-
-/// The drive's parameters over DP-V1 records (none in this example).
-struct NoParameters;
-
-impl ParameterAccess for NoParameters {
-    fn has_axis(&self, axis: u8) -> bool {
-        axis == 0
-    }
-    fn read_value(&mut self, _: u8, _: &ParamAddress, _: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-        Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into())
-    }
-    fn write_value(&mut self, _: u8, _: &ParamAddress, _: &ValueBlock<'_>) -> Result<(), ParamError> {
-        Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into())
-    }
-}
 
 /// The product's firmware as a platform runs it: the line half answers at the "interrupt",
 /// the core half and the application run after every telegram.
@@ -76,7 +61,9 @@ impl Product {
         };
         // The lower-priority tasks: the core judges, DP-V1 work, the drive's cycle.
         self.core.run(&mut self.node);
-        self.node.process_acyclic(now, &mut NoParameters);
+        // No data records of its own beyond I&M (the node serves slot 0 / index 255): a product
+        // with records passes its `node::DataRecords` here.
+        self.node.process_acyclic(now, &mut NoRecords);
         self.drive.cycle(self.node.slave_mut());
         self.core.publish(&mut self.node);
         answer
