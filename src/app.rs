@@ -597,8 +597,13 @@ pub(crate) mod tests {
         }
 
         pub(crate) fn send(&mut self, dsap: Option<u8>, ssap: Option<u8>, pdu: &[u8]) -> Vec<u8> {
+            self.send_from(MASTER, dsap, ssap, pdu)
+        }
+
+        /// An SRD from master `sa` (on the bench's one FCB); the response bytes.
+        pub(crate) fn send_from(&mut self, sa: u8, dsap: Option<u8>, ssap: Option<u8>, pdu: &[u8]) -> Vec<u8> {
             self.fcb = !self.fcb;
-            let hdr = Header { da: SLAVE, sa: MASTER, fc: FunctionCode::request(0xD, self.fcb, true), dsap, ssap };
+            let hdr = Header { da: SLAVE, sa, fc: FunctionCode::request(0xD, self.fcb, true), dsap, ssap };
             let mut buf = [0u8; telegram::MAX_FRAME_LEN];
             let n = telegram::emit(&mut buf, &hdr, pdu).unwrap();
             let mut resp = None;

@@ -936,6 +936,37 @@ impl<'a> FastPath<'a> {
     }
 }
 
+/// One telegram on a single-threaded platform (the soft slave, the simulated-bus tests), where
+/// the core runs right after the line instead of in a lower-priority task: the line's answer
+/// or — for a request the line leaves to the core (DP-V1) — the core's answer at once, as the
+/// firmware's core task pends the line; then the core works on everything queued. The answer
+/// (never empty) is copied into `out`; its length. Not the firmware's path: there the line and
+/// the core run at their own priorities (README "The response path").
+pub fn single_threaded(
+    fast: &mut FastPath<'_>,
+    core: &mut CoreLink<'_>,
+    node: &mut Node,
+    now: Instant,
+    frame: &[u8],
+    out: &mut [u8],
+) -> Option<usize> {
+    let mut copy = |a: &[u8]| {
+        let n = a.len().min(out.len());
+        out[..n].copy_from_slice(&a[..n]);
+        n
+    };
+    let answer = match fast.on_frame(now, frame) {
+        Verdict::Silent => None,
+        Verdict::Answer(a) => Some(copy(a)),
+        Verdict::Core => {
+            core.run(node);
+            fast.take_deferred().filter(|a| !a.is_empty()).map(copy)
+        }
+    };
+    core.run(node);
+    answer
+}
+
 /// What one [`CoreLink::step`] did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Stepped {

@@ -17,7 +17,7 @@
 use super::*;
 use pbcard::app::Application;
 use pbcard::drive::DriveConfig;
-use pbcard::fast::{CoreLink, FastPath, Shared, Verdict};
+use pbcard::fast::{single_threaded, CoreLink, FastPath, Shared};
 use pbcard::node::Node;
 
 /// How often the application steps (the firmware's housekeeping period).
@@ -83,15 +83,9 @@ impl CardEndpoint {
         // min_TSDR in force before this request, from the staging (as the F411 line reads it).
         let min_tsdr = self.fast.min_tsdr();
         let dx_before = self.node.slave().stats().data_exchanges;
-        let answer = match self.fast.on_frame(now, &frame) {
-            Verdict::Silent => None,
-            Verdict::Answer(a) => Some(a.to_vec()),
-            Verdict::Core => {
-                self.core.run(&mut self.node);
-                self.fast.take_deferred().filter(|a| !a.is_empty()).map(<[u8]>::to_vec)
-            }
-        };
-        self.core.run(&mut self.node);
+        let mut out = [0u8; telegram::MAX_FRAME_LEN];
+        let answer = single_threaded(&mut self.fast, &mut self.core, &mut self.node, now, &frame, &mut out)
+            .map(|n| out[..n].to_vec());
         if self.node.slave().stats().data_exchanges != dx_before {
             // New outputs: the drive sees them now (the firmware's app_step).
             self.step_now = true;

@@ -16,7 +16,7 @@ use pbcard::dp::diag::Status1;
 use pbcard::dp::{DpSlave, DpState};
 use pbcard::dpv1::im::Im;
 use pbcard::dpv1::records::NoRecords;
-use pbcard::fast::{CoreLink, FastPath, Shared, Verdict};
+use pbcard::fast::{self, CoreLink, FastPath, Shared};
 use pbcard::fdl::telegram::{self, Decoded, ResponseStatus, Telegram};
 use pbcard::node::Node;
 use pbcard::testkit::{ScriptedMaster, SetPrm};
@@ -51,16 +51,11 @@ impl Product {
         self.now += 1000;
         let now = Instant::from_micros(self.now);
         self.core.poll(now, &mut self.node);
-        let answer = match self.fast.on_frame(now, &f) {
-            Verdict::Silent => None,
-            Verdict::Answer(a) => Some(a.to_vec()),
-            Verdict::Core => {
-                self.core.run(&mut self.node);
-                self.fast.take_deferred().filter(|a| !a.is_empty()).map(<[u8]>::to_vec)
-            }
-        };
-        // The lower-priority tasks: the core judges, DP-V1 work, the drive's cycle.
-        self.core.run(&mut self.node);
+        // The line's answer; the core judges what was queued (a single-threaded platform).
+        let mut out = [0u8; pbcard::fdl::telegram::MAX_FRAME_LEN];
+        let answer = fast::single_threaded(&mut self.fast, &mut self.core, &mut self.node, now, &f, &mut out)
+            .map(|n| out[..n].to_vec());
+        // The lower-priority tasks: DP-V1 work, the drive's cycle.
         // No data records of its own beyond I&M (the node serves slot 0 / index 255): a product
         // with records passes its `node::DataRecords` here.
         self.node.process_acyclic(now, &mut NoRecords);

@@ -36,7 +36,7 @@ use pbcard::app::Application;
 use pbcard::card::{self, Module};
 use pbcard::dp::DpSlave;
 use pbcard::drive::DriveConfig;
-use pbcard::fast::{CoreLink, FastPath, Shared, Verdict};
+use pbcard::fast::{single_threaded, CoreLink, FastPath, Shared};
 use pbcard::fdl::framer::{Framer, Push};
 use pbcard::node::Node;
 use pbcard::time::Instant;
@@ -286,16 +286,9 @@ impl Station {
     /// queued. Returns the answer to send after min_TSDR.
     pub fn on_byte(&mut self, now: Instant, byte: u8) -> Option<Vec<u8>> {
         let Push::Frame(_) = self.framer.push(byte) else { return None };
-        let answer = match self.fast.on_frame(now, self.framer.frame()) {
-            Verdict::Silent => None,
-            Verdict::Answer(a) => Some(a.to_vec()),
-            Verdict::Core => {
-                self.core.run(&mut self.node);
-                self.fast.take_deferred().filter(|a| !a.is_empty()).map(<[u8]>::to_vec)
-            }
-        };
-        self.core.run(&mut self.node);
-        answer
+        let mut out = [0u8; pbcard::fdl::telegram::MAX_FRAME_LEN];
+        let n = single_threaded(&mut self.fast, &mut self.core, &mut self.node, now, self.framer.frame(), &mut out)?;
+        Some(out[..n].to_vec())
     }
 
     /// Republish the staging after the node changed outside a telegram (application step,

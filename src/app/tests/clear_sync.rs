@@ -124,17 +124,7 @@ impl Bench {
 
     /// A Data_Exchange from `sa`; the response bytes.
     fn dx_from(&mut self, sa: u8, outputs: &[u8]) -> Vec<u8> {
-        self.fcb = !self.fcb;
-        let hdr = Header { da: SLAVE, sa, fc: FunctionCode::request(0xD, self.fcb, true), dsap: None, ssap: None };
-        let mut buf = [0u8; telegram::MAX_FRAME_LEN];
-        let n = telegram::emit(&mut buf, &hdr, outputs).unwrap();
-        let mut resp = None;
-        for &b in &buf[..n] {
-            if let Some(r) = self.node.on_byte(self.now, b) {
-                resp = Some(r.to_vec());
-            }
-        }
-        resp.expect("no response")
+        self.send_from(sa, None, None, outputs)
     }
 
     /// The outputs the drive reads (DPM OUTPUTS), the configured length.
