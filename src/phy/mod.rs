@@ -11,13 +11,15 @@
 //! reader and the receive-interrupt gate. [`rate_link`] splits the rate control between the line
 //! interrupt (classifies telegrams, gates answers, carries out rate switches) and a lower task
 //! that owns [`autobaud::Autobaud`], lock-free. [`port`] is the board contract of the line:
-//! the traits the F411, QEMU and the soft slave implement for their RS485 ports.
+//! the traits the F411, QEMU and the soft slave implement for their RS485 ports. [`stream`] is
+//! the seam that hands a telegram's bytes to the fast path while they arrive.
 
 pub mod autobaud;
 pub mod divisor;
 pub mod line;
 pub mod port;
 pub mod rate_link;
+pub mod stream;
 #[cfg(test)]
 mod tests_props;
 pub mod timing;
