@@ -124,7 +124,7 @@ impl Card {
     /// valid CONFIG (issue 16, [`Link::set_startup_gate`]). The host blocks (INPUTS, DRIVE,
     /// CONFIG, MBX_RSP, DRIVE_STATE) are written only by the drive's control board.
     pub fn new() -> Self {
-        let mut card = Self::with_image(Dpm::new());
+        let mut card = Self::with_image(Dpm::with_identity(&crate::card::IDENTITY));
         card.link.set_startup_gate(true);
         card
     }
@@ -142,12 +142,12 @@ impl<I: CardImage> Card<I> {
     pub fn with_image(image: I) -> Self {
         Card {
             image,
-            link: Link::new(),
+            link: Link::new(crate::card::MODULES),
             params: ParamCache::new(),
             pkw_params: ParamCache::new(),
             refs: References::new(),
             runtime: Runtime::new(Scales::DEFAULT),
-            records: CardRecords::new(),
+            records: CardRecords::new(&crate::card::RECORDS),
             events: Events::empty(),
         }
     }
@@ -305,7 +305,7 @@ impl<I: CardImage> Card<I> {
         let telegram = snap.telegram();
         let in_dx = snap.dp_state() == DpState::DataExch;
         if telegram != Telegram::None && in_dx {
-            let user = snap.user_prm;
+            let user = snap.user_prm();
             let config = self.link.config();
             let local = config.map_or(0, |c| c.operate_mode);
             let data = DataProfile::of_config(config.map(|c| c.profile));
@@ -316,14 +316,14 @@ impl<I: CardImage> Card<I> {
             // The master's reaction (Set_Prm) first; its 0 "the drive's own setting" takes the
             // drive's CONFIG.COMM_LOSS_REACTION (P0313-style), so a drive that leaves the
             // reaction to the card gets the one it configured.
-            let reaction = match user[card::PRM_COMM_LOSS_REACTION.offset] {
+            let reaction = match user.get(card::PRM_COMM_LOSS_REACTION.offset).copied().unwrap_or(0) {
                 0 => config.map_or(0, |c| c.comm_loss_reaction),
                 r => r,
             };
             let selections = self.runtime.stats().selections;
             self.runtime.select(Selection {
                 telegram,
-                mode: Selection::mode_of(user[card::PRM_OPERATE_MODE.offset], local),
+                mode: Selection::mode_of(user.get(card::PRM_OPERATE_MODE.offset).copied().unwrap_or(0), local),
                 data,
                 comm_loss_reaction: reaction,
             });
@@ -914,12 +914,14 @@ pub(crate) mod tests {
         // ≈ 0.5 KiB; the simulated drive's last DRIVE_STATE (sent again by the first of its two
         // CYCLIC exchanges a cycle) ≈ 60 B. The card's data records (records 47 / 48: the
         // job, the response being built and one response per relation, 240 B each, with the
-        // card's values for its PNUs, ≈ 1.3 KiB) moved here from the node.
+        // card's values for its PNUs, ≈ 1.3 KiB) moved here from the node. The product's
+        // configuration as data (issue 13: the records' slots and PNU 964, the link's GSD
+        // modules) ≈ 40 B of references.
         let n = core::mem::size_of::<Application>();
         let records = core::mem::size_of::<CardRecords>();
         assert!(records <= 1408, "CardRecords is {records} bytes");
         assert!(
-            n <= 4608 + 4 * crate::dpm::spi::MAX_TRANSACTION + 384 + 256 + 64 + 520 + 64 + records,
+            n <= 4608 + 4 * crate::dpm::spi::MAX_TRANSACTION + 384 + 256 + 64 + 520 + 64 + 40 + records,
             "Application is {n} bytes"
         );
         // The shipped card: no SPI frame transport, no simulated drive, no host state.

@@ -169,6 +169,23 @@ pub const DRIVE_MODULE_SLOT: u8 = 1;
 /// answer: the device (slot 0, as Balluff, VACON and WEG address it) and the drive module's
 /// slot (as ABB adapters and SINAMICS address the drive object; reference §5.1).
 pub const RECORD_SLOTS: [u8; 2] = [0, DRIVE_MODULE_SLOT];
+/// The DPM IDENT block of this card (`dpm::Identity`: card type, firmware version, the GSD
+/// [`IDENT_NUMBER`]; the serial number from the platform).
+pub const IDENTITY: crate::dpm::Identity = crate::dpm::Identity::of_product(IDENT_NUMBER);
+// The DPM carries every module's cyclic images whole (the benchmark build's 244-byte module does
+// not: its data is cut to `dpm::layout::PD_CAPACITY`, `ProcessData::new`, see `BENCH_244`), and
+// the drive's extended diagnosis fits the slave's.
+#[cfg(not(feature = "bench"))]
+const _: () =
+    assert!(crate::dpm::layout::PD_CAPACITY >= MAX_INPUT_LEN && crate::dpm::layout::PD_CAPACITY >= MAX_OUTPUT_LEN);
+const _: () = assert!(crate::dpm::layout::EXT_DIAG_CAPACITY <= MAX_EXT_DIAG_LEN);
+const _: () = assert!(USER_PRM_LEN <= crate::dpm::USER_PRM_CAPACITY);
+/// This card's PROFIdrive data records: at [`RECORD_SLOTS`], and PNU 964 (drive unit
+/// identification, OPTE3/E5 Table 110 structure) with manufacturer 0 (the PI vendor ID, a
+/// placeholder until registered), drive unit type = [`IDENT_NUMBER`], software version 1,
+/// firmware year 2026, day/month 2211, one drive object.
+pub const RECORDS: crate::profile::records::RecordConfig =
+    crate::profile::records::RecordConfig { slots: &RECORD_SLOTS, device_id: [0, IDENT_NUMBER, 1, 2026, 2211, 1] };
 /// GSD `C2_Read_Write_supp`: MSAC_C2 connections (commissioning tools).
 pub const C2_READ_WRITE_SUPP: bool = true;
 /// GSD `C2_Max_Data_Len`.
@@ -518,6 +535,7 @@ pub const IM: crate::dpv1::im::ImDevice = crate::dpv1::im::ImDevice {
     order_id: IM_ORDER_ID,
     hardware_revision: IM_HARDWARE_REVISION,
     software_revision: IM_SOFTWARE_REVISION,
+    profile_id: crate::dpv1::im::PROFILE_ID_PROFIDRIVE,
 };
 // The MSAC_C2 connections fit the I&M relations (1 + C2_Max_Count_Channels).
 const _: () = assert!(C2_MAX_COUNT_CHANNELS < crate::dpv1::im::RELATIONS);

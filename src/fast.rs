@@ -1367,7 +1367,10 @@ mod tests {
         assert_eq!(fast.on_frame(now, &c1(&mut m, &[0x5E, 0, 255, 64])), Verdict::Answer(&[telegram::SC]));
         core.run(&mut node);
         let mut params = crate::drive::params::SIM_DRIVE_TABLE;
-        node.process_acyclic(now, &mut crate::profile::records::CardRecords::new().with(&mut params));
+        node.process_acyclic(
+            now,
+            &mut crate::profile::records::CardRecords::new(&crate::card::RECORDS).with(&mut params),
+        );
         assert!(node.c1().ready_frame().is_some());
         // Not published yet: the line says "not ready", the core holds the response.
         assert_eq!(fast.on_frame(now, &c1(&mut m, &[])), Verdict::Answer(&[telegram::SC]));

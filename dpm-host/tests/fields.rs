@@ -81,7 +81,7 @@ over_both! {
 fn every_field_crosses_the_transport_both_ways(via) {
     let shared = Image::new(
         via,
-        Dpm::with_identity(&Identity { serial: 0xCAFE_F00D, firmware: [1, 2, 3], ..Identity::THIS_CARD }),
+        Dpm::with_identity(&Identity { serial: 0xCAFE_F00D, firmware: [1, 2, 3], ..pbcard::card::IDENTITY }),
     );
     let mut host = Host::open(shared.transport(), Options::DEFAULT).unwrap();
     let mut seen = vec![false; layout::IMAGE_SIZE];

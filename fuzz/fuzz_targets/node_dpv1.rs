@@ -478,7 +478,7 @@ fuzz_target!(|data: &[u8]| {
     let mut src = Src::new(data);
     let mut bus = Bus {
         node: Node::new(DpSlave::new(&pbcard::card::SLAVE, ME)),
-        records: CardRecords::new(),
+        records: CardRecords::new(&pbcard::card::RECORDS),
         table: FakeDrive::new(),
         master: ScriptedMaster::new(M1, ME),
         now: 1_000,

@@ -63,7 +63,7 @@ impl Master {
     fn new() -> Self {
         Master {
             node: Node::new(DpSlave::new(&pbcard::card::SLAVE, ME)),
-            records: CardRecords::new(),
+            records: CardRecords::new(&pbcard::card::RECORDS),
             drive: Drive { p100: 50 },
             master: ScriptedMaster::new(M1, ME),
             now: 0,

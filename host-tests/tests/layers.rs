@@ -47,7 +47,7 @@ const LAYERS: &[(&str, u8)] = &[
 /// `Telegram` / `Family` moved from `dpm` to `profile`, `Node::process_acyclic` over the
 /// application's `node::DataRecords`, `phy::line` without `node::Node`). Remove an entry when
 /// its edge goes.
-const KNOWN_DEBT: &[(&str, &str)] = &[("dpm", "card"), ("profile", "card")];
+const KNOWN_DEBT: &[(&str, &str)] = &[];
 
 fn rank(m: &str) -> Option<u8> {
     LAYERS.iter().find(|(n, _)| *n == m).map(|(_, r)| *r)

@@ -44,16 +44,21 @@ pub struct Identity {
 
 impl Identity {
     /// This card with this crate's version and no serial number (the platform sets it).
-    pub const THIS_CARD: Identity = Identity {
-        card_type: CARD_TYPE,
-        firmware: [
-            parse_u8(env!("CARGO_PKG_VERSION_MAJOR")),
-            parse_u8(env!("CARGO_PKG_VERSION_MINOR")),
-            parse_u8(env!("CARGO_PKG_VERSION_PATCH")),
-        ],
-        ident_number: crate::card::IDENT_NUMBER,
-        serial: 0,
-    };
+    /// A card of this firmware (its [`CARD_TYPE`] and this crate's version) for the PROFIBUS
+    /// ident number `ident_number` (the product's GSD `Ident_Number`; this card:
+    /// `card::IDENTITY`), no serial number (the platform sets it).
+    pub const fn of_product(ident_number: u16) -> Identity {
+        Identity {
+            card_type: CARD_TYPE,
+            firmware: [
+                parse_u8(env!("CARGO_PKG_VERSION_MAJOR")),
+                parse_u8(env!("CARGO_PKG_VERSION_MINOR")),
+                parse_u8(env!("CARGO_PKG_VERSION_PATCH")),
+            ],
+            ident_number,
+            serial: 0,
+        }
+    }
 
     pub(super) fn encode(&self, b: &mut [u8]) {
         put16(b, ident::CARD_TYPE, self.card_type);
@@ -328,7 +333,8 @@ pub struct HostConfig {
 impl HostConfig {
     /// Station address 126 (keep the card's), PROFIdrive, no telegram selection, no mapping.
     pub const DEFAULT: HostConfig = HostConfig {
-        station_address: crate::card::DEFAULT_ADDRESS,
+        // 126: the commissioning address (reference §3.9), which here means "keep the card's".
+        station_address: crate::fdl::telegram::MAX_STATION_ADDRESS,
         profile: 0,
         operate_mode: 0,
         comm_loss_reaction: 0,
@@ -348,7 +354,7 @@ impl HostConfig {
     /// Whether the card can take it over: address 0..=126, profile 0 or 1, reaction 0..=7,
     /// telegram none or a known layout.
     pub fn is_valid(&self) -> bool {
-        self.station_address <= crate::card::MAX_STATION_ADDRESS
+        self.station_address <= crate::fdl::telegram::MAX_STATION_ADDRESS
             && self.profile <= 1
             && self.operate_mode <= crate::dpm::layout::operate_mode::ECHO
             && self.comm_loss_reaction <= Self::MAX_COMM_LOSS_REACTION

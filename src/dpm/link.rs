@@ -2,16 +2,21 @@
 //! requests) and image → node (inputs, drive report, configuration, mailbox responses), with
 //! the supervision of the drive's heartbeat.
 
+use super::layout::PD_CAPACITY;
 use super::{
     CardEvent, CardFlags, CardReport, CommState, ConfigResult, Dpm, DriveCommandImage, DriveReport, DriveStateImage,
     HeartbeatMonitor, HostConfig, Liveness, Mailbox, MailboxBusy, MailboxRequest, ParamValues, PdFlags, ProcessData,
     Status, StatusFlags, Telegram,
 };
-use crate::card::{MAX_INPUT_LEN, MAX_OUTPUT_LEN, USER_PRM_DEFAULTS, USER_PRM_LEN};
-use crate::dp::{DpState, Events};
+use crate::dp::{DpState, Events, Module};
 use crate::node::Node;
 use crate::profile::param::ParamError;
 use crate::time::{Baudrate, Duration, Instant};
+
+/// The User_Prm_Data octets (counted from DPV1_Status_1) a [`NodeSnapshot`] carries for the
+/// card's profile layer: the product's user parameters (this card: `card::USER_PRM_LEN`, 5,
+/// asserted to fit). Longer User_Prm_Data is cut.
+pub const USER_PRM_CAPACITY: usize = 16;
 
 /// ZSW1 bit 3 "fault present": what the master reads in place of the drive's status word
 /// while the drive's heartbeat is lost (every other word 0).
@@ -93,18 +98,17 @@ pub struct Link {
     device_seq: u16,
     /// Issue 16: no parameterisation before the drive's first valid CONFIG.
     startup_gate: bool,
-}
-
-impl Default for Link {
-    fn default() -> Self {
-        Self::new()
-    }
+    /// The product's GSD modules (`dp::SlaveConfig::modules`): CONFIG.TELEGRAM selects one.
+    modules: &'static [Module],
 }
 
 impl Link {
-    /// A link with no baud rate detected yet.
-    pub const fn new() -> Self {
+    /// A link with no baud rate detected yet, for a product with the GSD `modules` (the
+    /// node's `dp::SlaveConfig::modules`; this card: `card::MODULES`), one of which the drive's
+    /// CONFIG.TELEGRAM may select.
+    pub const fn new(modules: &'static [Module]) -> Self {
         Link {
+            modules,
             baud: None,
             init_error: false,
             telegram: Telegram::None,
@@ -386,15 +390,21 @@ impl Link {
     pub fn snapshot(&self, node: &Node, events: Events) -> NodeSnapshot {
         let slave = node.slave();
         let out = slave.outputs();
-        let n = out.len().min(MAX_OUTPUT_LEN);
-        let mut outputs = [0u8; MAX_OUTPUT_LEN];
+        let n = out.len().min(PD_CAPACITY);
+        let mut outputs = [0u8; PD_CAPACITY];
         outputs[..n].copy_from_slice(&out[..n]);
+        // The user parameters of the last accepted Set_Prm, else the product's defaults.
+        let user = slave.parameters().map_or(slave.config().user_prm_defaults, |p| p.user.as_slice());
+        let u = user.len().min(USER_PRM_CAPACITY);
+        let mut user_prm = [0u8; USER_PRM_CAPACITY];
+        user_prm[..u].copy_from_slice(&user[..u]);
         NodeSnapshot {
             events,
             status: self.status_of(node),
             outputs,
             outputs_len: n as u8,
-            user_prm: slave.parameters().and_then(|p| p.user.as_slice().try_into().ok()).unwrap_or(USER_PRM_DEFAULTS),
+            user_prm,
+            user_prm_len: u as u8,
         }
     }
 
@@ -606,7 +616,7 @@ impl Link {
         // The module of the selected telegram (none: any module).
         let module = match cfg.telegram {
             Telegram::None => None,
-            t => crate::card::MODULES.iter().find(|m| Telegram::of_module(m) == Some(t)),
+            t => self.modules.iter().find(|m| Telegram::of_module(m) == Some(t)),
         };
         if !cfg.is_valid() || (cfg.telegram != Telegram::None && module.is_none()) {
             self.acknowledge_config(seq, ConfigResult::Refused);
@@ -659,7 +669,7 @@ impl Link {
 struct ConfigTakeover {
     seq: u16,
     config: HostConfig,
-    module: Option<&'static crate::card::Module>,
+    module: Option<&'static Module>,
 }
 
 /// Serve the profile's fault status word (after the PKW; [`ZSW1_FAULT`] for PROFIdrive, WEG
@@ -692,11 +702,10 @@ pub struct NodeSnapshot {
     pub events: Events,
     /// The status block's content (DP state, active telegram, Clear, counters).
     pub status: Status,
-    outputs: [u8; MAX_OUTPUT_LEN],
+    outputs: [u8; PD_CAPACITY],
     outputs_len: u8,
-    /// The user bytes of the last accepted Set_Prm (the card's defaults before one): the
-    /// operate mode and the communication-loss reaction of the GSD's user parameters.
-    pub user_prm: [u8; USER_PRM_LEN],
+    user_prm: [u8; USER_PRM_CAPACITY],
+    user_prm_len: u8,
 }
 
 impl NodeSnapshot {
@@ -712,9 +721,16 @@ impl NodeSnapshot {
     pub fn is_clear(&self) -> bool {
         self.status.flags.contains(StatusFlags::CLEAR)
     }
-    /// The master's outputs (Data_Exchange).
+    /// The master's outputs (Data_Exchange; at most the DPM's `PD_CAPACITY`).
     pub fn outputs(&self) -> &[u8] {
         &self.outputs[..usize::from(self.outputs_len)]
+    }
+    /// The User_Prm_Data octets (from DPV1_Status_1 on) of the last accepted Set_Prm, the
+    /// product's defaults before one (`dp::SlaveConfig::user_prm_defaults`), at most
+    /// [`USER_PRM_CAPACITY`]: the card reads its user parameters (operate mode,
+    /// communication-loss reaction) from them.
+    pub fn user_prm(&self) -> &[u8] {
+        &self.user_prm[..usize::from(self.user_prm_len)]
     }
 }
 
@@ -726,7 +742,7 @@ pub struct NodeUpdate {
     ext_diag: bool,
     stat_diag: Option<bool>,
     fault_image: bool,
-    inputs: [u8; MAX_INPUT_LEN],
+    inputs: [u8; PD_CAPACITY],
     inputs_len: Option<u8>,
     config: Option<ConfigTakeover>,
     /// The drive's DEVICE block (serial number, hardware revision for I&M0), when it changed.
@@ -741,7 +757,7 @@ impl NodeUpdate {
             ext_diag: false,
             stat_diag: None,
             fault_image: false,
-            inputs: [0; MAX_INPUT_LEN],
+            inputs: [0; PD_CAPACITY],
             inputs_len: None,
             config: None,
             device: None,
@@ -753,11 +769,11 @@ impl NodeUpdate {
         self.telegram
     }
 
-    /// A new input image for the DP slave (cut to the card's largest input image,
-    /// [`crate::card::MAX_INPUT_LEN`]; [`crate::dp::DpSlave::set_inputs`] then cuts it to the
+    /// A new input image for the DP slave (cut to the DPM's process-data capacity,
+    /// `layout::PD_CAPACITY`; [`crate::dp::DpSlave::set_inputs`] then cuts it to the
     /// configured module's length).
     pub fn set_inputs(&mut self, bytes: &[u8]) {
-        let n = bytes.len().min(MAX_INPUT_LEN);
+        let n = bytes.len().min(PD_CAPACITY);
         self.inputs[..n].copy_from_slice(&bytes[..n]);
         self.inputs_len = Some(n as u8);
     }
@@ -769,16 +785,14 @@ impl NodeUpdate {
 }
 
 /// The drive's DEVICE block as I&M0 reports it: a serial number byte outside the visible
-/// string range reads as a blank, a hardware revision 0 as the card's own.
+/// string range reads as a blank (a hardware revision 0 reads as the device's own,
+/// [`crate::dpv1::im::Im::set_ident`]).
 fn device_ident(d: crate::dpv1::im::DeviceIdent) -> crate::dpv1::im::DeviceIdent {
     let mut out = d;
     for b in out.serial_number.iter_mut() {
         if !(0x20..=0x7E).contains(b) {
             *b = b' ';
         }
-    }
-    if out.hardware_revision == 0 {
-        out.hardware_revision = crate::card::IM_HARDWARE_REVISION;
     }
     out
 }

@@ -71,7 +71,7 @@ pub use blocks::{
     CardEvent, CardFlags, CardReport, ConfigResult, DriveCommandImage, DriveReport, DriveStateImage, HeartbeatMonitor,
     HostConfig, Identity, Liveness, MailboxRequest, MailboxResponse, ParamValues, PzdWords, RequestKind, CARD_TYPE,
 };
-pub use link::{Link, LinkStats, NodeSnapshot, NodeUpdate, ZSW1_FAULT};
+pub use link::{Link, LinkStats, NodeSnapshot, NodeUpdate, USER_PRM_CAPACITY, ZSW1_FAULT};
 pub use mailbox::{Mailbox, MailboxBusy, MailboxServer, MailboxStats};
 pub use params::{MailboxParams, ParamCache};
 
@@ -381,7 +381,8 @@ impl Default for Dpm {
 
 impl Dpm {
     /// A fresh image: header written, status [`Status::INACTIVE`], no process data (every
-    /// sequence counter 0).
+    /// sequence counter 0), IDENT of this firmware without an ident number (0:
+    /// [`with_identity`](Self::with_identity) gives the product's; the card: `card::IDENTITY`).
     pub fn new() -> Self {
         let mut image = [0u8; IMAGE_SIZE];
         image[layout::header::MAGIC..layout::header::MAGIC + 4].copy_from_slice(&layout::MAGIC);
@@ -390,7 +391,7 @@ impl Dpm {
         image[layout::header::CAPABILITIES..layout::header::CAPABILITIES + 4]
             .copy_from_slice(&layout::cap::ALL.to_be_bytes());
         Status::INACTIVE.encode(&mut image[status::START..status::START + status::LEN]);
-        Identity::THIS_CARD.encode(&mut image[layout::ident::START..layout::ident::START + layout::ident::LEN]);
+        Identity::of_product(0).encode(&mut image[layout::ident::START..layout::ident::START + layout::ident::LEN]);
         Dpm { image }
     }
 

@@ -15,6 +15,8 @@ fn fresh_image_has_header_and_inactive_status() {
     );
     assert_eq!((dpm.layout_version(), dpm.capabilities()), (4, layout::cap::ALL));
     let id = dpm.identity();
+    assert_eq!((id.card_type, id.ident_number, id.serial), (CARD_TYPE, 0, 0), "no product's ident yet");
+    let id = Dpm::with_identity(&card::IDENTITY).identity();
     assert_eq!((id.card_type, id.ident_number, id.serial), (CARD_TYPE, card::IDENT_NUMBER, 0));
     assert_eq!(id.firmware, [0, 1, 0], "Cargo.toml version 0.1.0");
     assert_eq!(dpm.card_report().unwrap(), CardReport::default(), "never written: all zero, seq 0");

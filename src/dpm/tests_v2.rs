@@ -160,7 +160,7 @@ fn every_field_read_back() {
 
 #[test]
 fn new_blocks_round_trip_through_the_sides() {
-    let mut dpm = Dpm::with_identity(&Identity { serial: 0x1234_5678, ..Identity::THIS_CARD });
+    let mut dpm = Dpm::with_identity(&Identity { serial: 0x1234_5678, ..crate::card::IDENTITY });
     assert_eq!(dpm.host().read_identity().serial, 0x1234_5678);
     let b = dpm.as_bytes();
     assert_eq!(&b[field("IDENT.SERIAL").offset..][..4], &[0x12, 0x34, 0x56, 0x78], "big-endian");
@@ -324,7 +324,7 @@ impl Bench {
         Bench {
             node: Node::new(DpSlave::new(&crate::card::SLAVE, SLAVE)),
             dpm: Dpm::new(),
-            link: Link::new(),
+            link: Link::new(crate::card::MODULES),
             now: Instant::from_millis(0),
             master: ScriptedMaster::new(MASTER, SLAVE),
         }

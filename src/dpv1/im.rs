@@ -100,6 +100,9 @@ pub struct ImDevice {
     pub hardware_revision: u16,
     /// I&M0 SOFTWARE_REVISION: `V` + major, minor, patch (the GSD's `Software_Release`).
     pub software_revision: [u8; 4],
+    /// I&M0 PROFILE_ID: the application profile the device follows (reference §4.7;
+    /// [`PROFILE_ID_PROFIDRIVE`] 0x3A00 for a drive, 0xF600 a generic device).
+    pub profile_id: u16,
 }
 
 impl ImDevice {
@@ -170,7 +173,7 @@ pub fn im0(device: &ImDevice, ident: &DeviceIdent) -> [u8; RECORD_LEN] {
     r[48..50].copy_from_slice(&ident.hardware_revision.to_be_bytes());
     r[50..54].copy_from_slice(&device.software_revision);
     // REVISION_COUNTER 54..56 = 0; PROFILE_SPECIFIC_TYPE 58..60 = 0.
-    r[56..58].copy_from_slice(&PROFILE_ID_PROFIDRIVE.to_be_bytes());
+    r[56..58].copy_from_slice(&device.profile_id.to_be_bytes());
     r[60..62].copy_from_slice(&IM_VERSION.to_be_bytes());
     r[62..64].copy_from_slice(&IM_SUPPORTED.to_be_bytes());
     r
@@ -293,9 +296,12 @@ impl Im {
     pub fn set_data(&mut self, data: ImData) {
         self.data = data;
     }
-    /// The drive's serial number and hardware revision for I&M0.
+    /// The drive's serial number and hardware revision for I&M0; a hardware revision 0 (not
+    /// known to the drive) reads as the device's own ([`ImDevice::hardware_revision`]).
     pub fn set_ident(&mut self, ident: DeviceIdent) {
-        self.ident = ident;
+        let hardware_revision =
+            if ident.hardware_revision == 0 { self.device.hardware_revision } else { ident.hardware_revision };
+        self.ident = DeviceIdent { hardware_revision, ..ident };
     }
     /// The identity I&M0 reports.
     pub fn ident(&self) -> &DeviceIdent {

@@ -552,8 +552,8 @@ pub fn run(data: &[u8], mode: Mode, max_ops: usize) -> Result<Coverage, Mismatch
     let mut pa_alone: DriveTable = SIM_DRIVE_TABLE;
     let mut pa_split: DriveTable = SIM_DRIVE_TABLE;
     // Each card's data records (records 47 / 48), owned by the application.
-    let mut rec_alone = CardRecords::new();
-    let mut rec_split = CardRecords::new();
+    let mut rec_alone = CardRecords::new(&crate::card::RECORDS);
+    let mut rec_split = CardRecords::new(&crate::card::RECORDS);
     // A DP-V1 poll the split answered "not ready" while the core alone delivered: the core
     // alone's answer and the master's next poll, which must deliver exactly that.
     let mut owed: Option<(Frame, Frame)> = None;

@@ -236,6 +236,7 @@ mod tests {
             fault_counter: f.counter(),
             faults: *f.numbers(),
             process: super::super::pnu::ProcessView::EMPTY,
+            device_id: &crate::card::RECORDS.device_id,
         };
         let mut card = CardTable { info, drive: &mut drive };
         let [c0, c1] = PNU_FAULT_COUNTER.to_be_bytes();

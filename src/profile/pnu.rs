@@ -13,7 +13,6 @@ use super::param::Attribute;
 use super::param::{ErrorValue, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
 use super::table::{slots, ParamDef, Table, Type};
 use super::telegram::{DataProfile, Layout, PZD_SIGNALS};
-use crate::card;
 use crate::profile::selection::{Family, Telegram};
 
 /// PNU 915: PZD assignment of the setpoint telegram — the signal number of each output PZD
@@ -212,14 +211,12 @@ pub struct CardInfo {
     pub faults: [u16; FAULT_BUFFER_LEN],
     /// The profile layer's data profile and cyclic words.
     pub process: ProcessView,
+    /// PNU 964 under the generic frames: the product's own
+    /// ([`super::records::RecordConfig::device_id`]).
+    pub device_id: &'static [u16; 6],
 }
 
 impl CardInfo {
-    /// PNU 964, the card's own identity (OPTE3/E5 Table 110 structure): manufacturer (PI
-    /// vendor ID — 0, a placeholder until registered), drive unit type, software version
-    /// (major × 100 + minor), firmware year, day/month as ddmm, number of drive objects.
-    /// Served under the INVT frame and WEG CFW500 (neither manual defines P0964).
-    pub const DEVICE_ID: [u16; 6] = [0, card::IDENT_NUMBER, 1, 2026, 2211, 1];
     /// PNU 964 under a VACON telegram (OPTE3/E5 Table 110): manufacturer 0x01BA (VACON), drive
     /// unit type 0x0002 (VACON 100 family), then the card's own version, firmware date and
     /// one DO — a PLC program that checks subindex 0 / 1 finds the board it was written for;
@@ -256,13 +253,14 @@ impl CardInfo {
         }
     }
 
-    /// PNU 964 for the product ([`Self::DEVICE_ID`], [`Self::DEVICE_ID_VACON`],
-    /// [`Self::DEVICE_ID_CFW11`]).
+    /// PNU 964 for the product ([`Self::device_id`](CardInfo::device_id) under the generic
+    /// PROFIdrive, INVT and WEG CFW500 frames — neither of the last two manuals defines P0964 —,
+    /// [`Self::DEVICE_ID_VACON`], [`Self::DEVICE_ID_CFW11`]).
     pub fn device_id(&self) -> &'static [u16] {
         match self.product() {
             Product::Vacon => &Self::DEVICE_ID_VACON,
             Product::Cfw11 => &Self::DEVICE_ID_CFW11,
-            _ => &Self::DEVICE_ID,
+            _ => self.device_id,
         }
     }
     /// PNU 975, DO identification, the eight elements PROFIdrive defines: manufacturer, DO
@@ -544,6 +542,7 @@ mod telegram_pnu_tests {
             fault_counter: 0,
             faults: [0; FAULT_BUFFER_LEN],
             process: ProcessView::EMPTY,
+            device_id: &crate::card::RECORDS.device_id,
         }
     }
 

@@ -1,5 +1,5 @@
 //! The drive's data records at slot 0 (the device) and at the drive module's slot 1
-//! ([`card::RECORD_SLOTS`], GSD `SlotDefinition`), reached by DS_Read / DS_Write over
+//! ([`RecordConfig::slots`], GSD `SlotDefinition`; this card: `card::RECORDS`), reached by DS_Read / DS_Write over
 //! MSAC_C1 or MSAC_C2 — the same records at both slots:
 //!
 //! | index | record | manual |
@@ -36,7 +36,6 @@ use super::param::{respond, ParamRequest, ParameterAccess, MAX_LEN};
 use super::pnu::{CardInfo, CardTable, ProcessView, FAULT_BUFFER_LEN};
 use super::selection::Telegram;
 use super::weg48::SimpleAccess;
-use crate::card;
 use crate::dpv1::pdu::ErrorCode1;
 use crate::dpv1::records::RecordHandler;
 use crate::node::{DataRecords, StationInfo};
@@ -97,7 +96,7 @@ impl RecordErrors {
 }
 
 /// Relations with a record-47 response of their own: MSAC_C1 and every MSAC_C2 connection.
-pub const RELATIONS: usize = 1 + card::C2_MAX_COUNT_CHANNELS;
+pub const RELATIONS: usize = 1 + crate::node::C2_CHANNELS;
 
 /// Records 47 and 48 over one parameter table.
 #[derive(Debug, Clone)]
@@ -115,17 +114,29 @@ pub struct DriveRecords {
     response_lens: [usize; RELATIONS],
     weg: SimpleAccess,
     errors: RecordErrors,
+    /// The slots at which the records answer ([`RecordConfig::slots`]).
+    slots: &'static [u8],
 }
 
-impl Default for DriveRecords {
-    fn default() -> Self {
-        Self::new()
-    }
+/// What a product states about itself in its PROFIdrive data records (configuration as data:
+/// the product's `card.rs` gives it, the profile layer never names the product).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RecordConfig {
+    /// The DP-V1 slots at which records 47 / 48 answer (GSD `SlotDefinition`; reference §5.1:
+    /// the device, slot 0, as Balluff, VACON and WEG address it, and the drive module's slot,
+    /// as ABB adapters and SINAMICS address the drive object). Any other slot: 0xB2.
+    pub slots: &'static [u8],
+    /// PNU 964 (drive unit identification, OPTE3/E5 Table 110 structure) under the generic
+    /// PROFIdrive, INVT and WEG CFW500 frames: manufacturer (PI vendor ID), drive unit type,
+    /// software version (major × 100 + minor), firmware year, day/month as ddmm, number of
+    /// drive objects. The VACON and CFW-11 variants are the manuals' own
+    /// ([`CardInfo::DEVICE_ID_VACON`], [`CardInfo::DEVICE_ID_CFW11`]).
+    pub device_id: [u16; 6],
 }
 
 impl DriveRecords {
-    /// No response waiting, nothing selected.
-    pub const fn new() -> Self {
+    /// No response waiting, nothing selected; answering at `slots`.
+    pub const fn new(slots: &'static [u8]) -> Self {
         DriveRecords {
             request: [0; MAX_LEN],
             request_len: 0,
@@ -137,6 +148,7 @@ impl DriveRecords {
             response_lens: [0; RELATIONS],
             weg: SimpleAccess::new(),
             errors: RecordErrors::Profidrive,
+            slots,
         }
     }
 
@@ -224,7 +236,7 @@ impl<T: ParameterAccess> RecordHandler for Bound<'_, T> {
     }
 
     fn read(&mut self, _now: Instant, slot: u8, index: u8, out: &mut [u8]) -> Result<usize, ErrorCode1> {
-        if !card::RECORD_SLOTS.contains(&slot) {
+        if !self.records.slots.contains(&slot) {
             return Err(ErrorCode1::INVALID_SLOT);
         }
         let r = &mut *self.records;
@@ -251,7 +263,7 @@ impl<T: ParameterAccess> RecordHandler for Bound<'_, T> {
     }
 
     fn write(&mut self, _now: Instant, slot: u8, index: u8, data: &[u8]) -> Result<(), ErrorCode1> {
-        if !card::RECORD_SLOTS.contains(&slot) {
+        if !self.records.slots.contains(&slot) {
             return Err(ErrorCode1::INVALID_SLOT);
         }
         let r = &mut *self.records;
@@ -305,18 +317,14 @@ pub struct CardRecords {
     info: CardInfo,
 }
 
-impl Default for CardRecords {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
 impl CardRecords {
-    /// No response waiting, an empty fault buffer, no process view ([`ProcessView::EMPTY`]).
-    pub const fn new() -> Self {
+    /// The records of the product `config` (this card: `card::RECORDS`): no response waiting,
+    /// an empty fault buffer, no process view ([`ProcessView::EMPTY`]).
+    pub const fn new(config: &'static RecordConfig) -> Self {
         CardRecords {
-            records: DriveRecords::new(),
+            records: DriveRecords::new(config.slots),
             info: CardInfo {
+                device_id: &config.device_id,
                 address: 0,
                 telegram: Telegram::None,
                 baud_p963: 5,

@@ -4,7 +4,7 @@
 //! runtime works on its layout, and the DPM ([`crate::dpm`], which re-exports both types)
 //! carries the layout's code to the drive.
 
-use crate::card::Module;
+use crate::dp::Module;
 
 /// The manufacturer family of a vendor-specific telegram ([`Telegram::Vendor`]). Telegram
 /// numbers of different families overlap — WEG CFW-11 telegrams 100–107 (3–10 words, CFW-11

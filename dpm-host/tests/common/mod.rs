@@ -165,7 +165,7 @@ impl Card {
         Card {
             node: Node::new(DpSlave::new(&pbcard::card::SLAVE, SLAVE)),
             dpm: Image::new(via, Dpm::new()),
-            link: Link::new(),
+            link: Link::new(pbcard::card::MODULES),
             now: Instant::from_millis(0),
             master: ScriptedMaster::new(MASTER, SLAVE),
         }

@@ -83,6 +83,7 @@ pub const OTHER_IM: ImDevice = ImDevice {
     order_id: "FC-20-PB",
     hardware_revision: 3,
     software_revision: [b'V', 2, 4, 1],
+    profile_id: pbcard::dpv1::im::PROFILE_ID_PROFIDRIVE,
 };
 
 /// The product's drive interface: its application reads the outputs from the DP slave and

@@ -113,7 +113,7 @@ mod tests {
     #[test]
     fn the_host_and_the_card_meet_through_the_hand_over() {
         let mut card = Dpm::new();
-        let mut link = Link::new();
+        let mut link = Link::new(crate::card::MODULES);
         let mut node = Node::new(crate::dp::DpSlave::new(&crate::card::SLAVE, 5));
         let ev = node.poll(Instant::from_millis(0));
         link.publish(&mut node, ev, &mut card);
