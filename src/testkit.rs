@@ -10,6 +10,9 @@
 
 use heapless::Vec;
 
+mod fake_drive;
+pub use fake_drive::{FakeDrive, LAST_PNU, PNUS};
+
 use crate::card;
 use crate::dp::DpState;
 use crate::fdl::telegram::{self, EmitError, FunctionCode, Header, MAX_FRAME_LEN};

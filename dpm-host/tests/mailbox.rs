@@ -11,52 +11,20 @@ mod common;
 use common::{Card, Wire};
 use dpm_host::*;
 use pbcard::dpm::mailbox::{DRIVE_LOST_ERROR, TIMEOUT_ERROR};
-use pbcard::profile::param::{ErrorValue, Format, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
-
-/// PNU 100: u16 × 4, limit 1000. PNU 200: read-only 0xBEEF.
-struct Params {
-    p100: [u16; 4],
-}
-
-impl ParameterAccess for Params {
-    fn has_axis(&self, axis: u8) -> bool {
-        axis <= 1
-    }
-    fn read_value(&mut self, _: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-        match a.pnu {
-            100 => {
-                let s = a.subindex as usize;
-                let v = self.p100.get(s..s + a.count() as usize).ok_or(ErrorValue::INVALID_SUBINDEX)?;
-                v.iter().try_for_each(|&x| out.push_u16(x))
-            }
-            200 => out.push_u16(0xBEEF),
-            _ => Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into()),
-        }
-    }
-    fn write_value(&mut self, _: u8, a: &ParamAddress, v: &ValueBlock<'_>) -> Result<(), ParamError> {
-        match a.pnu {
-            100 => {
-                for i in 0..v.count as usize {
-                    let x = v.u16(i).ok_or(ErrorValue::INCORRECT_DATA_TYPE)?;
-                    if x > 1000 {
-                        return Err(ParamError { value: ErrorValue::LIMIT_EXCEEDED, additional_info: Some(i as u16) });
-                    }
-                    *self.p100.get_mut(a.subindex as usize + i).ok_or(ErrorValue::INVALID_SUBINDEX)? = x;
-                }
-                Ok(())
-            }
-            200 => Err(ErrorValue::VALUE_CANNOT_BE_CHANGED.into()),
-            _ => Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into()),
-        }
-    }
-}
+use pbcard::profile::param::{ErrorValue, Format, ParamError};
+use pbcard::testkit::FakeDrive;
 
 fn words(v: &ParamValues) -> Vec<u16> {
     v.bytes().chunks(2).map(|w| u16::from_be_bytes([w[0], w[1]])).collect()
 }
 
 /// The card asks, the host serves from its table, the card takes the answer.
-fn ask(card: &mut Card, host: &mut Host<Wire>, t: &mut Params, req: MailboxRequest) -> Result<ParamValues, ParamError> {
+fn ask(
+    card: &mut Card,
+    host: &mut Host<Wire>,
+    t: &mut FakeDrive,
+    req: MailboxRequest,
+) -> Result<ParamValues, ParamError> {
     let id = card.link.submit_parameter(card.now, &req, &mut card.dpm.borrow_mut()).unwrap();
     card.cycle(1);
     assert_eq!(card.link.take_parameter_response(), None, "not answered yet");
@@ -72,7 +40,7 @@ over_both! {
 fn reads_writes_and_the_drives_errors(via) {
     let mut card = Card::via(via);
     let mut host = Host::open(card.transport(), Options::DEFAULT).unwrap();
-    let mut t = Params { p100: [1, 2, 3, 4] };
+    let mut t = FakeDrive::new();
     let v = ask(&mut card, &mut host, &mut t, MailboxRequest::read(1, 100, 1, 2)).unwrap();
     assert_eq!((v.format, words(&v)), (Format::WORD, vec![2, 3]));
     let w = ParamValues::new(Format::WORD, 2, &[0x01, 0x00, 0x02, 0x00]).unwrap();
@@ -92,7 +60,7 @@ fn reads_writes_and_the_drives_errors(via) {
         Err(ErrorValue::AXIS_NONEXISTENT.into())
     );
     assert_eq!(
-        ask(&mut card, &mut host, &mut t, MailboxRequest::read_description(1, 200, 1)),
+        ask(&mut card, &mut host, &mut t, MailboxRequest::read_description(1, 100, 1)),
         Err(ErrorValue::NO_DESCRIPTION.into())
     );
     // A closure as the server.
@@ -135,7 +103,7 @@ fn timeout_then_late_answer_is_refused_and_never_taken_for_the_next_request(via)
     card.cycle(1);
     assert_eq!(card.link.take_parameter_response(), None, "nothing taken for the second request");
     // The real answer to the second.
-    let mut t = Params { p100: [0; 4] };
+    let mut t = FakeDrive { p100: [0; 4], ..FakeDrive::new() };
     assert_eq!(host.serve_parameters(&mut Table(&mut t)), Ok(Some(id2)));
     card.cycle(1);
     let (id, v) = card.link.take_parameter_response().unwrap();

@@ -5,7 +5,7 @@
 //! SSAPs); MSAC_C2 Initiate on the resource manager SAP 49 and on the connection SAPs 48/47,
 //! requests, polls, Idle, Abort (SRD and SDN) from several class-2 masters and SSAPs; FCB
 //! retries; time steps with `Node::poll` (watchdog, Send_Timeout); `Node::process_acyclic`
-//! against the fake drive table of `common/fake_drive.rs` (behind the card's own PNUs); DP
+//! against the fake drive table of `pbcard::testkit::FakeDrive` (behind the card's own PNUs); DP
 //! cyclic traffic; re-parameterisation (with or without DPV1_Enable); free-form requests.
 //! Frames go in whole (`on_frame`) or byte by byte through the framer (`on_byte`).
 //!
@@ -24,10 +24,8 @@
 #[macro_use]
 mod src;
 
-#[path = "common/fake_drive.rs"]
-mod fake_drive;
 
-use fake_drive::FakeDrive;
+use pbcard::testkit::FakeDrive;
 use libfuzzer_sys::fuzz_target;
 use pbcard::card;
 use pbcard::dp::{DpSlave, DpState};

@@ -6,7 +6,7 @@
 //!   yields `No_of_Parameters` parameters (with value blocks exactly for a change request), and
 //!   re-emitted by the master's `emit_request` parses to the same parameters (pad bytes may
 //!   differ; a 240-byte request without the optional last pad cannot be re-emitted padded).
-//! * `respond` against the fake table of `common/fake_drive.rs`, twice (the second run sees
+//! * `respond` against the fake table of `pbcard::testkit::FakeDrive`, twice (the second run sees
 //!   the first one's writes): 4..=240 bytes; `ParamResponse::parse` accepts it with reference,
 //!   axis and No_of_Parameters mirrored and Response_ID = request ID | 0x80 exactly when a
 //!   parameter failed; a positive change response is the header alone; otherwise one block
@@ -19,10 +19,8 @@
 //!   read returns 2 bytes only after a successful selection.
 #![no_main]
 
-#[path = "common/fake_drive.rs"]
-mod fake_drive;
 
-use fake_drive::FakeDrive;
+use pbcard::testkit::FakeDrive;
 use libfuzzer_sys::fuzz_target;
 use pbcard::dpv1::pdu::EmitError;
 use pbcard::profile::param::{

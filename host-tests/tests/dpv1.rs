@@ -9,52 +9,20 @@ use pbcard::dp::{DpSlave, DpState};
 use pbcard::dpv1::pdu::ErrorCode1;
 use pbcard::fdl::telegram::{FunctionCode, Header};
 use pbcard::node::Node;
-use pbcard::profile::param::{ErrorValue, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
 use pbcard::profile::records::CardRecords;
-use pbcard::testkit::{self, ScriptedMaster, SetPrm};
+use pbcard::testkit::{self, FakeDrive, ScriptedMaster, SetPrm};
 use pbcard::time::Instant;
 
 const ME: u8 = 3;
 const M1: u8 = 2;
 const M2: u8 = 4;
 
-/// A drive parameter table: PNU 100 (read/write, 0..=5000), PNU 101 (read-only).
-struct Drive {
-    p100: u16,
-}
-
-impl ParameterAccess for Drive {
-    fn has_axis(&self, axis: u8) -> bool {
-        axis <= 1
-    }
-    fn read_value(&mut self, _: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-        match a.pnu {
-            100 => out.push_u16(self.p100),
-            101 => out.push_u16(1234),
-            _ => Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into()),
-        }
-    }
-    fn write_value(&mut self, _: u8, a: &ParamAddress, v: &ValueBlock<'_>) -> Result<(), ParamError> {
-        match a.pnu {
-            100 => {
-                let x = v.u16(0).ok_or(ErrorValue::INCORRECT_DATA_TYPE)?;
-                if x > 5000 {
-                    return Err(ErrorValue::LIMIT_EXCEEDED.into());
-                }
-                self.p100 = x;
-                Ok(())
-            }
-            101 => Err(ErrorValue::VALUE_CANNOT_BE_CHANGED.into()),
-            _ => Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into()),
-        }
-    }
-}
-
 struct Master {
     node: Node,
     /// The card's data records (records 47 / 48), owned by the application.
     records: CardRecords,
-    drive: Drive,
+    /// The tests' fake drive table (PNU 100 u16[4] ≤ 1000, PNU 101 read-only 1234).
+    drive: FakeDrive,
     master: ScriptedMaster,
     now: u64,
 }
@@ -64,7 +32,7 @@ impl Master {
         Master {
             node: Node::new(DpSlave::new(&pbcard::card::SLAVE, ME)),
             records: CardRecords::new(&pbcard::card::RECORDS),
-            drive: Drive { p100: 50 },
+            drive: FakeDrive { p100: [50, 0, 0, 0], ..FakeDrive::new() },
             master: ScriptedMaster::new(M1, ME),
             now: 0,
         }
@@ -130,12 +98,13 @@ fn change_and_read_back_a_drive_parameter() {
     let req = [0x5F, 0, 47, 14, 7, 2, 1, 1, 0x10, 1, 0, 100, 0, 0, 0x42, 1, 0x03, 0xE8];
     assert_eq!(m.transact(&req), [0x5F, 0, 47, 14]);
     assert_eq!(m.transact(&[0x5E, 0, 47, 240]), [0x5E, 0, 47, 4, 7, 2, 1, 1]);
-    assert_eq!(m.drive.p100, 1000);
-    // Beyond the limit: 0x82 with error 0x02; read-only PNU 101: error 0x01.
+    assert_eq!(m.drive.p100[0], 1000);
+    // Beyond the limit: 0x82 with error 0x02 and the failing element (subindex 0) as the
+    // additional information of an array parameter; read-only PNU 101: error 0x01.
     let req = [0x5F, 0, 47, 14, 8, 2, 1, 1, 0x10, 1, 0, 100, 0, 0, 0x42, 1, 0x17, 0x70];
     m.transact(&req);
-    assert_eq!(m.transact(&[0x5E, 0, 47, 240]), [0x5E, 0, 47, 8, 8, 0x82, 1, 1, 0x44, 1, 0, 2]);
-    assert_eq!(m.drive.p100, 1000);
+    assert_eq!(m.transact(&[0x5E, 0, 47, 240]), [0x5E, 0, 47, 10, 8, 0x82, 1, 1, 0x44, 2, 0, 2, 0, 0]);
+    assert_eq!(m.drive.p100[0], 1000);
     // Profile identification PNU 965 (card-owned, BYTE[2]): both elements = 3, 41.
     m.transact(&[0x5F, 0, 47, 10, 9, 1, 1, 1, 0x10, 2, 0x03, 0xC5, 0, 0]);
     assert_eq!(m.transact(&[0x5E, 0, 47, 240]), [0x5E, 0, 47, 8, 9, 1, 1, 1, 0x0A, 2, 3, 41]);
@@ -147,7 +116,7 @@ fn weg_simple_access_record_48() {
     m.bring_up(0x80);
     // Write PNU 100 = 300, select it, read it.
     assert_eq!(m.transact(&[0x5F, 0, 48, 4, 0, 100, 0x01, 0x2C]), [0x5F, 0, 48, 4]);
-    assert_eq!(m.drive.p100, 300);
+    assert_eq!(m.drive.p100[0], 300);
     assert_eq!(m.transact(&[0x5F, 0, 48, 2, 0, 100]), [0x5F, 0, 48, 2]);
     assert_eq!(m.transact(&[0x5E, 0, 48, 240]), [0x5E, 0, 48, 2, 0x01, 0x2C]);
     // Read-only parameter: B6; unknown parameter: B8.

@@ -11,7 +11,7 @@ use crate::dp::diag::Status2;
 use crate::dp::{DpSlave, DpState};
 use crate::fdl::telegram::{FunctionCode, Header};
 use crate::node::Node;
-use crate::profile::param::{ErrorValue, Format, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
+use crate::profile::param::{ErrorValue, Format, ParamError};
 use crate::testkit::{self, Frame, Rig, ScriptedMaster, SetPrm};
 use crate::time::{Duration, Instant};
 
@@ -428,52 +428,10 @@ fn configuration_outside_data_exchange_is_taken_at_once() {
 }
 
 // ---------------------------------------------------------------------------------------
-// Parameter mailbox
+// Parameter mailbox (over the tests' fake drive table, `testkit::FakeDrive`: PNU 100 u16[4] ≤ 1000,
+// PNU 200 read-only 0xBEEF with a description)
 
-/// PNU 100: u16 array of 4, limit 1000. PNU 200: read-only 0xBEEF with a description.
-struct Drive {
-    p100: [u16; 4],
-}
-
-impl ParameterAccess for Drive {
-    fn has_axis(&self, axis: u8) -> bool {
-        axis <= 1
-    }
-    fn read_value(&mut self, _: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-        match a.pnu {
-            100 => {
-                let s = a.subindex as usize;
-                let n = a.count() as usize;
-                let v = self.p100.get(s..s + n).ok_or(ErrorValue::INVALID_SUBINDEX)?;
-                v.iter().try_for_each(|&x| out.push_u16(x))
-            }
-            200 => out.push_u16(0xBEEF),
-            _ => Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into()),
-        }
-    }
-    fn write_value(&mut self, _: u8, a: &ParamAddress, v: &ValueBlock<'_>) -> Result<(), ParamError> {
-        match a.pnu {
-            100 => {
-                for i in 0..v.count as usize {
-                    let x = v.u16(i).ok_or(ErrorValue::INCORRECT_DATA_TYPE)?;
-                    if x > 1000 {
-                        return Err(ParamError { value: ErrorValue::LIMIT_EXCEEDED, additional_info: Some(i as u16) });
-                    }
-                    *self.p100.get_mut(a.subindex as usize + i).ok_or(ErrorValue::INVALID_SUBINDEX)? = x;
-                }
-                Ok(())
-            }
-            200 => Err(ErrorValue::VALUE_CANNOT_BE_CHANGED.into()),
-            _ => Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into()),
-        }
-    }
-    fn read_description(&mut self, _: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-        match (a.pnu, a.subindex) {
-            (200, 1) => out.push_u16(0x0006),
-            _ => Err(ErrorValue::NO_DESCRIPTION.into()),
-        }
-    }
-}
+use crate::testkit::FakeDrive;
 
 fn words(v: &ParamValues) -> Vec<u16> {
     v.bytes().chunks(2).map(|w| u16::from_be_bytes([w[0], w[1]])).collect()
@@ -484,7 +442,7 @@ fn mailbox_end_to_end_read_write_description_and_errors() {
     let mut dpm = Dpm::new();
     let mut mbx = Mailbox::default();
     let mut srv = MailboxServer::new();
-    let mut drive = Drive { p100: [1, 2, 3, 4] };
+    let mut drive = FakeDrive::new();
     let mut now = Instant::from_millis(0);
     let mut ask = |dpm: &mut Dpm, mbx: &mut Mailbox, req: MailboxRequest| {
         now = now + Duration::from_millis(5);
@@ -554,7 +512,7 @@ fn mailbox_timeout_then_late_answer_is_not_taken_for_the_next_request() {
     assert_eq!(mbx.take(), None, "a late answer is never taken for the next request");
     assert_eq!(mbx.stats().late_responses, 1);
     // The real answer to the second.
-    assert_eq!(srv.serve(&mut dpm.host(), &mut Drive { p100: [0; 4] }), Some(id2));
+    assert_eq!(srv.serve(&mut dpm.host(), &mut FakeDrive { p100: [0; 4], ..FakeDrive::new() }), Some(id2));
     mbx.poll(t1 + Duration::from_millis(1), &dpm);
     let (id, v) = mbx.take().unwrap();
     assert_eq!((id, words(&v.unwrap())), (id2, vec![0xBEEF]));
@@ -572,7 +530,7 @@ fn request_ids_skip_zero() {
 
 #[test]
 fn execute_checks_write_values() {
-    let mut d = Drive { p100: [0; 4] };
+    let mut d = FakeDrive { p100: [0; 4], ..FakeDrive::new() };
     let odd = ParamValues::new(Format::WORD, 2, &[0, 1, 0]).unwrap();
     assert_eq!(
         mailbox::execute(&MailboxRequest::write(1, 100, 0, odd), &mut d),

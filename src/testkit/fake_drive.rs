@@ -1,5 +1,8 @@
-//! A small fake drive parameter table for the fuzz targets `profidrive` and `node_dpv1`
-//! (included with `#[path]`; not a target of its own).
+//! The one fake drive parameter table of the tests (issue 13 item 5): the fuzz targets
+//! `profidrive` and `node_dpv1`, the DP-V1 record tests (`host-tests/tests/dpv1.rs`), the DPM
+//! mailbox tests (`dpm::tests_v2`, `dpm-host/tests/mailbox.rs`) read and write it through
+//! [`ParameterAccess`]. Every PNU exercises one rule of the PROFIdrive parameter access
+//! (reference §5.2: formats, arrays, limits, read-only, descriptions, texts):
 //!
 //! | PNU | type | access |
 //! |---|---|---|
@@ -13,27 +16,42 @@
 //! | 8 | a table bug: a read mixes a byte and a word (respond must answer 0x05); writes 0x0B | — |
 //! | 9 | U16\[234\] (the most elements; a whole read does not fit: 0x15) | read-only |
 //! | 10 | Integer16, -500..=500 | read/write |
+//! | 100 | U16\[4\], each ≤ 1000 (the failing element is named) | read/write |
+//! | 101 | U16 = 1234 | read-only |
+//! | 200 | U16 = 0xBEEF, description element 1 (identifier) = 0x0006 | read-only |
 //!
 //! Axes 0 (WEG) and 1 (VACON) exist. Descriptions: element 0 (46 bytes), 1 (identifier) and
-//! 6 (name) for PNUs 1..=10 except 8.
-#![allow(dead_code)]
+//! 6 (name) for PNUs 1..=10 except 8; PNU 200 element 1 only.
 
-use pbcard::profile::param::{ErrorValue, Format, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
+use crate::profile::param::{ErrorValue, Format, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
 
+/// The fake drive's parameter values (see the module documentation for the PNUs).
+#[derive(Debug, Clone, PartialEq)]
 pub struct FakeDrive {
+    /// PNU 1.
     pub p1: u16,
+    /// PNU 3.
     pub p3: [u16; 10],
+    /// PNU 4.
     pub p4: [u32; 4],
+    /// PNU 6.
     pub p6: [u8; 200],
+    /// PNU 7.
     pub p7: f32,
+    /// PNU 10.
     pub p10: i16,
+    /// PNU 100.
+    pub p100: [u16; 4],
     /// Successful writes.
     pub writes: u32,
 }
 
 const P5: &[u8; 16] = b"pbcard fuzz drv ";
 const P1_TEXTS: [&[u8]; 3] = [b"Off", b"On", b"Auto"];
+/// The last of the small PNUs 1..=10 (the fuzz targets' range; 100, 101 and 200 come on top).
 pub const LAST_PNU: u16 = 10;
+/// Every PNU the table has.
+pub const PNUS: [u16; 13] = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 100, 101, 200];
 
 impl Default for FakeDrive {
     fn default() -> Self {
@@ -42,8 +60,19 @@ impl Default for FakeDrive {
 }
 
 impl FakeDrive {
+    /// The values after power-up: P1 50, P3 all 7, P4 all 0x01020304, P6 all 0xA5, P7 1.5,
+    /// P10 −3, P100 1, 2, 3, 4.
     pub fn new() -> Self {
-        FakeDrive { p1: 50, p3: [7; 10], p4: [0x0102_0304; 4], p6: [0xA5; 200], p7: 1.5, p10: -3, writes: 0 }
+        FakeDrive {
+            p1: 50,
+            p3: [7; 10],
+            p4: [0x0102_0304; 4],
+            p6: [0xA5; 200],
+            p7: 1.5,
+            p10: -3,
+            p100: [1, 2, 3, 4],
+            writes: 0,
+        }
     }
 }
 
@@ -122,6 +151,9 @@ impl ParameterAccess for FakeDrive {
                 scalar(a)?;
                 out.push_i16(self.p10)
             }
+            100 => self.p100[range(4, a)?].iter().try_for_each(|&v| out.push_u16(v)),
+            101 => out.push_u16(1234),
+            200 => out.push_u16(0xBEEF),
             _ => Err(not_found()),
         }
     }
@@ -137,7 +169,16 @@ impl ParameterAccess for FakeDrive {
                 }
                 self.p1 = x;
             }
-            2 | 5 | 9 => return Err(ErrorValue::VALUE_CANNOT_BE_CHANGED.into()),
+            2 | 5 | 9 | 101 | 200 => return Err(ErrorValue::VALUE_CANNOT_BE_CHANGED.into()),
+            100 => {
+                for (i, e) in range(4, a)?.enumerate() {
+                    let x = v.u16(i).ok_or_else(|| at(a, i, ErrorValue::INCORRECT_DATA_TYPE))?;
+                    if x > 1000 {
+                        return Err(at(a, i, ErrorValue::LIMIT_EXCEEDED));
+                    }
+                    self.p100[e] = x;
+                }
+            }
             3 => {
                 format_in(v, &[Format::WORD, Format::UNSIGNED16])?;
                 for (i, e) in range(10, a)?.enumerate() {
@@ -186,6 +227,11 @@ impl ParameterAccess for FakeDrive {
     }
 
     fn read_description(&mut self, _axis: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        match (a.pnu, a.subindex) {
+            (200, 1) => return out.push_u16(0x0006),
+            (100 | 101 | 200, _) => return Err(ErrorValue::NO_DESCRIPTION.into()),
+            _ => {}
+        }
         if a.pnu == 0 || a.pnu > LAST_PNU {
             return Err(not_found());
         }
