@@ -473,7 +473,7 @@ impl Application {
         // the CYCLIC exchange take several drive cycles a job, `docs/SPI.md`). A card-only
         // host is the drive maker's: everything in the CYCLIC exchange.
         let opts = if runs { Options { cyclic_mailbox: false, ..Options::DEFAULT } } else { Options::DEFAULT };
-        let host = match Host::open(SpiHost::new(Loopback::new(Dpm::new())), opts) {
+        let host = match Host::open(SpiHost::new(Loopback::new(Dpm::with_identity(&crate::card::IDENTITY))), opts) {
             Ok(h) => h,
             // A fresh image always carries the current header, and the loopback card answers
             // every well-formed frame.

@@ -35,59 +35,27 @@ mod src;
 use libfuzzer_sys::fuzz_target;
 use pbcard::app::Application;
 use pbcard::card;
-use pbcard::dp::{DpSlave, DpState};
+use pbcard::dp::DpState;
 use pbcard::dpm::layout::{Writer, BLOCKS};
 use pbcard::dpm::{codec, ConfigResult, Dpm, HostConfig, LinkStats};
 use pbcard::drive::DriveConfig;
 use pbcard::fdl::telegram::{self, Decoded, Telegram};
 use pbcard::node::Node;
-use pbcard::testkit::{self, Frame, Rig, ScriptedMaster, SetPrm};
-use pbcard::time::{Baudrate, Duration, Instant};
+use pbcard::testkit::{CardRig, Rig, SetPrm};
+use pbcard::time::{Baudrate, Duration};
 use src::Src;
 
 const ME: u8 = 5;
 const MASTER: u8 = 2;
 
-struct Card {
-    app: Application,
-    node: Node,
-    master: ScriptedMaster,
-    now: Instant,
-}
-
-impl Rig for Card {
-    fn master(&mut self) -> &mut ScriptedMaster {
-        &mut self.master
-    }
-    fn deliver(&mut self, frame: &[u8]) -> Option<Frame> {
-        testkit::feed(&mut self.node, self.now, frame)
-    }
-    fn settle(&mut self) {
-        self.step(1);
-    }
-    fn dp_state(&self) -> DpState {
-        self.node.slave().state()
-    }
-    fn input_len(&self) -> usize {
-        self.node.slave().input_len()
-    }
-}
-
-impl Card {
-    fn step(&mut self, ms: u64) {
-        self.now = self.now + Duration::from_millis(ms);
-        self.app.step(self.now, &mut self.node);
-    }
-
-    /// The card publishes, the drive runs, `scribble` writes into the image, the card
-    /// collects: the card reads the scribbled bytes.
-    fn step_with(&mut self, scribble: impl FnOnce(&mut Dpm)) {
-        self.now = self.now + Duration::from_millis(1);
-        self.app.step_publish(self.now, &mut self.node);
-        self.app.step_drive(self.now);
-        scribble(self.app.dpm_mut());
-        self.app.step_collect(self.now, &mut self.node);
-    }
+/// The card publishes, the drive runs, `scribble` writes into the image, the card collects:
+/// the card reads the scribbled bytes.
+fn step_with(c: &mut CardRig, scribble: impl FnOnce(&mut Dpm)) {
+    c.now = c.now + Duration::from_millis(1);
+    c.app.step_publish(c.now, &mut c.node);
+    c.app.step_drive(c.now);
+    scribble(c.app.dpm_mut());
+    c.app.step_collect(c.now, &mut c.node);
 }
 
 fn host_blocks() -> impl Iterator<Item = &'static pbcard::dpm::layout::Block> {
@@ -144,12 +112,7 @@ fuzz_target!(|data: &[u8]| {
     let mut src = Src::new(data);
     let mut app = Application::new(DriveConfig::DEFAULT);
     app.set_baudrate(Some(Baudrate::B1500k));
-    let mut c = Card {
-        app,
-        node: Node::new(DpSlave::new(&pbcard::card::SLAVE, ME)),
-        master: ScriptedMaster::new(MASTER, ME),
-        now: Instant::from_millis(0),
-    };
+    let mut c = CardRig::new(app, MASTER, ME);
     let module = &card::MODULES[usize::from(src.u8()) % card::MODULES.len()];
     c.bring_up(&SetPrm::CARD, module.cfg);
     let mut card_trusted = true;
@@ -178,7 +141,7 @@ fuzz_target!(|data: &[u8]| {
                     c.step(1);
                 } else {
                     let mut torn = None;
-                    c.step_with(|dpm| {
+                    step_with(&mut c, |dpm| {
                         let img = dpm.as_bytes_mut();
                         img[blk.start + off..blk.start + off + bytes.len()].copy_from_slice(bytes);
                         let s = &img[blk.start..blk.start + blk.len];
@@ -202,7 +165,7 @@ fuzz_target!(|data: &[u8]| {
                 content[..2].copy_from_slice(&seq.to_be_bytes());
                 content[blk.len - 2..].copy_from_slice(&seq.to_be_bytes());
                 trace!("block {} = {content:02x?}", blk.name);
-                c.step_with(|dpm| dpm.as_bytes_mut()[blk.start..blk.start + blk.len].copy_from_slice(&content));
+                step_with(&mut c, |dpm| dpm.as_bytes_mut()[blk.start..blk.start + blk.len].copy_from_slice(&content));
             }
             2 => {
                 while config_seq == 0 || config_seqs.contains(&config_seq) {
@@ -222,7 +185,7 @@ fuzz_target!(|data: &[u8]| {
                 let (_, seen) = codec::CONFIG.decode(&bytes).unwrap();
                 trace!("config {seen:?} seq {config_seq}");
                 let start = codec::CONFIG.start();
-                c.step_with(|dpm| dpm.as_bytes_mut()[start..start + bytes.len()].copy_from_slice(&bytes));
+                step_with(&mut c, |dpm| dpm.as_bytes_mut()[start..start + bytes.len()].copy_from_slice(&bytes));
                 if !seen.is_valid() {
                     let r = c.app.link().card_report();
                     assert_eq!((r.config_ack, r.config_result()), (config_seq, ConfigResult::Refused), "{seen:?}");
@@ -248,8 +211,12 @@ fuzz_target!(|data: &[u8]| {
                 }
                 c.step(1);
             }
-            5 => c.step(u64::from(src.u8()) * 4),
-            _ => c.step(1),
+            5 => {
+                c.step(u64::from(src.u8()) * 4);
+            }
+            _ => {
+                c.step(1);
+            }
         }
         let cs = codec::CONFIG.start();
         config_seqs.insert(u16::from_be_bytes([c.app.dpm().as_bytes()[cs], c.app.dpm().as_bytes()[cs + 1]]));

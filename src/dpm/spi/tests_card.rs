@@ -12,37 +12,39 @@ use crate::dpm::{ConfigResult, Dpm, HostConfig, Link};
 use crate::fdl::telegram;
 use crate::node::Node;
 use crate::profile::drive_if::CommandFlags;
-use crate::testkit::{feed, ScriptedMaster, SetPrm};
+use crate::testkit::{CardRig, Rig, SetPrm};
 use crate::time::{Duration, Instant};
 
 const MASTER: u8 = 2;
 const SLAVE: u8 = 5;
 
-struct Card {
-    node: Node,
-    app: Application,
-    master: ScriptedMaster,
-    now: Instant,
-}
+/// The card alone under the scripted master: [`CardRig`] with `step` = one 1 ms step.
+struct Card(CardRig);
 
 impl Card {
     fn card_only() -> Self {
-        Card {
-            node: Node::new(DpSlave::new(&crate::card::SLAVE, SLAVE)),
-            app: Application::card_only(),
-            master: ScriptedMaster::new(MASTER, SLAVE),
-            now: Instant::from_millis(0),
-        }
+        Card(CardRig::card_only(MASTER, SLAVE))
     }
 
     fn step(&mut self) {
-        self.now = self.now + Duration::from_millis(1);
-        self.app.step(self.now, &mut self.node);
+        self.0.step(1);
     }
 
     fn srd(&mut self, dsap: u8, pdu: &[u8]) -> Vec<u8> {
-        let f = self.master.srd(Some(dsap), pdu);
-        feed(&mut self.node, self.now, &f).expect("an answer").to_vec()
+        self.0.srd(Some(dsap), pdu).to_vec()
+    }
+}
+
+impl core::ops::Deref for Card {
+    type Target = CardRig;
+    fn deref(&self) -> &CardRig {
+        &self.0
+    }
+}
+
+impl core::ops::DerefMut for Card {
+    fn deref_mut(&mut self) -> &mut CardRig {
+        &mut self.0
     }
 }
 

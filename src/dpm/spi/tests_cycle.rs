@@ -5,15 +5,14 @@
 //! `cyclic_exchange_figures` prints transactions, bytes and setpoint latency per drive cycle
 //! (`cargo test --lib --target x86_64-unknown-linux-gnu cyclic_exchange_figures -- --nocapture`).
 
-use crate::app::Application;
 use crate::card::{self, Module};
-use crate::dp::{DpSlave, DpState};
+use crate::dp::DpSlave;
 use crate::dpm::host::Cycle;
 use crate::dpm::spi::cyclic::{CyclicReply, CyclicRequest};
 use crate::dpm::{DriveStateImage, HostConfig};
 use crate::node::Node;
 use crate::profile::drive_if::{DriveStatus, StatusFlags};
-use crate::testkit::{feed, Frame, Rig, ScriptedMaster, SetPrm};
+use crate::testkit::{feed, CardRig, Rig, SetPrm};
 use crate::time::{Duration, Instant};
 
 const MASTER: u8 = 2;
@@ -23,44 +22,13 @@ const DRIVE_CYCLE_US: u64 = 1000;
 /// SPI clock of the latency figure.
 const SCK_HZ: u64 = 10_000_000;
 
-struct CardRig {
-    node: Node,
-    app: Application,
-    master: ScriptedMaster,
-    now: Instant,
-}
-
-impl Rig for CardRig {
-    fn master(&mut self) -> &mut ScriptedMaster {
-        &mut self.master
-    }
-    fn deliver(&mut self, frame: &[u8]) -> Option<Frame> {
-        feed(&mut self.node, self.now, frame)
-    }
-    fn settle(&mut self) {
-        self.now = self.now + Duration::from_millis(1);
-        self.app.step(self.now, &mut self.node);
-    }
-    fn dp_state(&self) -> DpState {
-        self.node.slave().state()
-    }
-    fn input_len(&self) -> usize {
-        self.node.slave().input_len()
-    }
-}
-
 fn module(reference: u16) -> &'static Module {
     card::MODULES.iter().find(|m| m.reference == reference).unwrap()
 }
 
 /// The card in data exchange with `m`, the drive's CONFIG written (start-up gate).
 fn rig(m: &Module) -> CardRig {
-    let mut r = CardRig {
-        node: Node::new(DpSlave::new(&crate::card::SLAVE, SLAVE)),
-        app: Application::card_only(),
-        master: ScriptedMaster::new(MASTER, SLAVE),
-        now: Instant::from_millis(0),
-    };
+    let mut r = CardRig::card_only(MASTER, SLAVE);
     r.settle();
     r.app.host_mut().write_config(&HostConfig::DEFAULT).unwrap();
     r.settle();
