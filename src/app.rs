@@ -433,6 +433,32 @@ pub struct Application {
     drive: DriveSlot,
 }
 
+/// The shipped card in a main loop ([`crate::fast::tick`]): [`Card::step`] and [`Card::records`].
+impl<I: CardImage> crate::fast::CardApp for Card<I> {
+    type Records<'a>
+        = WithTable<'a, MailboxParams<'a>>
+    where
+        I: 'a;
+    fn step(&mut self, now: Instant, node: &mut Node) -> Events {
+        Card::step(self, now, node)
+    }
+    fn records(&mut self, now: Instant) -> Self::Records<'_> {
+        Card::records(self, now)
+    }
+}
+
+/// The bench (card + simulated drive) in a main loop: [`Application::step`] (the drive
+/// included) and the card's records.
+impl crate::fast::CardApp for Application {
+    type Records<'a> = WithTable<'a, MailboxParams<'a>>;
+    fn step(&mut self, now: Instant, node: &mut Node) -> Events {
+        Application::step(self, now, node)
+    }
+    fn records(&mut self, now: Instant) -> Self::Records<'_> {
+        self.card.records(now)
+    }
+}
+
 impl Deref for Application {
     type Target = Card<DriveHost>;
     fn deref(&self) -> &Card<DriveHost> {

@@ -84,6 +84,9 @@
 #[cfg(any(test, feature = "test-support"))]
 pub mod check;
 mod dpv1;
+mod tick;
+
+pub use tick::{tick, CardApp};
 
 use core::sync::atomic::{AtomicU32, Ordering};
 

@@ -132,13 +132,9 @@ impl Endpoint for CardEndpoint {
             self.step_now = false;
             self.next_step_us = now_us + STEP_US;
             let now = Instant::from_micros(now_us);
-            ev = self.app.step(now, &mut self.node);
-            if self.node.has_acyclic_work() {
-                self.node.process_acyclic(now, &mut self.app.records(now));
-            }
-            // The fast path answers from the node as it is now.
-            self.core.note_events(ev);
-            self.core.publish(&mut self.node);
+            // The main loop's step: the application, DP-V1 work, the staging republished so
+            // the fast path answers from the node as it is now.
+            ev = pbcard::fast::tick(now, &mut self.node, &mut self.core, &mut self.app);
         }
         if !ev.is_empty() {
             self.events_seen |= ev;

@@ -15,7 +15,6 @@ use other_drive::{Fc20, BASIC, EXTENDED, IDENT_NUMBER, MONITOR, OTHER, OTHER_IM,
 use pbcard::dp::diag::Status1;
 use pbcard::dp::{DpSlave, DpState};
 use pbcard::dpv1::im::Im;
-use pbcard::dpv1::records::NoRecords;
 use pbcard::fast::{self, CoreLink, FastPath, Shared};
 use pbcard::fdl::telegram::{self, Decoded, ResponseStatus, Telegram};
 use pbcard::node::Node;
@@ -55,12 +54,9 @@ impl Product {
         let mut out = [0u8; pbcard::fdl::telegram::MAX_FRAME_LEN];
         let answer = fast::single_threaded(&mut self.fast, &mut self.core, &mut self.node, now, &f, &mut out)
             .map(|n| out[..n].to_vec());
-        // The lower-priority tasks: DP-V1 work, the drive's cycle.
-        // No data records of its own beyond I&M (the node serves slot 0 / index 255): a product
-        // with records passes its `node::DataRecords` here.
-        self.node.process_acyclic(now, &mut NoRecords);
-        self.drive.cycle(self.node.slave_mut());
-        self.core.publish(&mut self.node);
+        // The lower-priority tasks: the drive's cycle, DP-V1 work, the staging republished
+        // (the main loop's step, `fast::tick`, with the product's `CardApp`).
+        fast::tick(now, &mut self.node, &mut self.core, &mut self.drive);
         answer
     }
 

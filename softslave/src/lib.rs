@@ -254,20 +254,14 @@ pub fn run(opts: &Options, stop: &AtomicBool, log: &mut dyn FnMut(&str)) -> io::
         if got || now - last_step >= STEP_EVERY {
             last_step = now;
             for (i, st) in stations.iter_mut().enumerate() {
-                let events = st.app.step(now_pb(now), &mut st.node);
-                // The configured module stays the only one Chk_Cfg accepts (a DPM CONFIG of
-                // the simulated drive does not widen it).
-                if st.config.module.is_some() {
-                    st.node.slave_mut().require_module(st.config.module);
-                }
-                // DP-V1: data records at slot 0 over the card's PNUs and the simulated drive's
-                // parameters through the DPM mailbox (a job waiting for the drive is retried
-                // here every step); the master's next poll fetches the response.
-                if st.node.has_acyclic_work() {
-                    st.node.process_acyclic(now_pb(now), &mut st.app.records(now_pb(now)));
-                }
-                // The fast path answers from the node as it is now.
-                st.publish(events);
+                // The main loop's step (`pbcard::fast::tick`): the application with the
+                // configured module kept, DP-V1 data records at slot 0 over the card's PNUs and
+                // the simulated drive's parameters through the DPM mailbox (a job waiting for
+                // the drive is retried here every step; the master's next poll fetches the
+                // response), and the staging republished: the fast path answers from the node
+                // as it is now.
+                let mut app = station::Configured { app: &mut st.app, module: st.config.module };
+                let events = pbcard::fast::tick(now_pb(now), &mut st.node, &mut st.core, &mut app);
                 let prefix = st.prefix();
                 st.monitor.on_step(events, &st.node, &st.app, &mut |m| emit(format!("{prefix} {m}")));
                 if let Some(file) = states.get_mut(i) {

@@ -304,6 +304,34 @@ impl Station {
     }
 }
 
+/// A station's application in the main loop (`pbcard::fast::tick`): the card and its
+/// simulated drive ([`Application::step`]), after which the configured module is again the only
+/// one Chk_Cfg accepts (a DPM CONFIG of the simulated drive does not widen it); the card's
+/// data records.
+pub struct Configured<'a> {
+    /// The station's card and drive.
+    pub app: &'a mut Application,
+    /// The configured module (`None`: any of the GSD's).
+    pub module: Option<&'static Module>,
+}
+
+impl pbcard::fast::CardApp for Configured<'_> {
+    type Records<'b>
+        = pbcard::profile::records::WithTable<'b, pbcard::dpm::MailboxParams<'b>>
+    where
+        Self: 'b;
+    fn step(&mut self, now: Instant, node: &mut Node) -> pbcard::dp::Events {
+        let events = self.app.step(now, node);
+        if self.module.is_some() {
+            node.slave_mut().require_module(self.module);
+        }
+        events
+    }
+    fn records(&mut self, now: Instant) -> Self::Records<'_> {
+        self.app.records(now)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -99,6 +99,20 @@ pub struct Fc20 {
     pub speed: i16,
 }
 
+/// The product's application in the card's main loop (`fast::tick`): one drive cycle per
+/// step, no data records of its own beyond I&M (the node serves slot 0 / index 255; a product
+/// with records returns its `node::DataRecords` here).
+impl pbcard::fast::CardApp for Fc20 {
+    type Records<'a> = pbcard::dpv1::records::NoRecords;
+    fn step(&mut self, _now: pbcard::time::Instant, node: &mut pbcard::node::Node) -> pbcard::dp::Events {
+        self.cycle(node.slave_mut());
+        pbcard::dp::Events::empty()
+    }
+    fn records(&mut self, _now: pbcard::time::Instant) -> Self::Records<'_> {
+        pbcard::dpv1::records::NoRecords
+    }
+}
+
 impl Fc20 {
     /// One drive cycle: outputs in, inputs out, as the module in force lays them out.
     pub fn cycle(&mut self, slave: &mut DpSlave) {
