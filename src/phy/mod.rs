@@ -12,13 +12,16 @@
 //! interrupt (classifies telegrams, gates answers, carries out rate switches) and a lower task
 //! that owns [`autobaud::Autobaud`], lock-free. [`port`] is the board contract of the line:
 //! the traits the F411, QEMU and the soft slave implement for their RS485 ports. [`stream`] is
-//! the seam that hands a telegram's bytes to the fast path while they arrive.
+//! the seam that hands a telegram's bytes to the fast path while they arrive, and the
+//! streaming framer that cuts them by length; [`ring`] walks a small DMA ring at its
+//! half/full/IDLE events (pieces in place, overrun detection).
 
 pub mod autobaud;
 pub mod divisor;
 pub mod line;
 pub mod port;
 pub mod rate_link;
+pub mod ring;
 pub mod stream;
 #[cfg(test)]
 mod tests_props;
