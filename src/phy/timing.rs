@@ -40,6 +40,12 @@ pub struct LineTicks {
     tsyn_after_stop: u32,
     /// The standard's min_TSDR floor (11 bit times).
     min_tsdr_floor: u32,
+    /// One bit time: a per-character receive interrupt (RXNE, set while the stop bit is
+    /// sampled) → the latest the stop bit can end.
+    rxne_to_stop_latest: u32,
+    /// One character: RXNE → the earliest the stop bit can have ended (an RXNE not served
+    /// within one character is an overrun, ORE, and drops the telegram).
+    rxne_to_stop_earliest: u32,
 }
 
 impl LineTicks {
@@ -56,6 +62,8 @@ impl LineTicks {
             tsyn_after_idle: clock.ticks(rate, TSYN_PROOF_BITS - IDLE_BITS + IDLE_UNCERTAINTY_BITS),
             tsyn_after_stop: clock.ticks(rate, TSYN_PROOF_BITS),
             min_tsdr_floor: clock.ticks(rate, BitTimes::MIN_TSDR_DEFAULT.0),
+            rxne_to_stop_latest: clock.ticks(rate, 1),
+            rxne_to_stop_earliest: clock.ticks(rate, BitTimes::CHAR.0),
         }
     }
 
@@ -94,6 +102,88 @@ impl LineTicks {
     #[inline(always)]
     pub const fn response_latest(&self, idle_seen: u32, max_tsdr: BitTimes) -> u32 {
         idle_seen.wrapping_sub(self.idle_to_stop_earliest).wrapping_add(self.ticks_of(max_tsdr.0))
+    }
+}
+
+impl LineTicks {
+    /// Where the request's last stop bit is when its end was found **by length** in a
+    /// per-character receive interrupt (RXNE of the last character, `Step::Complete` of
+    /// [`super::stream::Stream::push`]) with the timer read at `seen`: no IDLE wait, so the
+    /// response may start 11 bit times (one IDLE character) earlier than with
+    /// [`LineTicks::end_at_idle`].
+    #[inline(always)]
+    pub const fn end_at_last_char(&self, seen: u32) -> RequestEnd {
+        RequestEnd {
+            stop_latest: seen.wrapping_add(self.rxne_to_stop_latest),
+            stop_earliest: seen.wrapping_sub(self.rxne_to_stop_earliest),
+        }
+    }
+
+    /// Where the last stop bit is when the end was found by the USART's IDLE flag, the timer
+    /// read at `idle_seen` after it (a DMA receiver; module documentation).
+    #[inline(always)]
+    pub const fn end_at_idle(&self, idle_seen: u32) -> RequestEnd {
+        RequestEnd {
+            stop_latest: idle_seen.wrapping_sub(self.idle_to_stop_latest),
+            stop_earliest: idle_seen.wrapping_sub(self.idle_to_stop_earliest),
+        }
+    }
+
+    /// The earliest instant a response to the request ending at `end` may start: min_TSDR
+    /// (at least 11 bit times) after the latest its stop bit can be.
+    #[inline(always)]
+    pub const fn not_before(&self, end: RequestEnd, min_tsdr: BitTimes) -> u32 {
+        let gap =
+            if min_tsdr.0 <= BitTimes::MIN_TSDR_DEFAULT.0 { self.min_tsdr_floor } else { self.ticks_of(min_tsdr.0) };
+        end.stop_latest.wrapping_add(gap)
+    }
+
+    /// The latest instant it may start: `max_tsdr` after the earliest its stop bit can be.
+    #[inline(always)]
+    pub const fn latest(&self, end: RequestEnd, max_tsdr: BitTimes) -> u32 {
+        end.stop_earliest.wrapping_add(self.ticks_of(max_tsdr.0))
+    }
+}
+
+/// The bounds of a request's last stop bit on the bit timer (ticks), from the event that
+/// found the request's end ([`LineTicks::end_at_last_char`], [`LineTicks::end_at_idle`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct RequestEnd {
+    /// The stop bit has ended by then (min_TSDR counts from here).
+    pub stop_latest: u32,
+    /// The stop bit ended no earlier (max_TSDR counts from here).
+    pub stop_earliest: u32,
+}
+
+/// How a board's USART receives at one rate (issue 11 item 2; README "The response path").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum RxMode {
+    /// One receive interrupt per character (≤ 1.5 Mbit/s: ≥ 704 CPU cycles per character at
+    /// 96 MHz), the CPU reads the data register, every character through
+    /// [`super::stream::Stream::push`]: the end of a request is found by its header's length
+    /// at its last character — no IDLE wait.
+    PerChar,
+    /// A circular receive DMA with half/full-transfer events (≥ 3 Mbit/s, where a per-character
+    /// interrupt would cost ≥ 30 % of the CPU at 3 Mbit/s and more above): the ring's bytes go
+    /// through [`super::stream::Stream::piece`] at each event ([`super::ring::RingWalker`]),
+    /// and the end of a request is found by the USART's IDLE flag (11 + 1 bit times after the
+    /// last stop bit).
+    Dma,
+}
+
+impl RxMode {
+    /// The fastest rate received per character.
+    pub const PER_CHAR_MAX_BPS: u32 = 1_500_000;
+
+    /// The mode at `rate`.
+    pub const fn for_rate(rate: Baudrate) -> Self {
+        if rate.bits_per_second() <= Self::PER_CHAR_MAX_BPS {
+            RxMode::PerChar
+        } else {
+            RxMode::Dma
+        }
     }
 }
 
@@ -284,6 +374,39 @@ mod tests {
                 }
             }
             assert_eq!(t.tsyn_check_after_stop(7), 7 + T.ticks(rate, TSYN_PROOF_BITS));
+        }
+    }
+
+    #[test]
+    fn the_end_by_length_gains_the_idle_character() {
+        for rate in Baudrate::ALL {
+            let t = LineTicks::new(T, rate);
+            let bit = T.ticks(rate, 1);
+            // The last stop bit ends at tick 1 000 000 + bit: RXNE mid-stop-bit, served `lat` later (within the character);
+            // IDLE one character after the stop bit.
+            for lat in [0u32, bit, 9 * bit] {
+                let stop = 1_000_000 + bit;
+                let seen = 1_000_000 + bit / 2 + lat;
+                let e = t.end_at_last_char(seen);
+                assert!(e.stop_latest >= stop && e.stop_earliest <= stop, "{rate:?}");
+                let idle = t.end_at_idle(stop + 11 * bit + lat);
+                for min in [0u32, 11, 20] {
+                    assert!(t.not_before(e, BitTimes(min)) >= stop + min.max(11) * bit);
+                    // The same min_TSDR window (never later than by IDLE); what the end by length
+                    // gains is the decision 11 bit times earlier (at RXNE, not at IDLE).
+                    if lat == 0 {
+                        assert!(t.not_before(e, BitTimes(min)) <= t.not_before(idle, BitTimes(min)));
+                    }
+                }
+                assert!(t.latest(e, BitTimes(200)) <= stop + 200 * bit + 1);
+                assert_eq!(
+                    t.not_before(idle, BitTimes(20)),
+                    t.response_not_before(stop + 11 * bit + lat, BitTimes(20))
+                );
+                assert_eq!(t.latest(idle, BitTimes(200)), t.response_latest(stop + 11 * bit + lat, BitTimes(200)));
+            }
+            let mode = RxMode::for_rate(rate);
+            assert_eq!(mode == RxMode::PerChar, rate.bits_per_second() <= 1_500_000, "{rate:?}");
         }
     }
 
