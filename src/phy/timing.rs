@@ -40,12 +40,6 @@ pub struct LineTicks {
     tsyn_after_stop: u32,
     /// The standard's min_TSDR floor (11 bit times).
     min_tsdr_floor: u32,
-    /// One bit time: a per-character receive interrupt (RXNE, set while the stop bit is
-    /// sampled) → the latest the stop bit can end.
-    rxne_to_stop_latest: u32,
-    /// One character: RXNE → the earliest the stop bit can have ended (an RXNE not served
-    /// within one character is an overrun, ORE, and drops the telegram).
-    rxne_to_stop_earliest: u32,
 }
 
 impl LineTicks {
@@ -62,8 +56,6 @@ impl LineTicks {
             tsyn_after_idle: clock.ticks(rate, TSYN_PROOF_BITS - IDLE_BITS + IDLE_UNCERTAINTY_BITS),
             tsyn_after_stop: clock.ticks(rate, TSYN_PROOF_BITS),
             min_tsdr_floor: clock.ticks(rate, BitTimes::MIN_TSDR_DEFAULT.0),
-            rxne_to_stop_latest: clock.ticks(rate, 1),
-            rxne_to_stop_earliest: clock.ticks(rate, BitTimes::CHAR.0),
         }
     }
 
@@ -113,9 +105,12 @@ impl LineTicks {
     /// [`LineTicks::end_at_idle`].
     #[inline(always)]
     pub const fn end_at_last_char(&self, seen: u32) -> RequestEnd {
+        // RXNE is set while the stop bit is sampled: it ends within one bit time. An RXNE not
+        // served within one character is an overrun (ORE) and drops the telegram, so the stop
+        // bit ended at most one character before `seen`. (Multiply and shift, no division.)
         RequestEnd {
-            stop_latest: seen.wrapping_add(self.rxne_to_stop_latest),
-            stop_earliest: seen.wrapping_sub(self.rxne_to_stop_earliest),
+            stop_latest: seen.wrapping_add(self.ticks_of(1)),
+            stop_earliest: seen.wrapping_sub(self.ticks_of(BitTimes::CHAR.0)),
         }
     }
 
