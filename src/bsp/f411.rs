@@ -5,42 +5,63 @@
 //! even parity, PROFIBUS's 11-bit character), 1 stop bit, at the rate the autobaud search asks
 //! for ([`DmaLine::set_rate`], divisors from `pbcard::phy::divisor`).
 //!
-//! **Receive.** DMA2 stream 2 channel 4 copies every character into a circular
-//! [`RX_RING`]-byte buffer, independently of the CPU (it is stopped only for a rate switch
-//! and around a flash write, below). The USART interrupt comes only for
-//! * **RXNE of the first character of a segment** — one interrupt, then RXNEIE is off again
-//!   and IDLEIE / PEIE / EIE are on ([`RxIrqGate`], below);
-//! * **IDLE** — one idle character after a stop bit: the bytes since the last IDLE (one
-//!   *segment*) go through [`pbcard::phy::line::Receiver`], which cuts them into telegrams by
-//!   their header length ([`pbcard::phy::line::expected_len`]) and hands every telegram on —
-//!   requests for us, for other stations, tokens, other slaves' responses — to the fast path
-//!   in this interrupt (**The split**, below); the TIM5 timestamp of the IDLE gives the last
-//!   stop bit;
-//! * **PE / FE / NF / ORE** (PEIE, EIE) — the segment in progress is marked corrupt and
-//!   dropped at its IDLE; the receiver then waits for T_SYN;
-//! * **TC** — the end of our response (below).
+//! **Receive** (issue 11 item 2; README "The response path"). Every received byte goes
+//! through one streaming framer, [`pbcard::phy::stream::Stream`] (gap resync: after a
+//! character error, garbage or a gap inside a telegram only an idle ≥ T_SYN makes a start
+//! delimiter trustworthy), which cuts telegrams by their header's length (SD1 6, SD3 14, SD4
+//! 3, SC 1, SD2 LE + 6) and hands their bytes to the line's sink as they arrive — no segment
+//! copy. Two modes, chosen per rate by [`RxMode::for_rate`] in [`DmaLine::set_rate`]:
+//! * **Per character, ≤ 1.5 Mbit/s** (≥ 704 cycles per character): the receive DMA is off and
+//!   the CPU owns the receiver, so it reads DR (issue 11 item 3f allows it only then). One
+//!   USART interrupt per character (RXNEIE, IDLEIE, PEIE, EIE on): SR, then DR once (which
+//!   also clears IDLE and the error flags), the TIM5 timestamp, the character through the
+//!   stream. At the telegram's **last character** ([`Step::Complete`], by length) the fast
+//!   path decides at once: the request's end is that character's stop bit
+//!   ([`LineTicks::end_at_last_char`]) — no IDLE wait. IDLE (one idle character) inside a
+//!   telegram drops it, and arms the T_SYN proof. PE / FE / NF / ORE abort the telegram.
+//!   Race left open: a character whose RXNE lands between the SR and the DR read of an
+//!   IDLE-only interrupt is lost (two instructions; a character needs ≥ 704 cycles).
+//! * **DMA, ≥ 3 Mbit/s**: DMA2 stream 2 channel 4 writes a circular [`RX_RING`] = 32-byte
+//!   ring; its half/full-transfer interrupt ([`DmaLine::on_dma`], every 16 characters) hands
+//!   the new ring bytes — at most two pieces at a wrap — in place to `Stream::piece`
+//!   ([`pbcard::phy::ring::RingWalker`]: HT/TC flags read and cleared first, then NDTR; a
+//!   flag the position does not explain, or both flags at once, is an **overrun** — the DMA
+//!   lapped the reader —, counted `ring_overrun`, the telegram dropped). The USART interrupt
+//!   comes for the first RXNE of a segment, for IDLE and for errors ([`RxIrqGate`]: SR only,
+//!   never DR — the DMA owns DR). **IDLE** hands over the remainder: the request's end is
+//!   found by IDLE (11 + 1 bit times after its last stop bit, [`LineTicks::end_at_idle`]) and
+//!   the fast path decides then. A telegram the stream completes inside a piece (characters
+//!   follow) is decided as "not last" (never answered, queued if for the core); one completed
+//!   at the ring's last byte waits for the IDLE. An error hands the ring's bytes so far to the
+//!   stream and drops the telegram in progress.
+//!
+//! While the rate is locked, other stations' telegrams are **skipped by length** after their
+//! DA (`Stream::set_filter`): the sink is not called, and in DMA mode their bytes beyond the
+//! header are never read — the ring walker only moves its position.
 //!
 //! **The CPU never reads USART_DR while the DMA owns the receiver** (issue 11 item 3f). IDLE
 //! and the error flags clear only by "a read of USART_SR followed by a read of USART_DR"
-//! (RM0383 §19.6.1); a CPU read of DR could take a character from under the DMA. The
-//! interrupt reads SR only; the DMA's own read of DR for the next character completes the
+//! (RM0383 §19.6.1); a CPU read of DR could take a character from under the DMA. In DMA mode
+//! the interrupt reads SR only; the DMA's own read of DR for the next character completes the
 //! sequence. Until then the flag stays set, so its interrupt is switched off and the next
 //! segment's first RXNE switches it on again ([`RxIrqGate`], host-tested in
-//! `pbcard::phy::timing`). DR is read by the CPU only in [`DmaLine::set_rate`], with the
-//! receive DMA stopped. Cost: one more (short) interrupt per segment.
+//! `pbcard::phy::timing`). In per-character mode the DMA is stopped and DR is the CPU's.
 //!
-//! At each IDLE the TIM5 compare 2 is armed **first** — before the segment is copied or cut —
-//! at [`LineTicks::tsyn_check_at`] (the per-rate tick tables are computed once in
-//! [`DmaLine::new`] and picked at [`DmaLine::set_rate`]: one addition, no division), with the ring position of the segment's end: if the DMA
-//! position has not moved from it by then, the line has been idle for at least T_SYN (33 bit
-//! times) and the receiver accepts start delimiters again ([`Receiver::on_tsyn`]). A compare
-//! that has already passed when it is armed ([`compare_passed`]) is fired at once by a
-//! software event (TIM5_EGR.CC2G), not 44.7 s later at the counter's wrap (issue 11 item 2).
-//! After our own response the proof runs from the last stop bit (TC): T_SYN + one character.
+//! At each IDLE the TIM5 compare 2 is armed **first** — before the ring or the stream is
+//! touched — at [`LineTicks::tsyn_check_at`] (the per-rate tick tables are computed once in
+//! [`DmaLine::new`] and picked at [`DmaLine::set_rate`]: one addition, no division), with the
+//! receive mark (DMA: the ring position; per character: the character count): if the mark
+//! has not moved by then, the line has been idle for at least T_SYN (33 bit times) and the
+//! stream accepts start delimiters again. A compare that has already passed when it is armed
+//! ([`compare_passed`]) is fired at once by a software event (TIM5_EGR.CC2G), not 44.7 s
+//! later at the counter's wrap (issue 11 item 2). After our own response the proof runs from
+//! the last stop bit (TC): T_SYN + one character.
 //!
 //! **The split** (issue 11 item 1, as on QEMU; README "The response path"). The line owns
-//! the [`FastPath`] half of `pbcard::fast` ([`DmaLine::attach`]): each telegram cut at IDLE
-//! goes to `FastPath::on_frame` here, in the USART1 interrupt, at the protocol clock's time
+//! the [`FastPath`] half of `pbcard::fast` ([`DmaLine::attach`]): each telegram the stream
+//! completes goes to the fast path here (`DmaLine::decide`: today `FastPath::on_frame` on the
+//! telegram the line's sink assembled in its one buffer — the one copy left, until the fast
+//! path is a `TelegramSink` itself —), in the USART1 (or DMA) interrupt, at the protocol clock's time
 //! ([`SysTickClock::line_now`], lock-free). An answer from the staging goes to the transmitter
 //! at once (min_TSDR from the staging, `FastPath::min_tsdr`); a request the fast path leaves
 //! to the core ([`Verdict::Core`]: DP-V1 cases, other SAPs) waits in `awaiting` until the
@@ -69,17 +90,29 @@
 //! buffer). A lower task holding the `Node` delays only the core task (DP-V1 answers, the
 //! staging's refresh), never an answer from the staging, the DE release or the receiver.
 //!
-//! **In RAM** (issue 11 item 2). [`DmaLine::on_usart`] and [`DmaLine::on_timer`] — the line
-//! interrupts' own code with what the compiler inlines into them (the receive gate, the ring
-//! reader, the T_SYN compare, the response start, `FastPath::on_frame`'s own body; ≈ 4.4 KiB, 2 KiB before the split;
-//! the fast path's larger callees — `answer_srd`, the DP-V1 planner, the queue — stay in
-//! flash behind long-branch thunks) — are linked into `.data.pbcard_line`:
-//! cortex-m-rt 0.7 puts every `.data.*` input section into `.data`, which its reset code copies
-//! from flash to RAM, so they run from SRAM without flash wait states or ART cache misses
-//! (lld inserts the long-branch thunks between the two regions). Still in flash: the
-//! RTIC vector stubs, `memcpy` (compiler_builtins) of the segment and queue copies, the panic
-//! paths, and `set_rate` (the restart command). A flash stall is not bridged by this — the
-//! vector table is in flash — which is why the line is silenced around flash writes.
+//! **In RAM** (issue 11 item 2). [`DmaLine::on_usart`] (the per-character path and the DMA
+//! mode's IDLE, with the receive gate, the T_SYN compare and TC inlined), `feed` (the
+//! streaming framer, `Stream::piece`, one copy for both modes), `DmaLine::decide` (with
+//! `FastPath::on_frame`'s own body, `tx_plan` and the response start inlined) and
+//! [`DmaLine::on_timer`] — ≈ 5.3 KiB — are linked into `.data.pbcard_line` (the fast path's
+//! larger callees — `answer_srd`, the DP-V1 planner, the queue — stay in flash behind
+//! long-branch thunks): cortex-m-rt 0.7 puts every `.data.*` input section into `.data`, which
+//! its reset code copies from flash to RAM, so they run from SRAM without flash wait states or
+//! ART cache misses (lld inserts the long-branch thunks between the two regions). Still in
+//! flash: the RTIC vector stubs, `memcpy` (compiler_builtins) of the assembled telegram and
+//! the queue copies, the DMA mode's ring walk (`walk_ring`, `on_dma`: ≈ 0.9 KiB that the
+//! 32 KiB RAM budget does not hold; it runs through the ART accelerator's instruction cache,
+//! and only its pieces' bytes go through `feed` in RAM), the core's answers
+//! (`take_deferred`), the rate control's classification after the answer started, the
+//! silence, the panic paths, and `set_rate` (the restart command). A flash stall is not
+//! bridged by this — the vector table is in flash — which is why the line is silenced around
+//! flash writes.
+//!
+//! **One buffer** (RAM budget). The request being assembled for the fast path and the
+//! response being sent share 255 bytes (`LINE_BUF`): a response is copied in
+//! only while the line is quiet since its request (no telegram in progress), reception is off
+//! while it is sent, and a character before an armed start drops the start (`rx_quiet`)
+//! before the stream's next bytes can land there (the handlers share one priority).
 //!
 //! **Flash stalls** (issue 11 item 3b). Programming or erasing the address journal (low
 //! priority, only after a Set_Slave_Add) stalls instruction fetch from flash — every
@@ -89,7 +122,8 @@
 //! task first **silences** the line ([`control::silence`]: the TIM5 interrupt, pended, aborts
 //! a response — DE low, transmit DMA off —, switches the receiver and its interrupts off and
 //! stops the receive DMA and both compares), writes the flash, and then **restarts** it
-//! ([`control::restart`]: USART reprogrammed, ring flushed — the DMA restarts at index 0 —,
+//! ([`control::restart`]: USART reprogrammed, ring flushed — the DMA restarts at index 0 —, the
+//! stream reset,
 //! no earlier request answerable any more, the receiver waits for T_SYN, proven by a compare
 //! armed from now; core answers that come back meanwhile are dropped). The
 //! commands go through an atomic mailbox executed at the line's own priority, so no lower task
@@ -522,6 +556,8 @@ impl DmaLine {
         self.segments = self.segments.wrapping_add(1);
         self.tsyn_pos = None;
         self.stream.reset(&mut self.asm);
+        // Every telegram to the sink until the rate is locked again (`decide`).
+        self.stream.set_filter(None);
     }
 
     /// Drop whatever the ring holds and wait for T_SYN again: the full restart of
