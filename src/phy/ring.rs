@@ -179,7 +179,7 @@ mod tests {
             let mut pending_at: Option<usize> = None;
             for (i, &b) in request.iter().enumerate() {
                 dma.write(b);
-                if (dma.written % (N / 2)) == 0 {
+                if dma.written.is_multiple_of(N / 2) {
                     pending_at = Some(i + latency);
                 }
                 if pending_at == Some(i) {
@@ -221,7 +221,7 @@ mod tests {
             };
             for i in 0..total {
                 dma.write(i as u8);
-                if dma.written % (N / 2) == 0 {
+                if dma.written.is_multiple_of(N / 2) {
                     due.push(i + latencies[k % latencies.len()]);
                     k += 1;
                 }
