@@ -743,6 +743,13 @@ impl DmaLine {
             return;
         }
         let dr = self.usart.dr().read().bits();
+        // IDLE and a character in one SR read (the interrupt came late): outside a telegram
+        // the gap came first (it changes nothing then, and the T_SYN proof it arms fails on
+        // the character); inside one, the character may be its last, so it goes first.
+        let idle_first = sr & SR_IDLE != 0 && !self.stream.in_telegram();
+        if idle_first {
+            self.on_char_idle();
+        }
         if sr & (SR_PE | SR_FE | SR_NF | SR_ORE) != 0 {
             self.count_errors(sr);
             self.chars = self.chars.wrapping_add(1);
@@ -764,13 +771,19 @@ impl DmaLine {
                 Step::Skipped | Step::Garbage | Step::Pending => {}
             }
         }
-        if sr & SR_IDLE != 0 {
-            // A gap of one character: inside a telegram it drops it; the T_SYN proof runs
-            // from here (armed first, from the tick table).
-            let idle_seen = self.ticks();
-            self.arm_tsyn_check(self.table.tsyn_check_at(idle_seen), self.chars);
-            self.stream.idle(BitTimes::CHAR, &mut self.asm);
+        if sr & SR_IDLE != 0 && !idle_first {
+            self.on_char_idle();
         }
+    }
+
+    /// Per-character mode, IDLE (one idle character): inside a telegram a gap that drops it;
+    /// the T_SYN proof runs from here (armed first, from the tick table). In flash: per
+    /// character the request's end is found by length, so IDLE is off the response path.
+    #[inline(never)]
+    fn on_char_idle(&mut self) {
+        let idle_seen = self.ticks();
+        self.arm_tsyn_check(self.table.tsyn_check_at(idle_seen), self.chars);
+        self.stream.idle(BitTimes::CHAR, &mut self.asm);
     }
 
     /// DMA mode (≥ 3 Mbit/s), the USART side: the receive gate ([`RxIrqGate`]: SR only, never
