@@ -4,8 +4,10 @@
 //! timer cuts telegrams, keeps T_SYN, min_TSDR and max_TSDR ([`line`], reference §1.3–1.4).
 //!
 //! The board support code owns the USART; it asks [`autobaud::Autobaud`] for the rate,
-//! programs it with [`divisor::divisor_for`], feeds what the DMA received through
-//! [`line::Receiver`], starts responses as [`line::tx_plan`] says, and reports every frame,
+//! programs it with [`divisor::divisor_for`], feeds what it received through
+//! [`stream::Stream`] (per character or by DMA ring pieces, [`timing::RxMode`]; the segment
+//! cutter [`line::Receiver`] remains the reference model), starts responses as
+//! [`line::tx_plan`] says, and reports every frame,
 //! every receive error and the passing of time back. [`timing`] holds what the line interrupt
 //! computes: the per-rate tick table, the "already passed?" check of a compare, the ring
 //! reader and the receive-interrupt gate. [`rate_link`] splits the rate control between the line

@@ -6,14 +6,17 @@
 //! the restart after a flash stall) and the USART receive-interrupt gate that never needs a
 //! CPU read of the data register ([`RxIrqGate`]).
 //!
-//! **End of a request.** A DMA receiver learns of a telegram's end from the USART's IDLE
-//! flag: one idle character (11 bit times of mark) after the last stop bit, ±1 bit
-//! ([`super::line::IDLE_BITS`], [`super::line::IDLE_UNCERTAINTY_BITS`]). The header's length
-//! ([`super::line::expected_len`]) only *cuts* the segment into telegrams afterwards; it is not
-//! used to predict the end, because the DMA gives no event at the header. Cost: the earliest
-//! response start is 12 bit times after the request's last stop bit (11 + 1 of uncertainty),
-//! which min_TSDR ≥ 11 absorbs; what the firmware adds after the IDLE flag (interrupt entry,
-//! segment copy, decision, DMA start) comes on top.
+//! **End of a request** ([`RxMode`], [`RequestEnd`]). At ≤ 1.5 Mbit/s the board receives per
+//! character and finds the end **by the header's length**: the streaming framer
+//! ([`super::stream::Stream`]) completes the telegram at its last character, whose receive
+//! interrupt is the decision's start ([`LineTicks::end_at_last_char`]: the stop bit ends
+//! within one bit time of RXNE) — no IDLE wait. At ≥ 3 Mbit/s a DMA receiver learns of the end
+//! from the USART's IDLE flag: one idle character (11 bit times of mark) after the last stop
+//! bit, ±1 bit ([`super::line::IDLE_BITS`], [`super::line::IDLE_UNCERTAINTY_BITS`],
+//! [`LineTicks::end_at_idle`]). Cost: 12 bit times after the request's last stop bit before
+//! the decision starts (96 cycles at 12 Mbit/s), which min_TSDR ≥ 11 absorbs; what the
+//! firmware adds after the event (interrupt entry, the remaining ring bytes, decision, DMA
+//! start) comes on top.
 
 use crate::time::{Baudrate, BitTimes};
 
