@@ -633,6 +633,16 @@ mod app {
         }
     }
 
+    /// F411 receive DMA (≥ 3 Mbit/s): the ring's half/full-transfer events hand its new bytes
+    /// to the streaming framer (`board::DmaLine::on_dma`); same priority as USART1.
+    #[cfg(feature = "board-f411")]
+    #[task(binds = DMA2_STREAM2, priority = 16, shared = [line])]
+    fn dma2_stream2(mut cx: dma2_stream2::Context) {
+        if cx.shared.line.lock(|l| l.on_dma()) {
+            rtic::pend(CORE_IRQ);
+        }
+    }
+
     /// F411 TIM5 compares: the T_SYN proof and the response start at min_TSDR.
     #[cfg(feature = "board-f411")]
     #[task(binds = TIM5, priority = 16, shared = [line])]

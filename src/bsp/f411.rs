@@ -5,42 +5,63 @@
 //! even parity, PROFIBUS's 11-bit character), 1 stop bit, at the rate the autobaud search asks
 //! for ([`DmaLine::set_rate`], divisors from `pbcard::phy::divisor`).
 //!
-//! **Receive.** DMA2 stream 2 channel 4 copies every character into a circular
-//! [`RX_RING`]-byte buffer, independently of the CPU (it is stopped only for a rate switch
-//! and around a flash write, below). The USART interrupt comes only for
-//! * **RXNE of the first character of a segment** — one interrupt, then RXNEIE is off again
-//!   and IDLEIE / PEIE / EIE are on ([`RxIrqGate`], below);
-//! * **IDLE** — one idle character after a stop bit: the bytes since the last IDLE (one
-//!   *segment*) go through [`pbcard::phy::line::Receiver`], which cuts them into telegrams by
-//!   their header length ([`pbcard::phy::line::expected_len`]) and hands every telegram on —
-//!   requests for us, for other stations, tokens, other slaves' responses — to the fast path
-//!   in this interrupt (**The split**, below); the TIM5 timestamp of the IDLE gives the last
-//!   stop bit;
-//! * **PE / FE / NF / ORE** (PEIE, EIE) — the segment in progress is marked corrupt and
-//!   dropped at its IDLE; the receiver then waits for T_SYN;
-//! * **TC** — the end of our response (below).
+//! **Receive** (issue 11 item 2; README "The response path"). Every received byte goes
+//! through one streaming framer, [`pbcard::phy::stream::Stream`] (gap resync: after a
+//! character error, garbage or a gap inside a telegram only an idle ≥ T_SYN makes a start
+//! delimiter trustworthy), which cuts telegrams by their header's length (SD1 6, SD3 14, SD4
+//! 3, SC 1, SD2 LE + 6) and hands their bytes to the line's sink as they arrive — no segment
+//! copy. Two modes, chosen per rate by [`RxMode::for_rate`] in [`DmaLine::set_rate`]:
+//! * **Per character, ≤ 1.5 Mbit/s** (≥ 704 cycles per character): the receive DMA is off and
+//!   the CPU owns the receiver, so it reads DR (issue 11 item 3f allows it only then). One
+//!   USART interrupt per character (RXNEIE, IDLEIE, PEIE, EIE on): SR, then DR once (which
+//!   also clears IDLE and the error flags), the TIM5 timestamp, the character through the
+//!   stream. At the telegram's **last character** ([`Step::Complete`], by length) the fast
+//!   path decides at once: the request's end is that character's stop bit
+//!   ([`LineTicks::end_at_last_char`]) — no IDLE wait. IDLE (one idle character) inside a
+//!   telegram drops it, and arms the T_SYN proof. PE / FE / NF / ORE abort the telegram.
+//!   Race left open: a character whose RXNE lands between the SR and the DR read of an
+//!   IDLE-only interrupt is lost (two instructions; a character needs ≥ 704 cycles).
+//! * **DMA, ≥ 3 Mbit/s**: DMA2 stream 2 channel 4 writes a circular [`RX_RING`] = 32-byte
+//!   ring; its half/full-transfer interrupt ([`DmaLine::on_dma`], every 16 characters) hands
+//!   the new ring bytes — at most two pieces at a wrap — in place to `Stream::piece`
+//!   ([`pbcard::phy::ring::RingWalker`]: HT/TC flags read and cleared first, then NDTR; a
+//!   flag the position does not explain, or both flags at once, is an **overrun** — the DMA
+//!   lapped the reader —, counted `ring_overrun`, the telegram dropped). The USART interrupt
+//!   comes for the first RXNE of a segment, for IDLE and for errors ([`RxIrqGate`]: SR only,
+//!   never DR — the DMA owns DR). **IDLE** hands over the remainder: the request's end is
+//!   found by IDLE (11 + 1 bit times after its last stop bit, [`LineTicks::end_at_idle`]) and
+//!   the fast path decides then. A telegram the stream completes inside a piece (characters
+//!   follow) is decided as "not last" (never answered, queued if for the core); one completed
+//!   at the ring's last byte waits for the IDLE. An error hands the ring's bytes so far to the
+//!   stream and drops the telegram in progress.
+//!
+//! While the rate is locked, other stations' telegrams are **skipped by length** after their
+//! DA (`Stream::set_filter`): the sink is not called, and in DMA mode their bytes beyond the
+//! header are never read — the ring walker only moves its position.
 //!
 //! **The CPU never reads USART_DR while the DMA owns the receiver** (issue 11 item 3f). IDLE
 //! and the error flags clear only by "a read of USART_SR followed by a read of USART_DR"
-//! (RM0383 §19.6.1); a CPU read of DR could take a character from under the DMA. The
-//! interrupt reads SR only; the DMA's own read of DR for the next character completes the
+//! (RM0383 §19.6.1); a CPU read of DR could take a character from under the DMA. In DMA mode
+//! the interrupt reads SR only; the DMA's own read of DR for the next character completes the
 //! sequence. Until then the flag stays set, so its interrupt is switched off and the next
 //! segment's first RXNE switches it on again ([`RxIrqGate`], host-tested in
-//! `pbcard::phy::timing`). DR is read by the CPU only in [`DmaLine::set_rate`], with the
-//! receive DMA stopped. Cost: one more (short) interrupt per segment.
+//! `pbcard::phy::timing`). In per-character mode the DMA is stopped and DR is the CPU's.
 //!
-//! At each IDLE the TIM5 compare 2 is armed **first** — before the segment is copied or cut —
-//! at [`LineTicks::tsyn_check_at`] (the per-rate tick tables are computed once in
-//! [`DmaLine::new`] and picked at [`DmaLine::set_rate`]: one addition, no division), with the ring position of the segment's end: if the DMA
-//! position has not moved from it by then, the line has been idle for at least T_SYN (33 bit
-//! times) and the receiver accepts start delimiters again ([`Receiver::on_tsyn`]). A compare
-//! that has already passed when it is armed ([`compare_passed`]) is fired at once by a
-//! software event (TIM5_EGR.CC2G), not 44.7 s later at the counter's wrap (issue 11 item 2).
-//! After our own response the proof runs from the last stop bit (TC): T_SYN + one character.
+//! At each IDLE the TIM5 compare 2 is armed **first** — before the ring or the stream is
+//! touched — at [`LineTicks::tsyn_check_at`] (the per-rate tick tables are computed once in
+//! [`DmaLine::new`] and picked at [`DmaLine::set_rate`]: one addition, no division), with the
+//! receive mark (DMA: the ring position; per character: the character count): if the mark
+//! has not moved by then, the line has been idle for at least T_SYN (33 bit times) and the
+//! stream accepts start delimiters again. A compare that has already passed when it is armed
+//! ([`compare_passed`]) is fired at once by a software event (TIM5_EGR.CC2G), not 44.7 s
+//! later at the counter's wrap (issue 11 item 2). After our own response the proof runs from
+//! the last stop bit (TC): T_SYN + one character.
 //!
 //! **The split** (issue 11 item 1, as on QEMU; README "The response path"). The line owns
-//! the [`FastPath`] half of `pbcard::fast` ([`DmaLine::attach`]): each telegram cut at IDLE
-//! goes to `FastPath::on_frame` here, in the USART1 interrupt, at the protocol clock's time
+//! the [`FastPath`] half of `pbcard::fast` ([`DmaLine::attach`]): each telegram the stream
+//! completes goes to the fast path here (`DmaLine::decide`: today `FastPath::on_frame` on the
+//! telegram the line's sink assembled in its one buffer — the one copy left, until the fast
+//! path is a `TelegramSink` itself —), in the USART1 (or DMA) interrupt, at the protocol clock's time
 //! ([`SysTickClock::line_now`], lock-free). An answer from the staging goes to the transmitter
 //! at once (min_TSDR from the staging, `FastPath::min_tsdr`); a request the fast path leaves
 //! to the core ([`Verdict::Core`]: DP-V1 cases, other SAPs) waits in `awaiting` until the
@@ -69,17 +90,29 @@
 //! buffer). A lower task holding the `Node` delays only the core task (DP-V1 answers, the
 //! staging's refresh), never an answer from the staging, the DE release or the receiver.
 //!
-//! **In RAM** (issue 11 item 2). [`DmaLine::on_usart`] and [`DmaLine::on_timer`] — the line
-//! interrupts' own code with what the compiler inlines into them (the receive gate, the ring
-//! reader, the T_SYN compare, the response start, `FastPath::on_frame`'s own body; ≈ 4.4 KiB, 2 KiB before the split;
-//! the fast path's larger callees — `answer_srd`, the DP-V1 planner, the queue — stay in
-//! flash behind long-branch thunks) — are linked into `.data.pbcard_line`:
-//! cortex-m-rt 0.7 puts every `.data.*` input section into `.data`, which its reset code copies
-//! from flash to RAM, so they run from SRAM without flash wait states or ART cache misses
-//! (lld inserts the long-branch thunks between the two regions). Still in flash: the
-//! RTIC vector stubs, `memcpy` (compiler_builtins) of the segment and queue copies, the panic
-//! paths, and `set_rate` (the restart command). A flash stall is not bridged by this — the
-//! vector table is in flash — which is why the line is silenced around flash writes.
+//! **In RAM** (issue 11 item 2). [`DmaLine::on_usart`] (the per-character path and the DMA
+//! mode's IDLE, with the receive gate, the T_SYN compare and TC inlined), `feed` (the
+//! streaming framer, `Stream::piece`, one copy for both modes), `DmaLine::decide` (with
+//! `FastPath::on_frame`'s own body, `tx_plan` and the response start inlined) and
+//! [`DmaLine::on_timer`] — ≈ 5.3 KiB — are linked into `.data.pbcard_line` (the fast path's
+//! larger callees — `answer_srd`, the DP-V1 planner, the queue — stay in flash behind
+//! long-branch thunks): cortex-m-rt 0.7 puts every `.data.*` input section into `.data`, which
+//! its reset code copies from flash to RAM, so they run from SRAM without flash wait states or
+//! ART cache misses (lld inserts the long-branch thunks between the two regions). Still in
+//! flash: the RTIC vector stubs, `memcpy` (compiler_builtins) of the assembled telegram and
+//! the queue copies, the DMA mode's ring walk (`walk_ring`, `on_dma`: ≈ 0.9 KiB that the
+//! 32 KiB RAM budget does not hold; it runs through the ART accelerator's instruction cache,
+//! and only its pieces' bytes go through `feed` in RAM), the core's answers
+//! (`take_deferred`), the rate control's classification after the answer started, the
+//! silence, the panic paths, and `set_rate` (the restart command). A flash stall is not
+//! bridged by this — the vector table is in flash — which is why the line is silenced around
+//! flash writes.
+//!
+//! **One buffer** (RAM budget). The request being assembled for the fast path and the
+//! response being sent share 255 bytes (`LINE_BUF`): a response is copied in
+//! only while the line is quiet since its request (no telegram in progress), reception is off
+//! while it is sent, and a character before an armed start drops the start (`rx_quiet`)
+//! before the stream's next bytes can land there (the handlers share one priority).
 //!
 //! **Flash stalls** (issue 11 item 3b). Programming or erasing the address journal (low
 //! priority, only after a Set_Slave_Add) stalls instruction fetch from flash — every
@@ -89,7 +122,8 @@
 //! task first **silences** the line ([`control::silence`]: the TIM5 interrupt, pended, aborts
 //! a response — DE low, transmit DMA off —, switches the receiver and its interrupts off and
 //! stops the receive DMA and both compares), writes the flash, and then **restarts** it
-//! ([`control::restart`]: USART reprogrammed, ring flushed — the DMA restarts at index 0 —,
+//! ([`control::restart`]: USART reprogrammed, ring flushed — the DMA restarts at index 0 —, the
+//! stream reset,
 //! no earlier request answerable any more, the receiver waits for T_SYN, proven by a compare
 //! armed from now; core answers that come back meanwhile are dropped). The
 //! commands go through an atomic mailbox executed at the line's own priority, so no lower task
@@ -101,9 +135,11 @@ use core::sync::atomic::{AtomicU32, AtomicU8, Ordering};
 
 use pbcard::fast::{FastPath, Verdict};
 use pbcard::fdl::telegram::MAX_FRAME_LEN;
-use pbcard::phy::line::{self, classify, BitClock, Receiver, RxStats, TxDrop, TxPlan};
+use pbcard::phy::line::{self, classify, BitClock, FrameClass, RxStats, TxDrop, TxPlan};
 use pbcard::phy::rate_link::RateTap;
-use pbcard::phy::timing::{compare_passed, LineTicks, RingReader, RxEnables, RxFlags, RxIrqGate};
+use pbcard::phy::ring::RingWalker;
+use pbcard::phy::stream::{Resync, Step, Stream, TelegramSink};
+use pbcard::phy::timing::{compare_passed, LineTicks, RequestEnd, RxEnables, RxFlags, RxIrqGate, RxMode};
 use pbcard::time::{Baudrate, BitTimes, Instant};
 use stm32f4xx_hal::gpio::{Output, PushPull, PA10, PA8, PA9, PB6, PB7, PB8};
 use stm32f4xx_hal::pac::{DMA2, IWDG, RCC, TIM5, USART1};
@@ -132,9 +168,10 @@ impl DriverEnable for DePin {
     }
 }
 
-/// Bytes of the circular receive buffer: two longest telegrams, so a segment is never
-/// overwritten before its IDLE is handled.
-pub const RX_RING: usize = 512;
+/// Bytes of the circular receive buffer of the DMA mode (≥ 3 Mbit/s): half/full-transfer
+/// interrupts every 16 characters hand its new bytes to the streaming framer in place
+/// (`pbcard::phy::ring::RingWalker`), so it never holds a whole telegram.
+pub const RX_RING: usize = 32;
 
 /// DMA2 stream / channel numbers (RM0383 Table 28: USART1_RX on stream 2 or 5, USART1_TX on
 /// stream 7, channel 4).
@@ -152,6 +189,11 @@ const DMA_CHSEL_USART1: u32 = USART1_CHANNEL << 25;
 /// All interrupt flags of stream 2 (LIFCR bits 16..21) and stream 7 (HIFCR bits 22..27).
 const DMA_S2_FLAGS: u32 = 0b11_1101 << 16;
 const DMA_S7_FLAGS: u32 = 0b11_1101 << 22;
+/// Half / full transfer interrupt enables (SxCR HTIE, TCIE) and stream 2's flags in LISR.
+const DMA_HTIE: u32 = 1 << 3;
+const DMA_TCIE: u32 = 1 << 4;
+const DMA_S2_HT: u32 = 1 << 20;
+const DMA_S2_TC: u32 = 1 << 21;
 
 // USART SR bits (RM0383 §19.6.1).
 const SR_PE: u16 = 1 << 0;
@@ -159,23 +201,59 @@ const SR_FE: u16 = 1 << 1;
 const SR_NF: u16 = 1 << 2;
 const SR_ORE: u16 = 1 << 3;
 const SR_IDLE: u16 = 1 << 4;
+const SR_RXNE: u16 = 1 << 5;
 const SR_TC: u16 = 1 << 6;
 
 // TIM5 bits (RM0383 §13.4).
 const TIM_CC1: u32 = 1 << 1;
 const TIM_CC2: u32 = 1 << 2;
 
-/// What the line keeps with each telegram it cut from the ring.
+/// What the line keeps with each telegram it cut.
 #[derive(Debug, Clone, Copy)]
 pub struct FrameMeta {
-    /// The request ends with its segment: characters after it mean the line is busy again.
+    /// No character followed the request when it was decided (otherwise it is never
+    /// answered: the line is busy again).
     last_of_segment: bool,
-    /// Ring write position at the segment's IDLE.
+    /// The receive mark at the request's end ([`DmaLine::rx_mark`]: the ring position in DMA
+    /// mode, the character count per character).
     seg_end: u16,
-    /// Segment number (counts IDLE events).
+    /// Segment number (DMA mode: counts IDLE events and restarts; per character: restarts).
     seg: u32,
-    /// TIM5 value read after the IDLE flag.
-    idle_seen: u32,
+    /// Where the request's last stop bit is on TIM5 (from its last character's RXNE or its
+    /// IDLE).
+    end: RequestEnd,
+}
+
+/// The protocol side of the streaming framer until the fast path takes the bytes itself
+/// (`FastPath` as a `TelegramSink` with `finish`, issue 11): the telegram in progress,
+/// assembled for `FastPath::on_frame` (its one copy; the ring itself is never copied).
+struct Assemble {
+    buf: Option<&'static mut [u8; MAX_FRAME_LEN]>,
+    len: usize,
+    open: bool,
+}
+
+impl TelegramSink for Assemble {
+    #[inline(always)]
+    fn begin(&mut self) {
+        self.len = 0;
+        self.open = true;
+    }
+    #[inline(always)]
+    fn bytes(&mut self, bytes: &[u8]) {
+        let Some(buf) = self.buf.as_deref_mut() else { return };
+        let end = self.len + bytes.len();
+        if self.open && end <= buf.len() {
+            buf[self.len..end].copy_from_slice(bytes);
+            self.len = end;
+        } else {
+            self.open = false;
+        }
+    }
+    #[inline(always)]
+    fn abort(&mut self) {
+        self.open = false;
+    }
 }
 
 /// Why a telegram was lost before the decision, and what the transmitter did.
@@ -185,6 +263,9 @@ pub struct LineStats {
     pub framing: u32,
     pub noise: u32,
     pub overrun: u32,
+    /// The receive DMA lapped the ring reader (a handler more than half a ring late): the
+    /// telegram in progress was dropped.
+    pub ring_overrun: u32,
     /// Telegrams dropped because the core had not taken the older ones (the fast path's
     /// `FastStats::queue_full`).
     pub queue_full: u32,
@@ -200,7 +281,7 @@ pub struct LineStats {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Tx {
     Idle,
-    /// Waiting for TIM5 compare 1; the ring position when armed.
+    /// Waiting for TIM5 compare 1; the receive mark when armed.
     Armed {
         ring_pos: u16,
     },
@@ -226,18 +307,23 @@ pub struct DmaLine {
     divisors: [Option<(bool, u16)>; Baudrate::ALL.len()],
     rate: Baudrate,
     ring: &'static mut [u8; RX_RING],
-    tx_buf: &'static mut [u8; MAX_FRAME_LEN],
-    /// The ring's read side (the first byte not yet cut).
-    reader: RingReader<RX_RING>,
-    /// The segment being cut (taken out of `self` while its telegrams are worked on).
-    seg_buf: Option<&'static mut [u8; MAX_FRAME_LEN]>,
-    /// A character error since the last IDLE.
-    corrupt: bool,
-    /// Which receive interrupts are on ([`RxIrqGate`]).
+    /// How the USART receives at `rate` ([`RxMode::for_rate`]).
+    mode: RxMode,
+    /// The ring's read side in DMA mode (the first byte not yet handed to `stream`).
+    walker: RingWalker<RX_RING>,
+    /// Characters received in per-character mode (the receive mark, wrapping).
+    chars: u16,
+    /// DMA mode: a telegram the stream completed at the last ring byte of an HT/TC event,
+    /// decided at the IDLE (or as "not last" when more bytes come first).
+    pending: Option<FrameMeta>,
+    /// Which receive interrupts are on in DMA mode ([`RxIrqGate`]).
     gate: RxIrqGate,
     /// The enables last programmed (written only when they change).
     enabled: Option<RxEnables>,
-    receiver: Receiver,
+    /// The streaming framer: every character (per character) or ring piece (DMA) through it.
+    stream: Stream,
+    /// Its sink (until the fast path is one itself).
+    asm: Assemble,
     /// The line half of the split (`pbcard::fast`), attached once in `init`.
     fast: Option<FastPath<'static>>,
     /// The line half of the rate control (`pbcard::phy::rate_link`), attached with it.
@@ -261,8 +347,12 @@ pub struct DmaLine {
 }
 
 static mut RX_RING_BUF: [u8; RX_RING] = [0; RX_RING];
-static mut TX_BUF: [u8; MAX_FRAME_LEN] = [0; MAX_FRAME_LEN];
-static mut SEG_BUF: [u8; MAX_FRAME_LEN] = [0; MAX_FRAME_LEN];
+/// The line's one telegram buffer: the request being assembled ([`Assemble`]) and the
+/// response being sent (`Sender`). Never both: a response is copied in only while the line
+/// is quiet since its request (no telegram in progress), reception is off while it is sent,
+/// and a character arriving before an armed start drops the start (`rx_quiet`) before the
+/// stream's next bytes can land here — the handlers run at one priority, one at a time.
+static mut LINE_BUF: [u8; MAX_FRAME_LEN] = [0; MAX_FRAME_LEN];
 
 /// The transmitter's parts of a [`DmaLine`], borrowed field by field ([`sender!`]) so that a
 /// response can be started while the fast path's answer (a borrow of `DmaLine::fast`) is held.
@@ -275,22 +365,20 @@ struct Sender<'l> {
     tx: &'l mut Tx,
     table: &'l LineTicks,
     transmit: bool,
-    segments: u32,
 }
 
 /// The [`Sender`] of a `DmaLine` expression (field borrows only).
 macro_rules! sender {
-    ($l:expr) => {
+    ($l:expr, $buf:expr) => {
         Sender {
             usart: &$l.usart,
             dma: &$l.dma,
             tim: &$l.tim,
             de: &mut $l.de,
-            buf: &mut *$l.tx_buf,
+            buf: $buf,
             tx: &mut $l.tx,
             table: &$l.table,
             transmit: $l.transmit,
-            segments: $l.segments,
         }
     };
 }
@@ -322,8 +410,7 @@ impl DmaLine {
         TIM5::reset(rcc);
         // SAFETY: `new` is called once from `init`; the buffers are handed to the DMA and to
         // this struct only.
-        let (ring, tx_buf, seg_buf) =
-            unsafe { (&mut *addr_of_mut!(RX_RING_BUF), &mut *addr_of_mut!(TX_BUF), &mut *addr_of_mut!(SEG_BUF)) };
+        let (ring, buf) = unsafe { (&mut *addr_of_mut!(RX_RING_BUF), &mut *addr_of_mut!(LINE_BUF)) };
 
         // TIM5: 32-bit up-counter, prescaler 0, wraps at 2^32 (44.7 s at 96 MHz).
         tim.psc().write(|w| unsafe { w.bits(0) });
@@ -345,13 +432,14 @@ impl DmaLine {
             divisors: Baudrate::ALL.map(|r| usart_brr(pclk_hz, r.bits_per_second())),
             rate,
             ring,
-            tx_buf,
-            reader: RingReader::new(),
-            seg_buf: Some(seg_buf),
-            corrupt: false,
+            mode: RxMode::for_rate(rate),
+            walker: RingWalker::new(),
+            chars: 0,
+            pending: None,
             gate: RxIrqGate::new(),
             enabled: None,
-            receiver: Receiver::new(),
+            stream: Stream::new(Resync::Gap),
+            asm: Assemble { buf: Some(buf), len: 0, open: false },
             fast: None,
             rate_tap: None,
             awaiting: heapless::Deque::new(),
@@ -387,18 +475,18 @@ impl DmaLine {
 
     /// The telegram cutter's counters.
     pub fn rx_stats(&self) -> RxStats {
-        self.receiver.stats()
+        self.stream.stats()
     }
 
     /// Telegrams lost on the line (STATUS.CORRUPT_FRAMES): [`RxStats::lost_frames`].
     pub fn corrupt_frames(&self) -> u32 {
-        self.receiver.stats().lost_frames()
+        self.stream.stats().lost_frames()
     }
 
     /// Publish the cutter's counters for the lower tasks ([`monitor`]).
     #[inline(always)]
     fn publish_rx(&self) {
-        let r = self.receiver.stats();
+        let r = self.stream.stats();
         for (i, v) in [r.frames, r.corrupt, r.truncated, r.garbage, r.unsynced, r.tsyn].into_iter().enumerate() {
             COUNTERS[RX_BASE + i].store(v, Ordering::Relaxed);
         }
@@ -407,7 +495,7 @@ impl DmaLine {
     /// Whether the receive DMA and the USART are running as programmed (supervision: the
     /// housekeeping task feeds the IWDG only then).
     pub fn is_healthy(&self) -> bool {
-        let rx_on = self.dma.st(RX_STREAM).cr().read().bits() & DMA_EN != 0;
+        let rx_on = self.dma.st(RX_STREAM).cr().read().bits() & DMA_EN != 0 || self.mode == RxMode::PerChar;
         let ue = self.usart.cr1().read().ue().bit_is_set();
         let tim_on = self.tim.cr1().read().bits() & 1 != 0;
         rx_on && ue && tim_on
@@ -419,6 +507,23 @@ impl DmaLine {
         ring_pos(&self.dma)
     }
 
+    /// The receive mark: how far the receiver has got (DMA mode: the ring position; per
+    /// character: the characters counted). A response armed or deferred at one mark goes out
+    /// only while the mark has not moved ([`DmaLine::rx_quiet`]).
+    #[inline(always)]
+    fn rx_mark(&self) -> u16 {
+        match self.mode {
+            RxMode::Dma => self.ring_pos() as u16,
+            RxMode::PerChar => self.chars,
+        }
+    }
+
+    /// No character since the mark `mark` ([`rx_quiet`]).
+    #[inline(always)]
+    fn rx_quiet(&self, mark: u16) -> bool {
+        rx_quiet(self.mode, &self.dma, &self.usart, self.chars, mark)
+    }
+
     fn stop_rx_dma(&mut self) {
         let st = self.dma.st(RX_STREAM);
         st.cr().modify(|r, w| unsafe { w.bits(r.bits() & !DMA_EN) });
@@ -426,23 +531,33 @@ impl DmaLine {
         self.dma.lifcr().write(|w| unsafe { w.bits(DMA_S2_FLAGS) });
     }
 
-    fn start_rx_dma(&mut self) {
-        let st = self.dma.st(RX_STREAM);
-        st.par().write(|w| unsafe { w.bits(self.usart.dr().as_ptr() as u32) });
-        st.m0ar().write(|w| unsafe { w.bits(self.ring.as_ptr() as u32) });
-        st.ndtr().write(|w| unsafe { w.bits(RX_RING as u32) });
-        st.fcr().write(|w| unsafe { w.bits(0) }); // direct mode
-        st.cr().write(|w| unsafe { w.bits(DMA_CHSEL_USART1 | DMA_PL_VERY_HIGH | DMA_MINC | DMA_CIRC) });
-        st.cr().modify(|r, w| unsafe { w.bits(r.bits() | DMA_EN) });
-        self.reader.restart();
-        self.corrupt = false;
+    /// Restart the receiver in the current mode: DMA mode the circular ring with its HT/TC
+    /// interrupts from index 0; per character nothing to start (RXNEIE). Whatever was
+    /// received before is forgotten and the stream waits for T_SYN.
+    fn start_rx(&mut self) {
+        if self.mode == RxMode::Dma {
+            let st = self.dma.st(RX_STREAM);
+            st.par().write(|w| unsafe { w.bits(self.usart.dr().as_ptr() as u32) });
+            st.m0ar().write(|w| unsafe { w.bits(self.ring.as_ptr() as u32) });
+            st.ndtr().write(|w| unsafe { w.bits(RX_RING as u32) });
+            st.fcr().write(|w| unsafe { w.bits(0) }); // direct mode
+            st.cr().write(|w| unsafe {
+                w.bits(DMA_CHSEL_USART1 | DMA_PL_VERY_HIGH | DMA_MINC | DMA_CIRC | DMA_HTIE | DMA_TCIE)
+            });
+            st.cr().modify(|r, w| unsafe { w.bits(r.bits() | DMA_EN) });
+        }
+        self.walker.restart();
+        self.chars = 0;
+        self.pending = None;
         self.gate.restart();
         self.enabled = None;
         self.apply_gate();
         // No telegram before the restart may be answered any more (`quiet_since`).
         self.segments = self.segments.wrapping_add(1);
         self.tsyn_pos = None;
-        self.receiver.reset();
+        self.stream.reset(&mut self.asm);
+        // Every telegram to the sink until the rate is locked again (`decide`).
+        self.stream.set_filter(None);
     }
 
     /// Drop whatever the ring holds and wait for T_SYN again: the full restart of
@@ -453,9 +568,35 @@ impl DmaLine {
         let _ = self.set_rate(self.rate);
     }
 
+    /// Hand the sink's telegram to the fast path (`meta` = where it ended and whether the
+    /// line was quiet after it). The one place that changes when the fast path takes the bytes
+    /// itself (`FastPath::finish` instead of `on_frame` on the assembled copy).
+    // One copy, in RAM (called from every receive path).
+    #[inline(never)]
+    #[link_section = ".data.pbcard_line"]
+    fn decide(&mut self, meta: FrameMeta) {
+        if !self.asm.open {
+            return;
+        }
+        self.asm.open = false;
+        let Some(buf) = self.asm.buf.take() else { return };
+        let n = self.asm.len;
+        self.on_telegram(&mut *buf, n, meta);
+        self.asm.buf = Some(buf);
+        // Other stations' telegrams are skipped by length while the rate is locked (the
+        // search needs every valid telegram to lock; `Stream::set_filter`).
+        let filter = match (self.fast.as_mut(), self.rate_tap.as_ref()) {
+            (Some(f), Some(t)) if t.may_answer(false) => Some(f.address()),
+            _ => None,
+        };
+        self.stream.set_filter(filter);
+    }
+
     /// The line silent for a flash operation: a response in flight aborted (DE low, transmit
     /// DMA off), the receiver and its interrupts off, the receive DMA stopped, both compares
     /// off. Only [`DmaLine::restart_rx`] (or `set_rate`) brings it back.
+    // Cold: in flash (module documentation "In RAM").
+    #[inline(never)]
     fn silence(&mut self) {
         self.abort_tx();
         self.usart.cr1().modify(|_, w| w.re().disabled().rxneie().disabled().idleie().disabled().peie().disabled());
@@ -491,7 +632,7 @@ impl DmaLine {
     /// `awaiting`; then the telegram is accounted to the rate control
     /// (`pbcard::phy::line::classify`: after the response is on its way, off its path).
     #[inline(always)]
-    fn on_telegram(&mut self, frame: &[u8], meta: FrameMeta) {
+    fn on_telegram(&mut self, buf: &mut [u8; MAX_FRAME_LEN], n: usize, meta: FrameMeta) {
         let now = self.time.line_now(self.last_now);
         self.last_now = now;
         let (Some(fast), Some(tap)) = (self.fast.as_mut(), self.rate_tap.as_mut()) else { return };
@@ -500,24 +641,33 @@ impl DmaLine {
         // next response on, as in the single-task decision).
         let min_tsdr = fast.min_tsdr();
         let max_tsdr = BitTimes(u32::from(pbcard::card::max_tsdr(self.rate)));
-        match fast.on_frame(now, frame) {
+        let quiet = meta.last_of_segment
+            && meta.seg == self.segments
+            && rx_quiet(self.mode, &self.dma, &self.usart, self.chars, meta.seg_end);
+        match fast.on_frame(now, &buf[..n]) {
             Verdict::Answer(bytes) => {
-                if tap.may_answer(true) {
-                    sender!(self).respond(&meta, bytes, min_tsdr, max_tsdr);
+                let open = tap.may_answer(true);
+                // An answered request is an error-free SD1/SD2/SD3 telegram to us (the fast
+                // path decoded it): accounted without the bytes, which the answer overwrites.
+                tap.account(FrameClass { ok_sd123: true, to_us: true, invalid: false });
+                if open {
+                    sender!(self, buf).respond(&meta, bytes, min_tsdr, max_tsdr, quiet);
                 }
             }
             Verdict::Core => {
                 // At most `QUEUE_LEN − 1` requests are with the core: never full.
                 let _ = self.awaiting.push_back(meta);
+                account(tap, &buf[..n], own);
             }
-            Verdict::Silent => {}
+            Verdict::Silent => account(tap, &buf[..n], own),
         }
-        tap.account(classify(frame, own));
     }
 
     /// The core's answers to requests in `awaiting` (the core task pends USART1 after each):
     /// sent as `respond` decides (min_TSDR, max_TSDR, the line quiet since the request); none
     /// while silenced or while the rate control's gate is shut.
+    // In flash: the core's answers are not on the fast path's response path.
+    #[inline(never)]
     fn take_deferred(&mut self) {
         loop {
             let Some(fast) = self.fast.as_mut() else { return };
@@ -529,17 +679,23 @@ impl DmaLine {
                 continue;
             }
             let max_tsdr = BitTimes(u32::from(pbcard::card::max_tsdr(self.rate)));
-            sender!(self).respond(&meta, bytes, min_tsdr, max_tsdr);
+            let quiet = meta.last_of_segment
+                && meta.seg == self.segments
+                && rx_quiet(self.mode, &self.dma, &self.usart, self.chars, meta.seg_end);
+            let Some(buf) = self.asm.buf.as_deref_mut() else { return };
+            sender!(self, buf).respond(&meta, bytes, min_tsdr, max_tsdr, quiet);
         }
     }
 
-    /// The USART1 interrupt: the core's answers, errors, IDLE (the segment's telegrams through
-    /// the fast path), TC. Returns `true` when telegrams were queued for the core.
+    /// The USART1 interrupt: the received characters (per character) or the ring's remainder
+    /// at IDLE (DMA mode) through the streaming framer, the fast path's decision at a
+    /// telegram's end, character errors, TC, the core's answers. Returns `true` when
+    /// telegrams were queued for the core.
     // In RAM (module documentation "In RAM").
     #[inline(never)]
     #[link_section = ".data.pbcard_line"]
     pub fn on_usart(&mut self) -> bool {
-        // SR only, never DR (module documentation): the DMA's next DR read clears the flags.
+        let queued_before = self.fast.as_ref().map_or(0, |f| f.stats().queued);
         let sr = self.usart.sr().read().bits();
         if self.silent {
             // Pended before the silence: nothing is received, nothing to release; a core
@@ -547,25 +703,9 @@ impl DmaLine {
             self.take_deferred();
             return false;
         }
-        let mut queued = false;
-        let irq = self.gate.on_interrupt(rx_flags(sr));
-        if irq.error {
-            add(PARITY, u32::from(sr & SR_PE != 0));
-            add(FRAMING, u32::from(sr & SR_FE != 0));
-            add(NOISE, u32::from(sr & SR_NF != 0));
-            add(OVERRUN, u32::from(sr & SR_ORE != 0));
-            self.corrupt = true;
-        }
-        if irq.segment_end {
-            // First the timestamp and the T_SYN compare (from the tick table), then the copy.
-            let idle_seen = self.ticks();
-            let write = self.ring_pos();
-            self.arm_tsyn_check(self.table.tsyn_check_at(idle_seen), write as u16);
-            queued = self.on_idle(idle_seen, write);
-            // The next segment may have begun during the cut (its RXNE already passed).
-            let moved = self.ring_pos() != write;
-            let sr_now = self.usart.sr().read().bits();
-            self.gate.after_segment(moved, rx_flags(sr_now));
+        match self.mode {
+            RxMode::PerChar => self.on_char(sr),
+            RxMode::Dma => self.on_usart_dma(sr),
         }
         if sr & SR_TC != 0 && self.tx == Tx::Sending && self.dma.st(TX_STREAM).ndtr().read().bits() == 0 {
             // The last stop bit is out: release the bus and listen again.
@@ -578,55 +718,203 @@ impl DmaLine {
             // The master waits T_ID ≥ T_SYN after our response: T_SYN + one character from our
             // last stop bit (at or before now) proves it.
             let now = self.ticks();
-            self.arm_tsyn_check(self.table.tsyn_check_after_stop(now), self.ring_pos() as u16);
+            self.arm_tsyn_check(self.table.tsyn_check_after_stop(now), self.rx_mark());
         }
-        // After a new segment (whose telegrams come first), the core's answers: one to a
-        // request before that segment is dropped then (the line was not quiet).
+        // After the received characters (whose telegrams come first), the core's answers: one
+        // to a request before them is dropped then (the line was not quiet).
         self.take_deferred();
         self.apply_gate();
-        queued
+        if !self.stream.in_telegram() {
+            self.publish_rx();
+        }
+        let Some(fast) = self.fast.as_ref() else { return false };
+        let stats = fast.stats();
+        COUNTERS[QUEUE_FULL].store(stats.queue_full, Ordering::Relaxed);
+        stats.queued != queued_before
     }
 
-    /// Program RXNEIE, IDLEIE, PEIE (CR1) and EIE (CR3) as the gate says, when they changed.
+    /// Per-character mode (≤ 1.5 Mbit/s): the CPU owns the receiver (receive DMA off, issue
+    /// 11 item 3f), reads DR once per interrupt (which also clears IDLE and the error flags
+    /// after the SR read) and pushes the character into the stream. At its telegram's last
+    /// character ([`Step::Complete`], by the header's length) the fast path decides at once.
+    #[inline(always)]
+    fn on_char(&mut self, sr: u16) {
+        if sr & (SR_RXNE | SR_IDLE | SR_PE | SR_FE | SR_NF | SR_ORE) == 0 {
+            return;
+        }
+        let dr = self.usart.dr().read().bits();
+        // IDLE and a character in one SR read (the interrupt came late): outside a telegram
+        // the gap came first (it changes nothing then, and the T_SYN proof it arms fails on
+        // the character); inside one, the character may be its last, so it goes first.
+        let idle_first = sr & SR_IDLE != 0 && !self.stream.in_telegram();
+        if idle_first {
+            self.on_char_idle();
+        }
+        if sr & (SR_PE | SR_FE | SR_NF | SR_ORE) != 0 {
+            self.count_errors(sr);
+            self.chars = self.chars.wrapping_add(1);
+            self.stream.error(&mut self.asm);
+        } else if sr & SR_RXNE != 0 {
+            // The timer first: the request's end is this character's stop bit.
+            let seen = self.ticks();
+            self.chars = self.chars.wrapping_add(1);
+            match feed(&mut self.stream, core::slice::from_ref(&(dr as u8)), &mut self.asm).1 {
+                Step::Complete => {
+                    let meta = FrameMeta {
+                        last_of_segment: true,
+                        seg_end: self.chars,
+                        seg: self.segments,
+                        end: self.table.end_at_last_char(seen),
+                    };
+                    self.decide(meta);
+                }
+                Step::Skipped | Step::Garbage | Step::Pending => {}
+            }
+        }
+        if sr & SR_IDLE != 0 && !idle_first {
+            self.on_char_idle();
+        }
+    }
+
+    /// Per-character mode, IDLE (one idle character): inside a telegram a gap that drops it;
+    /// the T_SYN proof runs from here (armed first, from the tick table). In flash: per
+    /// character the request's end is found by length, so IDLE is off the response path.
+    #[inline(never)]
+    fn on_char_idle(&mut self) {
+        let idle_seen = self.ticks();
+        self.arm_tsyn_check(self.table.tsyn_check_at(idle_seen), self.chars);
+        self.stream.idle(BitTimes::CHAR, &mut self.asm);
+    }
+
+    /// DMA mode (≥ 3 Mbit/s), the USART side: the receive gate ([`RxIrqGate`]: SR only, never
+    /// DR); a character error hands the ring's bytes so far to the stream and drops the
+    /// telegram in progress; IDLE hands over the remainder — the request's end — and the fast
+    /// path decides.
+    #[inline(always)]
+    fn on_usart_dma(&mut self, sr: u16) {
+        let irq = self.gate.on_interrupt(rx_flags(sr));
+        if irq.error {
+            self.count_errors(sr);
+            self.walk_ring(None);
+            // A completion at the ring's end may be the corrupt character itself.
+            self.pending = None;
+            self.stream.error(&mut self.asm);
+        }
+        if irq.segment_end {
+            // First the timestamp and the T_SYN compare (from the tick table), then the ring.
+            let idle_seen = self.ticks();
+            let write = self.ring_pos();
+            self.arm_tsyn_check(self.table.tsyn_check_at(idle_seen), write as u16);
+            self.segments = self.segments.wrapping_add(1);
+            self.walk_ring(Some(self.table.end_at_idle(idle_seen)));
+            // A telegram still incomplete at IDLE had a gap inside: dropped.
+            self.stream.idle(BitTimes::CHAR, &mut self.asm);
+            // The next segment may have begun meanwhile (its RXNE already passed).
+            let moved = self.ring_pos() != write;
+            let sr_now = self.usart.sr().read().bits();
+            self.gate.after_segment(moved, rx_flags(sr_now));
+        }
+    }
+
+    /// The receive DMA's half/full-transfer interrupt (DMA2 stream 2, DMA mode): the ring's
+    /// new bytes through the stream. Returns `true` when telegrams were queued for the core.
+    // In flash (RAM budget; module documentation "In RAM").
+    #[inline(never)]
+    pub fn on_dma(&mut self) -> bool {
+        let queued_before = self.fast.as_ref().map_or(0, |f| f.stats().queued);
+        if self.silent || self.mode != RxMode::Dma {
+            self.dma.lifcr().write(|w| unsafe { w.bits(DMA_S2_FLAGS) });
+            return false;
+        }
+        self.walk_ring(None);
+        self.publish_rx();
+        self.fast.as_ref().is_some_and(|f| f.stats().queued != queued_before)
+    }
+
+    /// DMA mode: the pending HT/TC flags (read and cleared first), then the DMA position; the
+    /// new ring bytes (≤ 2 pieces) through `Stream::piece` in place. A telegram completed
+    /// inside the bytes is decided at once as "not last" (characters follow: never answered,
+    /// but queued if it is for the core); one completed at the last byte waits for the IDLE
+    /// (`at_idle`: its end) to be decided with its timing. An overrun (the DMA lapped the
+    /// reader) drops the telegram in progress and waits for T_SYN.
+    // In flash (RAM budget; the pieces' bytes go through `feed`, in RAM).
+    #[inline(never)]
+    fn walk_ring(&mut self, at_idle: Option<RequestEnd>) {
+        let flags = self.dma.lisr().read().bits() & (DMA_S2_HT | DMA_S2_TC);
+        self.dma.lifcr().write(|w| unsafe { w.bits(flags) });
+        let write = self.ring_pos();
+        let walk = self.walker.walk(flags & DMA_S2_HT != 0, flags & DMA_S2_TC != 0, write);
+        if walk.overrun {
+            add(RING_OVERRUN, 1);
+            self.pending = None;
+            self.stream.error(&mut self.asm);
+            return;
+        }
+        let fresh = !walk.first.is_empty();
+        if let Some(mut meta) = self.pending.take() {
+            if fresh {
+                meta.last_of_segment = false;
+                self.decide(meta);
+            } else {
+                self.pending = Some(meta);
+            }
+        }
+        for (range, last_piece) in [(walk.first, walk.second.is_empty()), (walk.second, true)] {
+            let (mut at, end) = (range.start, range.end);
+            while at < end {
+                let (used, step) = feed(&mut self.stream, &self.ring[at..end], &mut self.asm);
+                at += used;
+                if step == Step::Complete {
+                    let more = at < end || !last_piece;
+                    let meta = FrameMeta {
+                        last_of_segment: !more,
+                        seg_end: write as u16,
+                        seg: self.segments,
+                        end: RequestEnd { stop_latest: 0, stop_earliest: 0 },
+                    };
+                    if more {
+                        self.decide(meta);
+                    } else {
+                        self.pending = Some(meta);
+                    }
+                }
+            }
+            if last_piece {
+                break;
+            }
+        }
+        if let Some(end) = at_idle {
+            if let Some(mut meta) = self.pending.take() {
+                meta.end = end;
+                meta.seg = self.segments;
+                meta.seg_end = write as u16;
+                self.decide(meta);
+            }
+        }
+    }
+
+    /// Count a character error's kinds.
+    #[inline(always)]
+    fn count_errors(&self, sr: u16) {
+        add(PARITY, u32::from(sr & SR_PE != 0));
+        add(FRAMING, u32::from(sr & SR_FE != 0));
+        add(NOISE, u32::from(sr & SR_NF != 0));
+        add(OVERRUN, u32::from(sr & SR_ORE != 0));
+    }
+
+    /// Program RXNEIE, IDLEIE, PEIE (CR1) and EIE (CR3): per character all of them; DMA mode
+    /// as the gate says, when they changed.
     fn apply_gate(&mut self) {
-        let e = self.gate.enables();
+        let e = match self.mode {
+            RxMode::PerChar => RxEnables { rxne: true, idle: true, errors: true },
+            RxMode::Dma => self.gate.enables(),
+        };
         if self.enabled == Some(e) {
             return;
         }
         self.usart.cr1().modify(|_, w| w.rxneie().bit(e.rxne).idleie().bit(e.idle).peie().bit(e.errors));
         self.usart.cr3().modify(|_, w| w.eie().bit(e.errors));
         self.enabled = Some(e);
-    }
-
-    /// The segment up to ring position `write`: cut into telegrams, each through
-    /// [`Self::on_telegram`] in line order. Returns `true` when the fast path queued telegrams
-    /// for the core.
-    fn on_idle(&mut self, idle_seen: u32, write: usize) -> bool {
-        let Some(seg_buf) = self.seg_buf.take() else { return false };
-        let (n, take) = self.reader.take(self.ring, write, &mut seg_buf[..]);
-        // A segment longer than a telegram cannot be one: dropped like a corrupt one.
-        let corrupt = core::mem::take(&mut self.corrupt) || n > take;
-        self.segments = self.segments.wrapping_add(1);
-        let seg = self.segments;
-        let seg_end = write as u16;
-        let queued_before = self.fast.as_ref().map_or(0, |f| f.stats().queued);
-        // The cutter out of `self` while its telegrams are worked on (28 bytes).
-        let mut receiver = core::mem::take(&mut self.receiver);
-        let mut consumed = 0usize;
-        receiver.segment(&seg_buf[..take], corrupt, |f| {
-            consumed += f.len();
-            // Only a telegram that ends its segment can be answered: bytes after it mean the
-            // line was not idle (`quiet_since`).
-            let meta = FrameMeta { last_of_segment: consumed == take, seg_end, seg, idle_seen };
-            self.on_telegram(f, meta);
-        });
-        self.receiver = receiver;
-        self.seg_buf = Some(seg_buf);
-        self.publish_rx();
-        let Some(fast) = self.fast.as_ref() else { return false };
-        let stats = fast.stats();
-        COUNTERS[QUEUE_FULL].store(stats.queue_full, Ordering::Relaxed);
-        stats.queued != queued_before
     }
 
     /// Arm TIM5 compare 2 for the T_SYN proof at `at`, against the ring position `pos` (the
@@ -658,18 +946,20 @@ impl DmaLine {
         if sr & dier & TIM_CC2 != 0 {
             self.tim.sr().write(|w| unsafe { w.bits(!TIM_CC2) });
             self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() & !TIM_CC2) });
-            if self.tsyn_pos.take() == Some(self.ring_pos() as u16) && !self.corrupt {
-                self.receiver.on_tsyn();
-                self.publish_rx();
+            if let Some(pos) = self.tsyn_pos.take() {
+                if self.rx_quiet(pos) {
+                    self.stream.idle(BitTimes::TSYN, &mut self.asm);
+                    self.publish_rx();
+                }
             }
         }
         if sr & dier & TIM_CC1 != 0 {
             self.tim.sr().write(|w| unsafe { w.bits(!TIM_CC1) });
             self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() & !TIM_CC1) });
             if let Tx::Armed { ring_pos } = self.tx {
-                if usize::from(ring_pos) == self.ring_pos() {
+                if let (true, Some(buf)) = (self.rx_quiet(ring_pos), self.asm.buf.as_deref_mut()) {
                     add(DELAYED_STARTS, 1);
-                    sender!(self).start_now();
+                    sender!(self, buf).start_now();
                 } else {
                     self.tx = Tx::Idle;
                     add(DROPPED_LINE_ACTIVE, 1);
@@ -717,15 +1007,17 @@ impl LineRate for DmaLine {
             w.te().enabled().re().enabled();
             w.ue().enabled()
         });
-        // Receive by DMA.
-        self.usart.cr3().write(|w| w.dmar().enabled());
+        // Receive by DMA at ≥ 3 Mbit/s; per character (the CPU reads DR) below.
+        let mode = RxMode::for_rate(rate);
+        self.usart.cr3().write(|w| w.dmar().bit(mode == RxMode::Dma));
         // The receive DMA is stopped: the CPU owns the receiver, so this DR read (clearing
         // stale IDLE / error flags) takes nothing from the DMA.
         let _ = self.usart.sr().read();
         let _ = self.usart.dr().read();
         self.rate = rate;
+        self.mode = mode;
         self.table = self.tables[i];
-        self.start_rx_dma();
+        self.start_rx();
         // Resynchronise: T_SYN + one character of quiet from now proves T_SYN.
         let now = self.ticks();
         self.arm_tsyn_check(self.table.tsyn_check_after_stop(now), 0);
@@ -761,8 +1053,9 @@ impl Transmitter for DmaLine {
             return Err(TxError::BadLength);
         }
         let at = (!compare_passed(self.ticks(), not_before)).then_some(not_before);
-        let ring_pos = self.ring_pos() as u16;
-        sender!(self).send(bytes, at, ring_pos);
+        let ring_pos = self.rx_mark();
+        let Some(buf) = self.asm.buf.as_deref_mut() else { return Err(TxError::Busy) };
+        sender!(self, buf).send(bytes, at, ring_pos);
         Ok(())
     }
 
@@ -775,21 +1068,22 @@ impl Sender<'_> {
     /// Send `bytes` as the response to `request` (the fast path's or the core's answer), no earlier
     /// than `min_tsdr` after its last stop bit and no later than `max_tsdr` — or not at all
     /// ([`line::tx_plan`]). Returns what was done.
-    fn respond(&mut self, request: &FrameMeta, bytes: &[u8], min_tsdr: BitTimes, max_tsdr: BitTimes) -> TxPlan {
+    fn respond(
+        &mut self,
+        request: &FrameMeta,
+        bytes: &[u8],
+        min_tsdr: BitTimes,
+        max_tsdr: BitTimes,
+        quiet: bool,
+    ) -> TxPlan {
         if !self.transmit || bytes.is_empty() || bytes.len() > self.buf.len() {
             add(DROPPED_BAD_LENGTH, 1);
             return TxPlan::Drop(TxDrop::Busy);
         }
         // From the tick table: additions and one multiply, no division.
-        let not_before = self.table.response_not_before(request.idle_seen, min_tsdr);
-        let latest = self.table.response_latest(request.idle_seen, max_tsdr);
-        let plan = line::tx_plan(
-            self.tim.cnt().read().bits(),
-            not_before,
-            latest,
-            quiet_since(self.dma, self.segments, request),
-            *self.tx != Tx::Idle,
-        );
+        let not_before = self.table.not_before(request.end, min_tsdr);
+        let latest = self.table.latest(request.end, max_tsdr);
+        let plan = line::tx_plan(self.tim.cnt().read().bits(), not_before, latest, quiet, *self.tx != Tx::Idle);
         match plan {
             TxPlan::Drop(TxDrop::LineActive) => add(DROPPED_LINE_ACTIVE, 1),
             TxPlan::Drop(TxDrop::TooLate) => add(DROPPED_TOO_LATE, 1),
@@ -851,11 +1145,29 @@ fn ring_pos(dma: &DMA2) -> usize {
     (RX_RING - ndtr.min(RX_RING)) % RX_RING
 }
 
-/// Whether no character has arrived since `frame`'s IDLE (its response may still go out):
-/// it ended its segment, no IDLE since (`segments`), the DMA has not moved.
+/// The streaming framer's one copy in RAM (`Stream::piece`, generic, instantiated here): the
+/// per-character path passes one-byte pieces, the DMA path the ring's pieces.
+#[inline(never)]
+#[link_section = ".data.pbcard_line"]
+fn feed(stream: &mut Stream, bytes: &[u8], asm: &mut Assemble) -> (usize, Step) {
+    stream.piece(bytes, asm)
+}
+
+/// The telegram accounted to the rate control (`pbcard::phy::line::classify` decodes it
+/// whole): after the response is on its way, in flash (off the response path, not worth RAM).
+#[inline(never)]
+fn account(tap: &mut RateTap<'static>, frame: &[u8], own: u8) {
+    tap.account(classify(frame, own));
+}
+
+/// No character since the receive mark `mark`: DMA mode the ring position has not moved; per
+/// character the count has not moved and none waits in DR (RXNE).
 #[inline(always)]
-fn quiet_since(dma: &DMA2, segments: u32, frame: &FrameMeta) -> bool {
-    frame.last_of_segment && frame.seg == segments && ring_pos(dma) == usize::from(frame.seg_end)
+fn rx_quiet(mode: RxMode, dma: &DMA2, usart: &USART1, chars: u16, mark: u16) -> bool {
+    match mode {
+        RxMode::Dma => ring_pos(dma) as u16 == mark,
+        RxMode::PerChar => chars == mark && usart.sr().read().bits() & SR_RXNE == 0,
+    }
 }
 
 // The line's counters (issue 11 item 3c): written only by the line interrupts (USART1, TIM5,
@@ -872,8 +1184,9 @@ const DROPPED_LINE_ACTIVE: usize = 7;
 const DROPPED_TOO_LATE: usize = 8;
 const DROPPED_BUSY: usize = 9;
 const DROPPED_BAD_LENGTH: usize = 10;
-/// [`RxStats`] in field order from here (published after each segment and T_SYN).
-const RX_BASE: usize = 11;
+const RING_OVERRUN: usize = 11;
+/// [`RxStats`] in field order from here (published after each receive event and T_SYN).
+const RX_BASE: usize = 12;
 const COUNTER_COUNT: usize = RX_BASE + 6;
 
 #[allow(clippy::declare_interior_mutable_const)]
@@ -909,6 +1222,7 @@ pub mod monitor {
             framing: get(FRAMING),
             noise: get(NOISE),
             overrun: get(OVERRUN),
+            ring_overrun: get(RING_OVERRUN),
             queue_full: get(QUEUE_FULL),
             responses: get(RESPONSES),
             delayed_starts: get(DELAYED_STARTS),
@@ -938,7 +1252,8 @@ pub mod monitor {
     pub fn is_healthy() -> bool {
         // SAFETY: reads of control registers, no side effects; the line owns the writes.
         let (dma, usart, tim) = unsafe { (&*DMA2::ptr(), &*USART1::ptr(), &*TIM5::ptr()) };
-        let rx_on = dma.st(RX_STREAM).cr().read().bits() & DMA_EN != 0;
+        // Per character (≤ 1.5 Mbit/s) the receive DMA is off and RXNEIE on.
+        let rx_on = dma.st(RX_STREAM).cr().read().bits() & DMA_EN != 0 || usart.cr1().read().rxneie().bit_is_set();
         rx_on && usart.cr1().read().ue().bit_is_set() && tim.cr1().read().bits() & 1 != 0
     }
 }

@@ -6,14 +6,17 @@
 //! the restart after a flash stall) and the USART receive-interrupt gate that never needs a
 //! CPU read of the data register ([`RxIrqGate`]).
 //!
-//! **End of a request.** A DMA receiver learns of a telegram's end from the USART's IDLE
-//! flag: one idle character (11 bit times of mark) after the last stop bit, ±1 bit
-//! ([`super::line::IDLE_BITS`], [`super::line::IDLE_UNCERTAINTY_BITS`]). The header's length
-//! ([`super::line::expected_len`]) only *cuts* the segment into telegrams afterwards; it is not
-//! used to predict the end, because the DMA gives no event at the header. Cost: the earliest
-//! response start is 12 bit times after the request's last stop bit (11 + 1 of uncertainty),
-//! which min_TSDR ≥ 11 absorbs; what the firmware adds after the IDLE flag (interrupt entry,
-//! segment copy, decision, DMA start) comes on top.
+//! **End of a request** ([`RxMode`], [`RequestEnd`]). At ≤ 1.5 Mbit/s the board receives per
+//! character and finds the end **by the header's length**: the streaming framer
+//! ([`super::stream::Stream`]) completes the telegram at its last character, whose receive
+//! interrupt is the decision's start ([`LineTicks::end_at_last_char`]: the stop bit ends
+//! within one bit time of RXNE) — no IDLE wait. At ≥ 3 Mbit/s a DMA receiver learns of the end
+//! from the USART's IDLE flag: one idle character (11 bit times of mark) after the last stop
+//! bit, ±1 bit ([`super::line::IDLE_BITS`], [`super::line::IDLE_UNCERTAINTY_BITS`],
+//! [`LineTicks::end_at_idle`]). Cost: 12 bit times after the request's last stop bit before
+//! the decision starts (96 cycles at 12 Mbit/s), which min_TSDR ≥ 11 absorbs; what the
+//! firmware adds after the event (interrupt entry, the remaining ring bytes, decision, DMA
+//! start) comes on top.
 
 use crate::time::{Baudrate, BitTimes};
 
@@ -94,6 +97,91 @@ impl LineTicks {
     #[inline(always)]
     pub const fn response_latest(&self, idle_seen: u32, max_tsdr: BitTimes) -> u32 {
         idle_seen.wrapping_sub(self.idle_to_stop_earliest).wrapping_add(self.ticks_of(max_tsdr.0))
+    }
+}
+
+impl LineTicks {
+    /// Where the request's last stop bit is when its end was found **by length** in a
+    /// per-character receive interrupt (RXNE of the last character, `Step::Complete` of
+    /// [`super::stream::Stream::push`]) with the timer read at `seen`: no IDLE wait, so the
+    /// response may start 11 bit times (one IDLE character) earlier than with
+    /// [`LineTicks::end_at_idle`].
+    #[inline(always)]
+    pub const fn end_at_last_char(&self, seen: u32) -> RequestEnd {
+        // RXNE is set while the stop bit is sampled: it ends within one bit time. An RXNE not
+        // served within one character is an overrun (ORE) and drops the telegram, so the stop
+        // bit ended at most one character before `seen`. (Multiply and shift, no division.)
+        RequestEnd {
+            stop_latest: seen.wrapping_add(self.ticks_of(1)),
+            stop_earliest: seen.wrapping_sub(self.ticks_of(BitTimes::CHAR.0)),
+        }
+    }
+
+    /// Where the last stop bit is when the end was found by the USART's IDLE flag, the timer
+    /// read at `idle_seen` after it (a DMA receiver; module documentation).
+    #[inline(always)]
+    pub const fn end_at_idle(&self, idle_seen: u32) -> RequestEnd {
+        RequestEnd {
+            stop_latest: idle_seen.wrapping_sub(self.idle_to_stop_latest),
+            stop_earliest: idle_seen.wrapping_sub(self.idle_to_stop_earliest),
+        }
+    }
+
+    /// The earliest instant a response to the request ending at `end` may start: min_TSDR
+    /// (at least 11 bit times) after the latest its stop bit can be.
+    #[inline(always)]
+    pub const fn not_before(&self, end: RequestEnd, min_tsdr: BitTimes) -> u32 {
+        let gap =
+            if min_tsdr.0 <= BitTimes::MIN_TSDR_DEFAULT.0 { self.min_tsdr_floor } else { self.ticks_of(min_tsdr.0) };
+        end.stop_latest.wrapping_add(gap)
+    }
+
+    /// The latest instant it may start: `max_tsdr` after the earliest its stop bit can be.
+    #[inline(always)]
+    pub const fn latest(&self, end: RequestEnd, max_tsdr: BitTimes) -> u32 {
+        end.stop_earliest.wrapping_add(self.ticks_of(max_tsdr.0))
+    }
+}
+
+/// The bounds of a request's last stop bit on the bit timer (ticks), from the event that
+/// found the request's end ([`LineTicks::end_at_last_char`], [`LineTicks::end_at_idle`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub struct RequestEnd {
+    /// The stop bit has ended by then (min_TSDR counts from here).
+    pub stop_latest: u32,
+    /// The stop bit ended no earlier (max_TSDR counts from here).
+    pub stop_earliest: u32,
+}
+
+/// How a board's USART receives at one rate (issue 11 item 2; README "The response path").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(target_os = "none", derive(defmt::Format))]
+pub enum RxMode {
+    /// One receive interrupt per character (≤ 1.5 Mbit/s: ≥ 704 CPU cycles per character at
+    /// 96 MHz), the CPU reads the data register, every character through
+    /// [`super::stream::Stream::push`]: the end of a request is found by its header's length
+    /// at its last character — no IDLE wait.
+    PerChar,
+    /// A circular receive DMA with half/full-transfer events (≥ 3 Mbit/s, where a per-character
+    /// interrupt would cost ≥ 30 % of the CPU at 3 Mbit/s and more above): the ring's bytes go
+    /// through [`super::stream::Stream::piece`] at each event ([`super::ring::RingWalker`]),
+    /// and the end of a request is found by the USART's IDLE flag (11 + 1 bit times after the
+    /// last stop bit).
+    Dma,
+}
+
+impl RxMode {
+    /// The fastest rate received per character.
+    pub const PER_CHAR_MAX_BPS: u32 = 1_500_000;
+
+    /// The mode at `rate`.
+    pub const fn for_rate(rate: Baudrate) -> Self {
+        if rate.bits_per_second() <= Self::PER_CHAR_MAX_BPS {
+            RxMode::PerChar
+        } else {
+            RxMode::Dma
+        }
     }
 }
 
@@ -284,6 +372,39 @@ mod tests {
                 }
             }
             assert_eq!(t.tsyn_check_after_stop(7), 7 + T.ticks(rate, TSYN_PROOF_BITS));
+        }
+    }
+
+    #[test]
+    fn the_end_by_length_gains_the_idle_character() {
+        for rate in Baudrate::ALL {
+            let t = LineTicks::new(T, rate);
+            let bit = T.ticks(rate, 1);
+            // The last stop bit ends at tick 1 000 000 + bit: RXNE mid-stop-bit, served `lat` later (within the character);
+            // IDLE one character after the stop bit.
+            for lat in [0u32, bit, 9 * bit] {
+                let stop = 1_000_000 + bit;
+                let seen = 1_000_000 + bit / 2 + lat;
+                let e = t.end_at_last_char(seen);
+                assert!(e.stop_latest >= stop && e.stop_earliest <= stop, "{rate:?}");
+                let idle = t.end_at_idle(stop + 11 * bit + lat);
+                for min in [0u32, 11, 20] {
+                    assert!(t.not_before(e, BitTimes(min)) >= stop + min.max(11) * bit);
+                    // The same min_TSDR window (never later than by IDLE); what the end by length
+                    // gains is the decision 11 bit times earlier (at RXNE, not at IDLE).
+                    if lat == 0 {
+                        assert!(t.not_before(e, BitTimes(min)) <= t.not_before(idle, BitTimes(min)));
+                    }
+                }
+                assert!(t.latest(e, BitTimes(200)) <= stop + 200 * bit + 1);
+                assert_eq!(
+                    t.not_before(idle, BitTimes(20)),
+                    t.response_not_before(stop + 11 * bit + lat, BitTimes(20))
+                );
+                assert_eq!(t.latest(idle, BitTimes(200)), t.response_latest(stop + 11 * bit + lat, BitTimes(200)));
+            }
+            let mode = RxMode::for_rate(rate);
+            assert_eq!(mode == RxMode::PerChar, rate.bits_per_second() <= 1_500_000, "{rate:?}");
         }
     }
 
