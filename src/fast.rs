@@ -353,6 +353,7 @@ impl Shared {
             rxb: &mut rx[..],
             rx: Rx::IDLE,
             prep: None,
+            given: Out::Silent,
             sd1: [0; 6],
             deferred: [0; MAX_FRAME_LEN],
             stats: FastStats::default(),
@@ -592,6 +593,8 @@ pub struct FastPath<'a> {
     /// The answer prepared into `bufs[w]` once the header was in: the arguments of
     /// [`FastPath::patched`] it was made with.
     prep: Option<Prep>,
+    /// Where the last answer given is ([`FastPath::answer_given`]).
+    given: Out,
     sd1: [u8; 6],
     deferred: [u8; MAX_FRAME_LEN],
     stats: FastStats,
@@ -641,6 +644,17 @@ impl<'a> FastPath<'a> {
     pub fn core_idle(&mut self) -> bool {
         self.refresh();
         !after(self.seq, self.st.done_seq)
+    }
+
+    /// Whether the telegram being received ([`TelegramSink`]) is addressed to the station
+    /// (own address or broadcast; `Some(false)`: another station's, not looked at further),
+    /// `None` while its destination is not in yet or no telegram is in progress.
+    pub fn receiving_for_us(&self) -> Option<bool> {
+        match self.rx.state {
+            RxState::Own | RxState::Bad => Some(true),
+            RxState::Foreign => Some(false),
+            RxState::Idle | RxState::Open => None,
+        }
     }
 
     /// Free places in the line → core queue.
@@ -768,8 +782,22 @@ impl<'a> FastPath<'a> {
         match out {
             Out::Silent => Verdict::Silent,
             Out::Core => Verdict::Core,
-            Out::Sd1(n) => Verdict::Answer(&self.sd1[..usize::from(n)]),
-            Out::Stored(n) => Verdict::Answer(&self.bufs[self.w ^ 1][..usize::from(n)]),
+            Out::Sd1(_) | Out::Stored(_) => {
+                self.given = out;
+                Verdict::Answer(self.answer_given())
+            }
+        }
+    }
+
+    /// The bytes of the line's last [`Verdict::Answer`], for a port that transmits straight
+    /// from the fast path instead of copying the answer: they stay as they are until the
+    /// next [`finish`](Self::finish) that answers (the answer prepared while a request
+    /// arrives goes into the other buffer).
+    pub fn answer_given(&self) -> &[u8] {
+        match self.given {
+            Out::Sd1(n) => &self.sd1[..usize::from(n).min(self.sd1.len())],
+            Out::Stored(n) => &self.bufs[self.w ^ 1][..usize::from(n).min(MAX_FRAME_LEN)],
+            Out::Silent | Out::Core => &[],
         }
     }
 
@@ -1101,6 +1129,29 @@ impl TelegramSink for FastPath<'_> {
     }
 
     fn bytes(&mut self, piece: &[u8]) {
+        // One byte of a telegram for the station inside its length (a per-character
+        // receiver): the general path below in a few instructions.
+        if let ([b], RxState::Own) = (piece, self.rx.state) {
+            let at = self.rx.len;
+            if let (true, Some(d)) = (at < self.rx.expect, self.rxb.get_mut(at)) {
+                *d = *b;
+                self.rx.len = at + 1;
+                if at >= self.rx.start && at + 2 < self.rx.expect {
+                    self.rx.sum = self.rx.sum.wrapping_add(*b);
+                }
+                if at % 4 == 3 {
+                    let w = at / 4;
+                    if let (Some(word), Some(src)) = (self.slots[self.rx.slot].get(w), self.rxb.get(at - 3..=at)) {
+                        word.store(u32::from_le_bytes([src[0], src[1], src[2], src[3]]), Ordering::Relaxed);
+                    }
+                    self.rx.words = w + 1;
+                }
+                if !self.rx.header_seen {
+                    self.prepare(at + 1, self.rx.expect - 2);
+                }
+                return;
+            }
+        }
         if !matches!(self.rx.state, RxState::Open | RxState::Own) {
             return;
         }

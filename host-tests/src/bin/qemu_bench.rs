@@ -171,6 +171,27 @@ fn main() {
             }
         }
     }
+    // Other stations' traffic (nothing answers): Data_Exchange of 244 and 32 bytes from the
+    // master to station SLAVE + 1, for the per-character cost of a foreign telegram (the
+    // `STREAM other` lines); each followed by a request to the card, so the line is known to
+    // have taken it.
+    for k in 0..SAMPLES {
+        for n in [244usize, 32] {
+            let h = Header {
+                da: SLAVE + 1,
+                sa: MASTER,
+                fc: FunctionCode::request(SRD_HIGH, k % 2 == 0, true),
+                dsap: None,
+                ssap: None,
+            };
+            let out: Vec<u8> = (0..n).map(|i| (i + k) as u8).collect();
+            if let Err(e) = s.phy.send(&qemu::frame(&h, &out)) {
+                fail(&format!("foreign telegram: {e}"));
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        s.srd("Slave_Diag", Some(60), &[]);
+    }
     for _ in 0..SAMPLES - 1 {
         s.srd("Slave_Diag", Some(60), &[]);
     }
