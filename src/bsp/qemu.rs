@@ -228,8 +228,6 @@ impl QemuLine {
     pub fn on_usart_fast(&mut self) -> bool {
         #[cfg(feature = "bench")]
         let mut entry = bench::count();
-        #[cfg(feature = "bench")]
-        let (handler_entry, mut byte_events) = (entry, 0u32);
         #[cfg(not(feature = "bench"))]
         let entry = 0u32;
         let Some(fast) = self.fast.as_mut() else {
@@ -253,10 +251,6 @@ impl QemuLine {
         }
         while !self.hold {
             let Some((byte, at)) = self.held.pop_front() else { break };
-            #[cfg(feature = "bench")]
-            {
-                byte_events += 1;
-            }
             self.hold = take(
                 &mut self.port,
                 &mut self.stats,
@@ -290,10 +284,6 @@ impl QemuLine {
                             self.stats.queue_full = self.stats.queue_full.wrapping_add(1);
                         }
                     } else {
-                        #[cfg(feature = "bench")]
-                        {
-                            byte_events += 1;
-                        }
                         self.hold = take(
                             &mut self.port,
                             &mut self.stats,
@@ -305,6 +295,10 @@ impl QemuLine {
                             at,
                             entry,
                         );
+                        // The character's cost: its event (SR, DR, clock) through the cut,
+                        // the sink and — at the last — the decision (benchmark build).
+                        #[cfg(feature = "bench")]
+                        bench::char_cost(bench::count().wrapping_sub(entry));
                     }
                 }
                 LineEvent::Error(e) => {
@@ -343,12 +337,6 @@ impl QemuLine {
         }
         ANSWER_WAITING.store(self.staged.is_some(), Ordering::Relaxed);
         publish_stats(&self.stats, &self.framer, fast.stats().invalid);
-        // The per-character cost of the streaming receive: this handler, entry to exit, when
-        // it took exactly one character (benchmark build).
-        #[cfg(feature = "bench")]
-        if byte_events == 1 {
-            bench::char_cost(bench::count().wrapping_sub(handler_entry));
-        }
         fast.stats().queued != queued_before
     }
 }
@@ -902,10 +890,11 @@ pub mod bench {
         CUR.store(i | u32::from(last) << 16 | who << 17, Ordering::Relaxed);
     }
 
-    /// The handler that took exactly one character ran `n` instructions (entry to exit). At a
+    /// The character the line took last cost `n` instructions (from its event on). At a
     /// telegram's last character of 32 bytes or more, its maxima go into the log:
     /// `STREAM <us|other|unknown> len <n> head <instructions> char <instructions> sink
-    /// <instructions>` (sink: the cut and `TelegramSink::bytes` of one character after 16).
+    /// <instructions> end <instructions>` (sink: the cut and `TelegramSink::bytes` of one
+    /// character after 16; end: the handler of the last character, `FastPath::finish` in it).
     pub fn char_cost(n: u32) {
         let cur = CUR.swap(0, Ordering::Relaxed);
         let (i, last, who) = (cur & 0xFFFF, cur >> 16 & 1 != 0, cur >> 17 & 3);
@@ -922,7 +911,15 @@ pub mod bench {
                 2 => "other",
                 _ => "unknown",
             };
-            defmt::info!("STREAM {=str} len {=u32} head {=u32} char {=u32} sink {=u32}", who, i + 1, head, char, sink);
+            defmt::info!(
+                "STREAM {=str} len {=u32} head {=u32} char {=u32} sink {=u32} end {=u32}",
+                who,
+                i + 1,
+                head,
+                char,
+                sink,
+                n
+            );
         }
     }
 

@@ -70,6 +70,8 @@ pub struct Framer {
     len: usize,
     /// Set after a complete frame was returned: the next push starts a new one.
     complete: bool,
+    /// [`Framer::cut`]: the telegram's length from its header (0 while unknown).
+    expect: usize,
     /// After corrupt input: true until a byte that may start a frame arrives (hunting) or
     /// an idle ≥ TSYN is reported.
     hunting: bool,
@@ -89,6 +91,7 @@ impl Framer {
             buf: [0; MAX_FRAME_LEN],
             len: 0,
             complete: false,
+            expect: 0,
             hunting: false,
             stats: FramerStats { frames: 0, corrupt: 0, truncated: 0, skipped_bytes: 0 },
         }
@@ -199,21 +202,23 @@ impl Framer {
             }
             self.hunting = false;
         }
-        if self.len < 4 {
-            self.buf[self.len] = byte;
-        }
         self.len += 1;
-        let expect = match telegram::frame_len(&self.buf[..self.len.min(4)]) {
-            Ok(Some(n)) => n,
-            Ok(None) => 0,
-            Err(e) => {
-                self.stats.corrupt = self.stats.corrupt.wrapping_add(1);
-                self.len = 0;
-                self.hunting = true;
-                return Cut::Dropped(e);
-            }
-        };
-        let last = self.len == expect;
+        // The header's first four bytes give the length (SD2: SD LE LEr SD); after them only
+        // a count.
+        if self.len <= 4 {
+            self.buf[self.len - 1] = byte;
+            self.expect = match telegram::frame_len(&self.buf[..self.len]) {
+                Ok(Some(n)) => n,
+                Ok(None) => 0,
+                Err(e) => {
+                    self.stats.corrupt = self.stats.corrupt.wrapping_add(1);
+                    self.len = 0;
+                    self.hunting = true;
+                    return Cut::Dropped(e);
+                }
+            };
+        }
+        let last = self.len == self.expect;
         if last {
             self.complete = true;
             self.stats.frames = self.stats.frames.wrapping_add(1);
