@@ -627,12 +627,15 @@ mod max_tsdr_model {
             println!("{rate:?}: model {} → MaxTsdr {v}", modelled_tsdr(rate, LINE_BUDGET_INSTRUCTIONS));
             assert!(v >= MAX_TSDR_FLOOR, "{rate:?}: {v} below the floor");
             assert!(v <= u32::from(customary_max_tsdr(rate)), "{rate:?}: {v} above the customary value");
-            // Independently: the model's time in seconds with the margin, rounded up.
+            // Independently: the model's time in seconds with the margin, rounded up — per
+            // character up to 1.5 Mbit/s (RXNE), the DMA ring with its remainder above (IDLE).
+            let dma = rate.bits_per_second() > 1_500_000;
+            let remainder = if dma { 15.0 * f64::from(STREAM_CHAR_INSTRUCTIONS) } else { 0.0 };
             let cycles = f64::from(INTERRUPT_ENTRY_CYCLES)
-                + f64::from(LINE_BUDGET_INSTRUCTIONS) * 1.5
-                + f64::from(COPY_CYCLES_PER_BYTE * COPY_MAX_BYTES)
+                + (f64::from(LINE_BUDGET_INSTRUCTIONS) + remainder) * 1.5
                 + f64::from(DMA_START_CYCLES);
-            let bits = f64::from(IDLE_DETECT_BITS) + (cycles * f64::from(rate.bits_per_second()) / 96e6).ceil();
+            let wait = if dma { IDLE_DETECT_BITS } else { RXNE_BITS };
+            let bits = f64::from(wait) + (cycles * f64::from(rate.bits_per_second()) / 96e6).ceil();
             let expect = ((bits * 1.2).ceil() as u32).max(MAX_TSDR_FLOOR);
             assert_eq!(model, expect, "{rate:?}: the model");
             let declared = if GSD_FROM_MODEL {
@@ -646,6 +649,18 @@ mod max_tsdr_model {
 
     /// The floor leaves room after the default min_TSDR (a response never due before it may start).
     const _: () = assert!(MAX_TSDR_FLOOR > crate::time::BitTimes::MIN_TSDR_DEFAULT.0);
+
+    /// The foreign-traffic model: a saturated 12 Mbit/s bus of 253-byte telegrams with
+    /// 100-instruction chunks and 200-instruction IDLE ends: 12e6 / (253 × 11 + 33) telegrams
+    /// per second × (253 / 16 × 162 + 312) cycles / 96e6.
+    #[test]
+    fn foreign_load_model() {
+        let pm = foreign_load_per_mille(Baudrate::B12M, 253, 100, 200);
+        let per_s = 12e6_f64 / (253.0 * 11.0 + 33.0);
+        let cycles = (253.0 * 162.0 / 16.0_f64).ceil() + 312.0;
+        let want = (cycles * per_s.floor() * 1000.0 / 96e6).ceil() as u32;
+        assert_eq!(pm, want);
+    }
 
     #[test]
     fn a_smaller_budget_never_raises_max_tsdr() {
