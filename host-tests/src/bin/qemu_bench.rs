@@ -467,8 +467,9 @@ fn main() {
 /// cut and sink alone; the last character's handler), the F411 cycle model from them and the
 /// CPU share of a saturated 12 Mbit/s bus of other stations' traffic.
 fn streaming(log: &[String]) {
-    // (who, len, head, char, sink, end)
-    let rows: Vec<(String, u32, u32, u32, u32, u32)> = log
+    /// (who, len, head, char, sink, end) of one `STREAM` line.
+    type StreamRow = (String, u32, u32, u32, u32, u32);
+    let rows: Vec<StreamRow> = log
         .iter()
         .filter_map(|l| {
             let f: Vec<&str> = l.split_whitespace().collect();
@@ -477,7 +478,7 @@ fn streaming(log: &[String]) {
             Some((f.get(p + 1)?.to_string(), n(3)?, n(5)?, n(7)?, n(9)?, n(11)?))
         })
         .collect();
-    let max = |who: &str, min_len: u32, pick: fn(&(String, u32, u32, u32, u32, u32)) -> u32| {
+    let max = |who: &str, min_len: u32, pick: fn(&StreamRow) -> u32| {
         rows.iter().filter(|r| r.0 == who && r.1 >= min_len).map(pick).max()
     };
     let (Some(char_us), Some(sink_us), Some(head_us)) =
