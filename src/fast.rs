@@ -80,6 +80,17 @@
 //! A Slave_Diag of the locking master that the line answered while new diagnosis was staged
 //! also marks the staged DH as consumed until the core has worked on that read, so a
 //! following Data_Exchange answers DL as the core alone would.
+//!
+//! **Streaming receive** (issue 11, [`TelegramSink`](crate::phy::stream::TelegramSink)): the
+//! physical layer hands a telegram's bytes to the fast path while they arrive (`begin`,
+//! `bytes` in pieces of any size, `abort`) and asks for the decision with
+//! [`FastPath::finish`] right after the last one. What grows with the telegram's length — the
+//! destination filter, the FCS, the retry fingerprint, the copy into the core's queue slot,
+//! the likely answer (the staged Data_Exchange response or diagnosis patched for this master)
+//! — is done per piece; `finish` checks length, FCS, ED, state, window and retry and commits
+//! in a time that does not grow with the length. [`FastPath::on_frame`] is `begin` + `bytes`
+//! + `finish` of a whole telegram (`any_chunking_equals_on_frame`: every chunking gives its
+//! verdicts). The line decides on the staging it had at `begin` (refreshed there once).
 
 #[cfg(any(test, feature = "test-support"))]
 pub mod check;
