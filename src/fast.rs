@@ -88,8 +88,8 @@
 //! destination filter, the FCS, the retry fingerprint, the copy into the core's queue slot,
 //! the likely answer (the staged Data_Exchange response or diagnosis patched for this master)
 //! — is done per piece; `finish` checks length, FCS, ED, state, window and retry and commits
-//! in a time that does not grow with the length. [`FastPath::on_frame`] is `begin` + `bytes`
-//! + `finish` of a whole telegram (`any_chunking_equals_on_frame`: every chunking gives its
+//! in a time that does not grow with the length. [`FastPath::on_frame`] is `begin`, `bytes`
+//! and `finish` of a whole telegram (`any_chunking_equals_on_frame`: every chunking gives its
 //! verdicts). The line decides on the staging it had at `begin` (refreshed there once).
 
 #[cfg(any(test, feature = "test-support"))]
