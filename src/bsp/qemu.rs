@@ -44,8 +44,9 @@
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 use cortex_m::peripheral::SYST;
-use pbcard::fdl::framer::{Framer, FramerStats, Push};
+use pbcard::fdl::framer::{Cut, Framer, FramerStats};
 use pbcard::fdl::telegram::MAX_FRAME_LEN;
+use pbcard::phy::stream::TelegramSink;
 use pbcard::time::{Baudrate, BitTimes, Instant};
 use stm32f4xx_hal::pac::{self, RCC, USART1};
 use stm32f4xx_hal::rcc::{self, Enable, RccExt, Reset};
@@ -262,7 +263,7 @@ impl QemuLine {
                 entry,
             );
         }
-        while let Some(ev) = self.port.poll_event() {
+        while let Some(ev) = self.port.poll_event_from(fast.answer_given()) {
             if !matches!(ev, LineEvent::TxDone) {
                 // A character after the request: the line was not idle after it, so its
                 // answer is not sent (module documentation).
@@ -294,6 +295,10 @@ impl QemuLine {
                             at,
                             entry,
                         );
+                        // The character's cost: its event (SR, DR, clock) through the cut,
+                        // the sink and — at the last — the decision (benchmark build).
+                        #[cfg(feature = "bench")]
+                        bench::char_cost(bench::count().wrapping_sub(entry));
                     }
                 }
                 LineEvent::Error(e) => {
@@ -303,6 +308,7 @@ impl QemuLine {
                     inc(&mut self.stats.noise, e.noise);
                     inc(&mut self.stats.overrun, e.overrun);
                     self.framer.line_error();
+                    fast.abort();
                 }
                 LineEvent::TxDone => {}
             }
@@ -316,7 +322,7 @@ impl QemuLine {
             let now = self.port.clock.now();
             if now.saturating_since(since).as_micros() >= QUIET_US {
                 self.staged = None;
-                self.port.start_staged();
+                self.port.start_staged(fast.answer_given());
                 self.stats.responses = self.stats.responses.wrapping_add(1);
                 #[cfg(feature = "bench")]
                 defmt::info!(
@@ -330,13 +336,19 @@ impl QemuLine {
             }
         }
         ANSWER_WAITING.store(self.staged.is_some(), Ordering::Relaxed);
-        publish_stats(&self.stats, &self.framer);
+        publish_stats(&self.stats, &self.framer, fast.stats().invalid);
         fast.stats().queued != queued_before
     }
 }
 
-/// One character into the framer, a completed telegram into the fast path and its answer
-/// onto the line. Returns whether the fast path queued the telegram for the core: then the
+/// One character into the framer, which cuts the stream by the headers' lengths
+/// ([`Framer::cut`], no decoding), and straight on into the fast path's
+/// [`TelegramSink`] (`begin` at a start delimiter, `bytes` for every character, `abort` for
+/// a bad header): the destination filter, the checksum, the copy into the core's queue slot
+/// and the likely answer are done character by character, so at the telegram's last
+/// character only [`FastPath::finish`](pbcard::fast::FastPath::finish) runs, whose time does
+/// not grow with the telegram. Its answer goes onto the line. Returns whether the fast path
+/// queued the telegram for the core: then the
 /// line holds the characters that follow until the core has caught up (QEMU's master is a
 /// host program that sends the next request the moment it has the answer — sooner, in
 /// emulated time, than a real master's turnaround — and would otherwise keep this
@@ -354,16 +366,40 @@ fn take(
     at: Instant,
     entry: u32,
 ) -> bool {
-    let Push::Frame(_) = framer.push(byte) else { return false };
+    #[cfg(feature = "bench")]
+    let sink_start = bench::count();
+    match framer.cut(byte) {
+        Cut::Skip => return false,
+        Cut::Dropped(_) => {
+            fast.abort();
+            return false;
+        }
+        Cut::Byte { first, last } => {
+            if first {
+                fast.begin();
+            }
+            fast.bytes(&[byte]);
+            #[cfg(feature = "bench")]
+            bench::char_in(
+                framer.telegram_len(),
+                last,
+                fast.receiving_for_us(),
+                bench::count().wrapping_sub(sink_start),
+            );
+            if !last {
+                return false;
+            }
+        }
+    }
     let _ = entry;
     let meta = FrameMeta {
         #[cfg(feature = "bench")]
         entry,
         #[cfg(feature = "bench")]
-        len: framer.frame().len(),
+        len: framer.telegram_len(),
     };
     let before = fast.stats().queued;
-    match fast.on_frame(at, framer.frame()) {
+    match fast.finish(at) {
         pbcard::fast::Verdict::Answer(bytes) => stage(port, stats, staged, meta, bytes, false, at),
         pbcard::fast::Verdict::Core => *awaiting = Some(meta),
         pbcard::fast::Verdict::Silent => {}
@@ -382,7 +418,10 @@ fn stage(
     through_core: bool,
     since: Instant,
 ) {
-    match port.stage_tx(bytes) {
+    // The line's own answers are sent from the fast path's answer buffer
+    // (`FastPath::answer_given`) without a copy; the core's are copied into the port's.
+    let r = if through_core { port.stage_tx(bytes) } else { port.stage_line(bytes.len()) };
+    match r {
         Ok(()) => *staged = Some((since, request, through_core)),
         Err(TxError::Busy) => stats.tx_busy = stats.tx_busy.wrapping_add(1),
         Err(TxError::BadLength) => stats.tx_bad_length = stats.tx_bad_length.wrapping_add(1),
@@ -390,7 +429,9 @@ fn stage(
 }
 
 /// The counters into the atomics [`LineView`] reads.
-fn publish_stats(stats: &LineStats, framer: &Framer) {
+/// `invalid`: the fast path's telegrams to the station that failed to decode (the checksum is
+/// the fast path's since the framer only cuts), counted with the framer's corrupt headers.
+fn publish_stats(stats: &LineStats, framer: &Framer, invalid: u32) {
     {
         let l = *stats;
         for (i, v) in [
@@ -410,7 +451,8 @@ fn publish_stats(stats: &LineStats, framer: &Framer) {
             LINE_STATS[i].store(v, Ordering::Relaxed);
         }
         let f = framer.stats();
-        for (i, v) in [f.frames, f.corrupt, f.truncated, f.skipped_bytes].into_iter().enumerate() {
+        for (i, v) in [f.frames, f.corrupt.wrapping_add(invalid), f.truncated, f.skipped_bytes].into_iter().enumerate()
+        {
             RX_STATS[i].store(v, Ordering::Relaxed);
         }
     }
@@ -439,11 +481,13 @@ impl QemuLine {
         self.framer.stats()
     }
 
-    /// Telegrams lost on the line (STATUS.CORRUPT_FRAMES): the framer's invalid telegrams
-    /// (a character error inside one included, `Framer::line_error`) and those cut off.
+    /// Telegrams lost on the line (STATUS.CORRUPT_FRAMES): the framer's bad headers (a
+    /// character error inside a telegram included, `Framer::line_error`), those cut off, and
+    /// the telegrams to the station the fast path found invalid (checksum, ED, length).
     pub fn corrupt_frames(&self) -> u32 {
         let f = self.framer.stats();
-        f.corrupt.wrapping_add(f.truncated)
+        let invalid = self.fast.as_ref().map_or(0, |fast| fast.stats().invalid);
+        f.corrupt.wrapping_add(f.truncated).wrapping_add(invalid)
     }
 
     /// Always: QEMU has no line hardware to supervise.
@@ -526,6 +570,8 @@ pub struct QemuUsart1<C: Clock> {
     tx_buf: [u8; MAX_FRAME_LEN],
     tx_len: usize,
     tx_pos: usize,
+    /// The response in progress is the caller's ([`QemuUsart1::stage_line`]), not `tx_buf`.
+    tx_from_line: bool,
     /// TIM2 when the first response character was written to DR (benchmark build).
     #[cfg(feature = "bench")]
     tx_first_count: u32,
@@ -547,6 +593,7 @@ impl<C: Clock> QemuUsart1<C> {
             tx_buf: [0; MAX_FRAME_LEN],
             tx_len: 0,
             tx_pos: 0,
+            tx_from_line: false,
             #[cfg(feature = "bench")]
             tx_first_count: 0,
         };
@@ -575,6 +622,7 @@ impl<C: Clock> QemuUsart1<C> {
         }
         self.tx_buf[..bytes.len()].copy_from_slice(bytes);
         self.tx_len = bytes.len();
+        self.tx_from_line = false;
         self.tx = Tx::Staged;
         #[cfg(feature = "bench")]
         {
@@ -583,13 +631,42 @@ impl<C: Clock> QemuUsart1<C> {
         Ok(())
     }
 
-    /// Start the staged response: its first character into DR.
-    pub fn start_staged(&mut self) {
+    /// Stage a response of `len` bytes that the caller keeps and hands to every
+    /// [`start_staged`](Self::start_staged) / [`poll_event_from`](Self::poll_event_from)
+    /// until it is sent (the fast path's answer buffer, `FastPath::answer_given`): no copy.
+    pub fn stage_line(&mut self, len: usize) -> Result<(), TxError> {
+        if self.tx != Tx::Idle {
+            return Err(TxError::Busy);
+        }
+        if len == 0 || len > MAX_FRAME_LEN {
+            return Err(TxError::BadLength);
+        }
+        self.tx_len = len;
+        self.tx_from_line = true;
+        self.tx = Tx::Staged;
+        #[cfg(feature = "bench")]
+        {
+            self.tx_first_count = bench::count();
+        }
+        Ok(())
+    }
+
+    /// The `i`-th character of the response in progress: from the caller's `line` bytes
+    /// ([`stage_line`](Self::stage_line)) or the port's buffer ([`stage_tx`](Self::stage_tx)).
+    fn tx_byte(&self, line: &[u8], i: usize) -> u8 {
+        let src = if self.tx_from_line { line } else { &self.tx_buf[..] };
+        src.get(i).copied().unwrap_or(0)
+    }
+
+    /// Start the staged response: its first character into DR (`line`: the caller's bytes
+    /// after [`stage_line`](Self::stage_line), ignored after [`stage_tx`](Self::stage_tx)).
+    pub fn start_staged(&mut self, line: &[u8]) {
         if self.tx != Tx::Staged {
             return;
         }
         let _ = self.usart.sr().read();
-        self.usart.dr().write(|w| w.dr().set(u16::from(self.tx_buf[0])));
+        let b = self.tx_byte(line, 0);
+        self.usart.dr().write(|w| w.dr().set(u16::from(b)));
         self.tx_pos = 1;
         if self.tx_pos < self.tx_len {
             self.tx = Tx::Sending;
@@ -660,7 +737,7 @@ impl<C: Clock> Transmitter for QemuUsart1<C> {
     /// answers for a quiet window instead ([`QemuUsart1::stage_tx`]).
     fn start_tx(&mut self, bytes: &[u8], _not_before: u32) -> Result<(), TxError> {
         self.stage_tx(bytes)?;
-        self.start_staged();
+        self.start_staged(&[]);
         Ok(())
     }
 
@@ -676,6 +753,14 @@ impl<C: Clock> CharReceiver for QemuUsart1<C> {
     /// never finds the port still busy), and a received character is taken before the next
     /// response character is written (QEMU's DR write clears RXNE).
     fn poll_event(&mut self) -> Option<LineEvent> {
+        self.poll_event_from(&[])
+    }
+}
+
+impl<C: Clock> QemuUsart1<C> {
+    /// [`CharReceiver::poll_event`] with the caller's bytes of a response staged by
+    /// [`stage_line`](Self::stage_line) (see there).
+    pub fn poll_event_from(&mut self, line: &[u8]) -> Option<LineEvent> {
         loop {
             let sr = self.usart.sr().read();
             if self.tx == Tx::Draining && sr.tc().bit_is_set() {
@@ -701,7 +786,8 @@ impl<C: Clock> CharReceiver for QemuUsart1<C> {
                 return Some(LineEvent::Byte { byte: word as u8, at, idle_before: BitTimes(0) });
             }
             if self.tx == Tx::Sending && sr.txe().bit_is_set() {
-                self.usart.dr().write(|w| w.dr().set(u16::from(self.tx_buf[self.tx_pos])));
+                let b = self.tx_byte(line, self.tx_pos);
+                self.usart.dr().write(|w| w.dr().set(u16::from(b)));
                 self.tx_pos += 1;
                 if self.tx_pos >= self.tx_len {
                     self.tx = Tx::Draining;
@@ -769,6 +855,72 @@ pub mod bench {
         tim.egr().write(|w| w.ug().set_bit());
         tim.cr1().modify(|_, w| w.cen().set_bit());
         // From here on only `count()` reads the counter; the handle itself is not needed.
+    }
+
+    use core::sync::atomic::{AtomicU32, Ordering};
+
+    /// The character the line took last: its index in its telegram (bits 0..15), bit 16 = it
+    /// was the last, bits 17..18 = addressed to us (1), another station (2), not known (0).
+    static CUR: AtomicU32 = AtomicU32::new(0);
+    /// The telegram's largest handler counts: characters 1..=16 (the header and with it the
+    /// prepared answer), characters after 16 (the streaming cost per character).
+    static HEAD_MAX: AtomicU32 = AtomicU32::new(0);
+    static CHAR_MAX: AtomicU32 = AtomicU32::new(0);
+    /// The telegram's largest count of the cut and the sink alone (`Framer::cut` +
+    /// `TelegramSink::bytes`) for a character after 16.
+    static SINK_MAX: AtomicU32 = AtomicU32::new(0);
+
+    /// The line took character `len - 1` of a telegram (`last`: its last by length; `us`:
+    /// [`FastPath::receiving_for_us`](pbcard::fast::FastPath::receiving_for_us)).
+    pub fn char_in(len: usize, last: bool, us: Option<bool>, sink: u32) {
+        let who = match us {
+            Some(true) => 1,
+            Some(false) => 2,
+            None => 0,
+        };
+        let i = (len.saturating_sub(1)).min(0xFFFF) as u32;
+        if i == 0 {
+            HEAD_MAX.store(0, Ordering::Relaxed);
+            CHAR_MAX.store(0, Ordering::Relaxed);
+            SINK_MAX.store(0, Ordering::Relaxed);
+        }
+        if i > 16 && !last {
+            SINK_MAX.fetch_max(sink, Ordering::Relaxed);
+        }
+        CUR.store(i | u32::from(last) << 16 | who << 17, Ordering::Relaxed);
+    }
+
+    /// The character the line took last cost `n` instructions (from its event on). At a
+    /// telegram's last character of 32 bytes or more, its maxima go into the log:
+    /// `STREAM <us|other|unknown> len <n> head <instructions> char <instructions> sink
+    /// <instructions> end <instructions>` (sink: the cut and `TelegramSink::bytes` of one
+    /// character after 16; end: the handler of the last character, `FastPath::finish` in it).
+    pub fn char_cost(n: u32) {
+        let cur = CUR.swap(0, Ordering::Relaxed);
+        let (i, last, who) = (cur & 0xFFFF, cur >> 16 & 1 != 0, cur >> 17 & 3);
+        if !last {
+            let m = if i <= 16 { &HEAD_MAX } else { &CHAR_MAX };
+            m.fetch_max(n, Ordering::Relaxed);
+            return;
+        }
+        let (head, char) = (HEAD_MAX.swap(0, Ordering::Relaxed), CHAR_MAX.swap(0, Ordering::Relaxed));
+        let sink = SINK_MAX.swap(0, Ordering::Relaxed);
+        if i + 1 >= 32 {
+            let who = match who {
+                1 => "us",
+                2 => "other",
+                _ => "unknown",
+            };
+            defmt::info!(
+                "STREAM {=str} len {=u32} head {=u32} char {=u32} sink {=u32} end {=u32}",
+                who,
+                i + 1,
+                head,
+                char,
+                sink,
+                n
+            );
+        }
     }
 
     /// The counter now.

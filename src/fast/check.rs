@@ -49,6 +49,7 @@ use crate::fdl::telegram::{
     self, Decoded, FunctionCode, Header, RequestFunction, ResponseStatus, Telegram, MAX_FRAME_LEN,
 };
 use crate::node::Node;
+use crate::phy::stream::TelegramSink;
 use crate::profile::records::CardRecords;
 use crate::testkit::{Frame, SetPrm};
 use crate::time::Instant;
@@ -486,14 +487,42 @@ fn not_ready_diag(answer: &[u8], own: u8, to: u8) -> bool {
     }
 }
 
+/// How the split's line gets a telegram: whole ([`FastPath::on_frame`]), or — when `cuts`
+/// is not empty — through the [`TelegramSink`] in pieces whose sizes cycle through `cuts`
+/// (`c % 40 + 1` bytes each: single bytes, DMA chunks, the rest at once), then
+/// [`FastPath::finish`].
+struct Pieces<'c> {
+    cuts: &'c [u8],
+    next: usize,
+}
+
+impl Pieces<'_> {
+    fn verdict<'f>(&mut self, fast: &'f mut FastPath<'_>, now: Instant, f: &[u8]) -> Verdict<'f> {
+        if self.cuts.is_empty() {
+            return fast.on_frame(now, f);
+        }
+        fast.begin();
+        let mut rest = f;
+        while !rest.is_empty() {
+            let c = self.cuts[self.next % self.cuts.len()];
+            self.next = self.next.wrapping_add(1);
+            let (piece, tail) = rest.split_at((usize::from(c) % 40 + 1).min(rest.len()));
+            fast.bytes(piece);
+            rest = tail;
+        }
+        fast.finish(now)
+    }
+}
+
 fn split_answer(
     fast: &mut FastPath<'_>,
     core: &mut CoreLink<'_>,
     split: &mut Node,
     now: Instant,
     f: &[u8],
+    pieces: &mut Pieces<'_>,
 ) -> Option<Frame> {
-    match fast.on_frame(now, f) {
+    match pieces.verdict(fast, now, f) {
         Verdict::Silent => None,
         Verdict::Answer(a) => Some(frame_of(a)),
         Verdict::Core => {
@@ -539,6 +568,16 @@ pub struct Coverage {
 // A test helper without a heap (no_std): the mismatch is returned by value.
 #[allow(clippy::result_large_err)]
 pub fn run(data: &[u8], mode: Mode, max_ops: usize) -> Result<Coverage, Mismatch> {
+    run_in_pieces(data, mode, max_ops, &[])
+}
+
+/// [`run`] with the split's line fed through the [`TelegramSink`] in pieces whose sizes cycle
+/// through `cuts` (`c % 40 + 1` bytes; empty: whole telegrams through
+/// [`FastPath::on_frame`]).
+// A test helper without a heap (no_std): the mismatch is returned by value.
+#[allow(clippy::result_large_err)]
+pub fn run_in_pieces(data: &[u8], mode: Mode, max_ops: usize, cuts: &[u8]) -> Result<Coverage, Mismatch> {
+    let mut pieces = Pieces { cuts, next: 0 };
     let mut src = Src(data);
     let mut alone = Node::new(DpSlave::new(CARD, ME));
     let mut split = Node::new(DpSlave::new(CARD, ME));
@@ -571,7 +610,7 @@ pub fn run(data: &[u8], mode: Mode, max_ops: usize) -> Result<Coverage, Mismatch
             now += 150;
             let t = Instant::from_micros(now);
             let _ = alone.on_frame(t, &req);
-            let s = split_answer(&mut fast, &mut core, &mut split, t, &req);
+            let s = split_answer(&mut fast, &mut core, &mut split, t, &req, &mut pieces);
             core.run(&mut split);
             if s.as_ref() != Some(&want) {
                 return Err(Mismatch {
@@ -623,7 +662,7 @@ pub fn run(data: &[u8], mode: Mode, max_ops: usize) -> Result<Coverage, Mismatch
                 let after = alone.station().stats();
                 let window = fast.in_window();
                 let own = alone.slave().address();
-                let s = split_answer(&mut fast, &mut core, &mut split, t, &frame);
+                let s = split_answer(&mut fast, &mut core, &mut split, t, &frame, &mut pieces);
                 if mode == Mode::Sync {
                     core.run(&mut split);
                 }

@@ -242,10 +242,10 @@ impl FastPath<'_> {
 
     /// A DP-V1 SRD (SAP 51, 49, a connection SAP): answered from the staging and queued, or
     /// left to the core (see the module docs).
-    pub(super) fn dpv1(&mut self, now: Instant, frame: &[u8], t: &DataTelegram<'_>) -> Dpv1 {
+    pub(super) fn dpv1(&mut self, now: Instant, len: usize, t: &DataTelegram<'_>) -> Dpv1 {
         let Some((plan, flight)) = self.plan(now, t) else { return Dpv1::Core };
         let held = matches!(plan, Plan::Sc);
-        let Some(seq) = self.queue_as(now, frame, false, held) else { return Dpv1::QueueFull };
+        let Some(seq) = self.queue_as(now, len, false, held) else { return Dpv1::QueueFull };
         if let Some((r, open)) = flight {
             self.rel[r] = RelLine { seq, set: true, open };
         }
@@ -255,7 +255,7 @@ impl FastPath<'_> {
             Plan::Sc => self.sc(),
             Plan::Ready(r) => {
                 let len = usize::from(self.staged_view(r, now).frame_len).min(MAX_FRAME_LEN);
-                self.staging.read(rel_at(r) + REL_HDR, &mut self.buf[..len]);
+                self.staging.read(rel_at(r) + REL_HDR, &mut self.bufs[self.w][..len]);
                 len as u16
             }
             Plan::Rm(i) => {
@@ -290,7 +290,7 @@ impl FastPath<'_> {
 
     /// A 4-byte response PDU to `t` from `our_sap` in `buf` (as `C2::emit_scratch`).
     fn pdu_frame(&mut self, t: &DataTelegram<'_>, own: u8, our_sap: u8, resp: &Response<'_>) -> u16 {
-        match c2::emit_short_response(&mut self.buf, own, t, our_sap, resp) {
+        match c2::emit_short_response(&mut self.bufs[self.w], own, t, our_sap, resp) {
             Some(len) => len as u16,
             None => self.status(t.sa, ResponseStatus::Rr),
         }

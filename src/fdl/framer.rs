@@ -9,6 +9,13 @@
 //!   T_SYN (33 bit times) makes a start delimiter trustworthy again.
 //! * **Hunting** — when no gap information exists (a pseudo-terminal), after an invalid frame
 //!   the framer drops one byte and tries again at the next byte that could start a frame.
+//!
+//! **Cutting only** ([`Framer::cut`], issue 11): for a receiver that hands the bytes to a
+//! [`TelegramSink`](crate::phy::stream::TelegramSink) as they arrive, the framer only finds
+//! where a telegram starts and ends — from the header's length
+//! ([`telegram::frame_len`](super::telegram::frame_len)), without decoding, so its work per
+//! byte, the last one included, does not grow with the telegram; the checksum and the rest
+//! are the sink's. After a bad header it hunts for the next start delimiter.
 
 use super::telegram::{self, Decoded, FrameError, MAX_FRAME_LEN};
 use crate::time::BitTimes;
@@ -38,6 +45,24 @@ pub enum Push {
     Dropped(FrameError),
 }
 
+/// What one received byte is to the telegram stream ([`Framer::cut`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Cut {
+    /// No telegram's byte (hunting for a start delimiter after a bad header).
+    Skip,
+    /// A byte of a telegram: `first` — it starts one (begin the sink before passing it);
+    /// `last` — the header's length ends the telegram with it (finish after passing it).
+    Byte {
+        /// The telegram's first byte (its start delimiter).
+        first: bool,
+        /// The telegram's last byte by length.
+        last: bool,
+    },
+    /// The header is no telegram's (SD2 LE out of range, LE ≠ LEr, the repeated SD): the
+    /// telegram in progress — this byte included — is dropped (abort the sink).
+    Dropped(FrameError),
+}
+
 /// Byte-stream framer with a buffer for the longest telegram.
 #[derive(Debug, Clone)]
 pub struct Framer {
@@ -45,6 +70,8 @@ pub struct Framer {
     len: usize,
     /// Set after a complete frame was returned: the next push starts a new one.
     complete: bool,
+    /// [`Framer::cut`]: the telegram's length from its header (0 while unknown).
+    expect: usize,
     /// After corrupt input: true until a byte that may start a frame arrives (hunting) or
     /// an idle ≥ TSYN is reported.
     hunting: bool,
@@ -64,6 +91,7 @@ impl Framer {
             buf: [0; MAX_FRAME_LEN],
             len: 0,
             complete: false,
+            expect: 0,
             hunting: false,
             stats: FramerStats { frames: 0, corrupt: 0, truncated: 0, skipped_bytes: 0 },
         }
@@ -81,6 +109,11 @@ impl Framer {
         } else {
             &self.buf[..self.len]
         }
+    }
+
+    /// Bytes of the telegram being received, or of the one just completed (both modes).
+    pub fn telegram_len(&self) -> usize {
+        self.len
     }
 
     /// The complete frame after [`Push::Frame`].
@@ -146,6 +179,51 @@ impl Framer {
                 Push::Dropped(e)
             }
         }
+    }
+
+    /// Cut the stream without decoding (see the module docs): what `byte` is to the
+    /// telegrams. The framer keeps only the header's first bytes; [`frame`](Self::frame)
+    /// and [`pending`](Self::pending) are the header's bytes in this mode. A telegram ends
+    /// by its header's length; one cut short by a gap is dropped by [`idle`](Self::idle)
+    /// (counted) and one hit by a character error by [`line_error`](Self::line_error) — the
+    /// caller aborts its sink then. [`FramerStats::frames`] counts the telegrams cut (their
+    /// checksums are not the framer's to check), [`FramerStats::corrupt`] the bad headers.
+    pub fn cut(&mut self, byte: u8) -> Cut {
+        if self.complete {
+            self.complete = false;
+            self.len = 0;
+        }
+        let first = self.len == 0;
+        if first {
+            if !is_start_delimiter(byte) {
+                self.stats.skipped_bytes = self.stats.skipped_bytes.wrapping_add(1);
+                self.hunting = true;
+                return Cut::Skip;
+            }
+            self.hunting = false;
+        }
+        self.len += 1;
+        // The header's first four bytes give the length (SD2: SD LE LEr SD); after them only
+        // a count.
+        if self.len <= 4 {
+            self.buf[self.len - 1] = byte;
+            self.expect = match telegram::frame_len(&self.buf[..self.len]) {
+                Ok(Some(n)) => n,
+                Ok(None) => 0,
+                Err(e) => {
+                    self.stats.corrupt = self.stats.corrupt.wrapping_add(1);
+                    self.len = 0;
+                    self.hunting = true;
+                    return Cut::Dropped(e);
+                }
+            };
+        }
+        let last = self.len == self.expect;
+        if last {
+            self.complete = true;
+            self.stats.frames = self.stats.frames.wrapping_add(1);
+        }
+        Cut::Byte { first, last }
     }
 
     /// Feed many bytes; `on_frame` sees every complete frame.
@@ -250,7 +328,62 @@ mod tests {
         assert_eq!(f.stats().corrupt, 1);
     }
 
+    /// Cutting finds the same telegrams as decoding in a clean stream, each begun at its
+    /// start delimiter and ended at its last byte by length; a bad header is dropped and the
+    /// next telegram found.
+    #[test]
+    fn cut_by_length() {
+        let (a, na) = frame(8, &[1, 2, 3]);
+        let (b, nb) = frame(9, &[]);
+        let mut stream = a[..na].to_vec();
+        stream.extend_from_slice(&[0xDC, 0x03, 0x02, 0xE5]);
+        stream.extend_from_slice(&[0x00, 0x68, 0x03, 0x03]);
+        stream.extend_from_slice(&b[..nb]);
+        let mut f = Framer::new();
+        let mut frames = Vec::new();
+        let mut cur = Vec::new();
+        let mut dropped = 0;
+        for &byte in &stream {
+            match f.cut(byte) {
+                Cut::Skip => {}
+                Cut::Dropped(_) => {
+                    dropped += 1;
+                    cur.clear();
+                }
+                Cut::Byte { first, last } => {
+                    assert_eq!(first, cur.is_empty());
+                    cur.push(byte);
+                    if last {
+                        frames.push(core::mem::take(&mut cur));
+                    }
+                }
+            }
+        }
+        assert_eq!(frames, vec![a[..na].to_vec(), vec![0xDC, 3, 2], vec![0xE5], b[..nb].to_vec()]);
+        assert_eq!(dropped, 1);
+        assert_eq!(f.stats().frames, 4);
+        assert_eq!(f.stats().corrupt, 1);
+    }
+
     proptest::proptest! {
+        /// Cutting never panics and never reports a telegram longer than the longest.
+        #[test]
+        fn cut_any_bytes(bytes in proptest::collection::vec(proptest::num::u8::ANY, 0..1000)) {
+            let mut f = Framer::new();
+            let mut n = 0usize;
+            for &b in &bytes {
+                match f.cut(b) {
+                    Cut::Byte { first, last } => {
+                        if first { n = 0; }
+                        n += 1;
+                        proptest::prop_assert!(n <= MAX_FRAME_LEN);
+                        if last { n = 0; }
+                    }
+                    Cut::Skip | Cut::Dropped(_) => n = 0,
+                }
+            }
+        }
+
         /// Garbage before a gap never hides the frame after it, and nothing panics.
         #[test]
         fn garbage_gap_frame(garbage in proptest::collection::vec(proptest::num::u8::ANY, 0..400),

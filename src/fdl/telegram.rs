@@ -295,6 +295,29 @@ pub fn frame_len(buf: &[u8]) -> Result<Option<usize>, FrameError> {
 
 /// Decode the telegram at the start of `buf` (trailing bytes are left alone).
 pub fn decode(buf: &[u8]) -> Decoded<'_> {
+    decode_with(buf, None)
+}
+
+/// [`decode`] for a receiver that summed the checksum while the bytes arrived (issue 11,
+/// `phy::stream`): `sum` is [`fcs`] of the bytes the FCS covers (DA … last DU byte, see the
+/// module table), and the outcome is `decode(buf)`'s when it is — in constant time, with no
+/// pass over the data unit (the delimiters, lengths, FCS byte, ED and the extension bytes are
+/// checked as [`decode`] checks them).
+pub fn decode_summed(buf: &[u8], sum: u8) -> Decoded<'_> {
+    decode_with(buf, Some(sum))
+}
+
+/// Where the bytes the FCS covers start in a data frame that starts with `sd` (SD2: after
+/// `SD LE LEr SD`; SD1 / SD3: after SD).
+pub const fn covered_start(sd: u8) -> usize {
+    if sd == SD2 {
+        4
+    } else {
+        1
+    }
+}
+
+fn decode_with(buf: &[u8], sum: Option<u8>) -> Decoded<'_> {
     let len = match frame_len(buf) {
         Ok(Some(len)) => len,
         Ok(None) => return Decoded::Incomplete,
@@ -314,7 +337,10 @@ pub fn decode(buf: &[u8]) -> Decoded<'_> {
                 _ => (DataFormat::Sd2, &frame[4..len - 2]),
             };
             let received = frame[len - 2];
-            let computed = fcs(body);
+            let computed = match sum {
+                Some(s) => s,
+                None => fcs(body),
+            };
             if received != computed {
                 return Decoded::Invalid(FrameError::Checksum { received, computed });
             }
@@ -471,6 +497,37 @@ pub fn emit_sc(out: &mut [u8]) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `decode_summed` with the right sum is `decode`, for valid frames and for every
+    /// corruption of them; with a wrong sum it reports the checksum.
+    #[test]
+    fn decode_summed_equals_decode() {
+        let hdr = Header { da: 8, sa: 2, fc: FunctionCode(0x7D), dsap: Some(60), ssap: Some(62) };
+        for n in [0usize, 1, 5, 8, 40, 244] {
+            let pdu: std::vec::Vec<u8> = (0..n as u8).collect();
+            let mut out = [0u8; MAX_FRAME_LEN];
+            let h = Header { dsap: if n == 1 { None } else { hdr.dsap }, ..hdr };
+            let len = emit(&mut out, &h, &pdu).unwrap();
+            for cut in [len, len - 1, len + 1] {
+                for flip in [None, Some(0), Some(1), Some(3), Some(4), Some(len - 2), Some(len - 1)] {
+                    let mut f = out;
+                    if let Some(i) = flip {
+                        f[i] ^= 0x41;
+                    }
+                    let f = &f[..cut.min(MAX_FRAME_LEN)];
+                    let s = covered_start(f[0]);
+                    let end = frame_len(f).ok().flatten().map_or(s, |l| l.saturating_sub(2)).clamp(s, f.len().max(s));
+                    let sum = fcs(f.get(s..end).unwrap_or(&[]));
+                    assert_eq!(decode_summed(f, sum), decode(f), "{n} {cut} {flip:?}");
+                }
+            }
+            if let Decoded::Frame(..) = decode(&out[..len]) {
+                let s = covered_start(out[0]);
+                let sum = fcs(&out[s..len - 2]).wrapping_add(1);
+                assert!(matches!(decode_summed(&out[..len], sum), Decoded::Invalid(FrameError::Checksum { .. })));
+            }
+        }
+    }
 
     /// The word-wise FCS equals the byte-by-byte sum for every length and alignment.
     #[test]

@@ -171,6 +171,27 @@ fn main() {
             }
         }
     }
+    // Other stations' traffic (nothing answers): Data_Exchange of 244 and 32 bytes from the
+    // master to station SLAVE - 1, for the per-character cost of a foreign telegram (the
+    // `STREAM other` lines); each followed by a request to the card, so the line is known to
+    // have taken it.
+    for k in 0..SAMPLES {
+        for n in [244usize, 32] {
+            let h = Header {
+                da: SLAVE - 1,
+                sa: MASTER,
+                fc: FunctionCode::request(SRD_HIGH, k % 2 == 0, true),
+                dsap: None,
+                ssap: None,
+            };
+            let out: Vec<u8> = (0..n).map(|i| (i + k) as u8).collect();
+            if let Err(e) = s.phy.send(&qemu::frame(&h, &out)) {
+                fail(&format!("foreign telegram: {e}"));
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        s.srd("Slave_Diag", Some(60), &[]);
+    }
     for _ in 0..SAMPLES - 1 {
         s.srd("Slave_Diag", Some(60), &[]);
     }
@@ -428,4 +449,91 @@ fn main() {
         ));
     }
     println!("worst fast path: {} instructions ({})", worst.0, worst.1);
+    if worst.0 > card::LINE_BUDGET_INSTRUCTIONS {
+        fail(&format!(
+            "worst fast path {} instructions ({}) exceeds card::LINE_BUDGET_INSTRUCTIONS = {}",
+            worst.0,
+            worst.1,
+            card::LINE_BUDGET_INSTRUCTIONS
+        ));
+    }
+    streaming(&stop);
+}
+
+/// The streaming receive's per-character costs (`STREAM <us|other> len <n> head <h> char <c>
+/// sink <s> end <e>` lines of the bench build, one per telegram of 32 bytes or more: the
+/// largest counts of its characters 1–16 (the header, with the prepared answer), of its later
+/// characters (the character's event: status and data register, clock, cut, sink) and of the
+/// cut and sink alone; the last character's handler), the F411 cycle model from them and the
+/// CPU share of a saturated 12 Mbit/s bus of other stations' traffic.
+fn streaming(log: &[String]) {
+    /// (who, len, head, char, sink, end) of one `STREAM` line.
+    type StreamRow = (String, u32, u32, u32, u32, u32);
+    let rows: Vec<StreamRow> = log
+        .iter()
+        .filter_map(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            let p = f.iter().position(|w| *w == "STREAM")?;
+            let n = |k: usize| f.get(p + k).and_then(|v| v.parse::<u32>().ok());
+            Some((f.get(p + 1)?.to_string(), n(3)?, n(5)?, n(7)?, n(9)?, n(11)?))
+        })
+        .collect();
+    let max = |who: &str, min_len: u32, pick: fn(&StreamRow) -> u32| {
+        rows.iter().filter(|r| r.0 == who && r.1 >= min_len).map(pick).max()
+    };
+    let (Some(char_us), Some(sink_us), Some(head_us)) =
+        (max("us", 200, |r| r.3), max("us", 200, |r| r.4), max("us", 200, |r| r.2))
+    else {
+        fail("no STREAM line of a long Data_Exchange to the card in the firmware log")
+    };
+    let (Some(char_other), Some(sink_other), Some(end_other)) =
+        (max("other", 200, |r| r.3), max("other", 200, |r| r.4), max("other", 32, |r| r.5))
+    else {
+        fail("no STREAM line of another station's telegram in the firmware log")
+    };
+    println!("\n(the streaming receive per character: instructions, largest of every telegram ≥ 200 bytes)\n");
+    println!("| character | event (SR, DR, clock, cut, sink) | cut + sink alone |");
+    println!("|---|---:|---:|");
+    println!("| Data_Exchange 244/244 to the card, characters 17 … 251 | {char_us} | {sink_us} |");
+    println!("| Data_Exchange 244/244 to the card, characters 1 … 16 (header: the answer prepared) | {head_us} | |");
+    println!("| Data_Exchange 244 to another station, characters 17 … 251 | {char_other} | {sink_other} |");
+    println!("| another station's telegram, last character (`finish`: counted, dropped) | {end_other} | |");
+    println!("per-character streaming cost: {sink_us} instructions (Data_Exchange 244 out / 244 in, cut + sink)");
+    if sink_us > card::STREAM_CHAR_INSTRUCTIONS {
+        fail(&format!(
+            "per-character streaming cost {sink_us} exceeds card::STREAM_CHAR_INSTRUCTIONS = {}",
+            card::STREAM_CHAR_INSTRUCTIONS
+        ));
+    }
+    println!("\n(F411 cycle model, `card::modelled_tsdr` of card::LINE_BUDGET_INSTRUCTIONS = {} and card::STREAM_CHAR_INSTRUCTIONS = {}; bit times)\n", card::LINE_BUDGET_INSTRUCTIONS, card::STREAM_CHAR_INSTRUCTIONS);
+    println!("| rate | receive | modelled | customary | GSD MaxTsdr |");
+    println!("|---|---|---:|---:|---:|");
+    for rate in pbcard::time::Baudrate::ALL.iter().rev() {
+        let how = if card::per_character(*rate) { "per character, end by length" } else { "DMA ring, IDLE" };
+        println!(
+            "| {} bit/s | {how} | {} | {} | {} |",
+            rate.bits_per_second(),
+            card::modelled_tsdr(*rate, card::LINE_BUDGET_INSTRUCTIONS),
+            card::customary_max_tsdr(*rate),
+            card::max_tsdr(*rate)
+        );
+    }
+    // A chunk interrupt of another station's telegram: one character's event (status, data,
+    // clock stand in for the DMA flags and NDTR) with the sink's immediate return — the
+    // cutter skips the rest of a foreign telegram by its length — or, as an upper bound, the
+    // cut and sink of the other 15 characters one by one on top.
+    let chunk_lo = char_other;
+    let chunk_hi = char_other + (card::DMA_CHUNK - 1) * sink_other;
+    println!("\n(CPU share of a saturated 12 Mbit/s bus of other stations' telegrams in the F411's DMA mode, model `card::foreign_load_per_mille`: one interrupt per {}-byte chunk — {chunk_lo} instructions when the cutter skips a foreign telegram by length (one character's event), {chunk_hi} when every character goes through cut + sink ({char_other} + {} × {sink_other}) — and one IDLE interrupt of {end_other} per telegram; 33 idle bits before every telegram, CPI 1.5, entry 12 cycles)\n", card::DMA_CHUNK, card::DMA_CHUNK - 1);
+    println!("| telegram mix (all for other stations) | CPU share, skipped by length | CPU share, cut per character |");
+    println!("|---|---:|---:|");
+    for (what, len) in [
+        ("tokens and SD1 status telegrams (6 bytes)", 6u32),
+        ("Data_Exchange 32/32 cycles (41-byte telegrams)", 41),
+        ("Data_Exchange 244/244 cycles (253-byte telegrams)", 253),
+    ] {
+        let lo = card::foreign_load_per_mille(pbcard::time::Baudrate::B12M, len, chunk_lo, end_other);
+        let hi = card::foreign_load_per_mille(pbcard::time::Baudrate::B12M, len, chunk_hi, end_other);
+        println!("| {what} | {:.1} % | {:.1} % |", f64::from(lo) / 10.0, f64::from(hi) / 10.0);
+    }
 }
