@@ -257,8 +257,10 @@ pub const STAGE_WORDS: usize = STAGE_BYTES / 4;
 const FLAG_DIAG_NEW: u8 = 1 << 0;
 const FLAG_NO_ADD_CHG: u8 = 1 << 1;
 
-/// Line → core queue depth (one slot of the ring stays free: `QUEUE_LEN - 1` telegrams).
-pub const QUEUE_LEN: usize = 8;
+/// Line → core queue depth (one slot of the ring stays free: `QUEUE_LEN - 1` = 5 telegrams;
+/// the core task runs right after the line at the next priority, so it is at most a telegram
+/// or two behind — six slots of 256 bytes keep the card-only build within its 32 KiB RAM).
+pub const QUEUE_LEN: usize = 6;
 /// Core → line queue depth (deferred answers).
 pub const DEFERRED_LEN: usize = 2;
 

@@ -59,9 +59,9 @@
 //!
 //! **The split** (issue 11 item 1, as on QEMU; README "The response path"). The line owns
 //! the [`FastPath`] half of `pbcard::fast` ([`DmaLine::attach`]): each telegram the stream
-//! completes goes to the fast path here (`DmaLine::decide`: today `FastPath::on_frame` on the
-//! telegram the line's sink assembled in its one buffer — the one copy left, until the fast
-//! path is a `TelegramSink` itself —), in the USART1 (or DMA) interrupt, at the protocol clock's time
+//! completes goes to the fast path here: the stream hands its bytes to the fast path as they
+//! arrive (`Tee`: `FastPath` is a `TelegramSink`, and to the line's copy for the rate control)
+//! and `DmaLine::decide` asks for `FastPath::finish` at its end, in the USART1 (or DMA) interrupt, at the protocol clock's time
 //! ([`SysTickClock::line_now`], lock-free). An answer from the staging goes to the transmitter
 //! at once (min_TSDR from the staging, `FastPath::min_tsdr`); a request the fast path leaves
 //! to the core ([`Verdict::Core`]: DP-V1 cases, other SAPs) waits in `awaiting` until the
@@ -93,8 +93,10 @@
 //! **In RAM** (issue 11 item 2). [`DmaLine::on_usart`] (the per-character path and the DMA
 //! mode's IDLE, with the receive gate, the T_SYN compare and TC inlined), `feed` (the
 //! streaming framer, `Stream::piece`, one copy for both modes), `DmaLine::decide` (with
-//! `FastPath::on_frame`'s own body, `tx_plan` and the response start inlined) and
-//! [`DmaLine::on_timer`] — ≈ 5.3 KiB — are linked into `.data.pbcard_line` (the fast path's
+//! `FastPath::finish`'s own body, `tx_plan` and the response start inlined) — ≈ 5.7 KiB — are linked into
+//! `.data.pbcard_line` ([`DmaLine::on_timer`], the TIM5 compares, runs from flash: its
+//! response start is for an answer that was ready before min_TSDR, its T_SYN proof only
+//! re-synchronises the receiver; neither is bounded by MaxTsdr) (the fast path's
 //! larger callees — `answer_srd`, the DP-V1 planner, the queue — stay in flash behind
 //! long-branch thunks): cortex-m-rt 0.7 puts every `.data.*` input section into `.data`, which
 //! its reset code copies from flash to RAM, so they run from SRAM without flash wait states or
@@ -224,9 +226,9 @@ pub struct FrameMeta {
     end: RequestEnd,
 }
 
-/// The protocol side of the streaming framer until the fast path takes the bytes itself
-/// (`FastPath` as a `TelegramSink` with `finish`, issue 11): the telegram in progress,
-/// assembled for `FastPath::on_frame` (its one copy; the ring itself is never copied).
+/// The line's copy of the telegram in progress, made while its bytes arrive (the ring itself
+/// is never copied): what the rate control classifies after the answer has started; the
+/// fast path takes the same bytes itself ([`Tee`]).
 struct Assemble {
     buf: Option<&'static mut [u8; MAX_FRAME_LEN]>,
     len: usize,
@@ -253,6 +255,40 @@ impl TelegramSink for Assemble {
     #[inline(always)]
     fn abort(&mut self) {
         self.open = false;
+    }
+}
+
+/// The streaming framer's sink: every telegram's bytes to the fast path as they arrive
+/// (`FastPath` is a `TelegramSink`: destination filter, FCS, the core's queue slot and the
+/// likely answer per piece, so `FastPath::finish` at the end is constant in the telegram's
+/// length, issue 11) and to [`Assemble`], the line's copy the rate control classifies
+/// (`phy::line::classify`, after the answer has started, off the response path).
+struct Tee<'a> {
+    fast: Option<&'a mut FastPath<'static>>,
+    asm: &'a mut Assemble,
+}
+
+impl TelegramSink for Tee<'_> {
+    #[inline(always)]
+    fn begin(&mut self) {
+        if let Some(f) = self.fast.as_deref_mut() {
+            f.begin();
+        }
+        self.asm.begin();
+    }
+    #[inline(always)]
+    fn bytes(&mut self, bytes: &[u8]) {
+        if let Some(f) = self.fast.as_deref_mut() {
+            f.bytes(bytes);
+        }
+        self.asm.bytes(bytes);
+    }
+    #[inline(always)]
+    fn abort(&mut self) {
+        if let Some(f) = self.fast.as_deref_mut() {
+            f.abort();
+        }
+        self.asm.abort();
     }
 }
 
@@ -555,7 +591,7 @@ impl DmaLine {
         // No telegram before the restart may be answered any more (`quiet_since`).
         self.segments = self.segments.wrapping_add(1);
         self.tsyn_pos = None;
-        self.stream.reset(&mut self.asm);
+        self.stream.reset(&mut Tee { fast: self.fast.as_mut(), asm: &mut self.asm });
         // Every telegram to the sink until the rate is locked again (`decide`).
         self.stream.set_filter(None);
     }
@@ -568,9 +604,8 @@ impl DmaLine {
         let _ = self.set_rate(self.rate);
     }
 
-    /// Hand the sink's telegram to the fast path (`meta` = where it ended and whether the
-    /// line was quiet after it). The one place that changes when the fast path takes the bytes
-    /// itself (`FastPath::finish` instead of `on_frame` on the assembled copy).
+    /// The telegram the stream completed to the fast path's decision (`FastPath::finish`;
+    /// `meta` = where it ended and whether the line was quiet after it).
     // One copy, in RAM (called from every receive path).
     #[inline(never)]
     #[link_section = ".data.pbcard_line"]
@@ -627,7 +662,7 @@ impl DmaLine {
     }
 
     /// One telegram the receiver cut, in the USART1 interrupt: the fast path decides
-    /// (`FastPath::on_frame`); its answer goes out at min_TSDR of the staging while the rate
+    /// (`FastPath::finish`); its answer goes out at min_TSDR of the staging while the rate
     /// control's gate is open (`RateTap::may_answer`); a request left to the core waits in
     /// `awaiting`; then the telegram is accounted to the rate control
     /// (`pbcard::phy::line::classify`: after the response is on its way, off its path).
@@ -644,7 +679,9 @@ impl DmaLine {
         let quiet = meta.last_of_segment
             && meta.seg == self.segments
             && rx_quiet(self.mode, &self.dma, &self.usart, self.chars, meta.seg_end);
-        match fast.on_frame(now, &buf[..n]) {
+        // The fast path took the telegram's bytes as they arrived ([`Tee`]): its decision now,
+        // in a time that does not grow with the telegram's length.
+        match fast.finish(now) {
             Verdict::Answer(bytes) => {
                 let open = tap.may_answer(true);
                 // An answered request is an error-free SD1/SD2/SD3 telegram to us (the fast
@@ -753,12 +790,18 @@ impl DmaLine {
         if sr & (SR_PE | SR_FE | SR_NF | SR_ORE) != 0 {
             self.count_errors(sr);
             self.chars = self.chars.wrapping_add(1);
-            self.stream.error(&mut self.asm);
+            self.stream.error(&mut Tee { fast: self.fast.as_mut(), asm: &mut self.asm });
         } else if sr & SR_RXNE != 0 {
             // The timer first: the request's end is this character's stop bit.
             let seen = self.ticks();
             self.chars = self.chars.wrapping_add(1);
-            match feed(&mut self.stream, core::slice::from_ref(&(dr as u8)), &mut self.asm).1 {
+            match feed(
+                &mut self.stream,
+                core::slice::from_ref(&(dr as u8)),
+                &mut Tee { fast: self.fast.as_mut(), asm: &mut self.asm },
+            )
+            .1
+            {
                 Step::Complete => {
                     let meta = FrameMeta {
                         last_of_segment: true,
@@ -783,7 +826,7 @@ impl DmaLine {
     fn on_char_idle(&mut self) {
         let idle_seen = self.ticks();
         self.arm_tsyn_check(self.table.tsyn_check_at(idle_seen), self.chars);
-        self.stream.idle(BitTimes::CHAR, &mut self.asm);
+        self.stream.idle(BitTimes::CHAR, &mut Tee { fast: self.fast.as_mut(), asm: &mut self.asm });
     }
 
     /// DMA mode (≥ 3 Mbit/s), the USART side: the receive gate ([`RxIrqGate`]: SR only, never
@@ -798,7 +841,7 @@ impl DmaLine {
             self.walk_ring(None);
             // A completion at the ring's end may be the corrupt character itself.
             self.pending = None;
-            self.stream.error(&mut self.asm);
+            self.stream.error(&mut Tee { fast: self.fast.as_mut(), asm: &mut self.asm });
         }
         if irq.segment_end {
             // First the timestamp and the T_SYN compare (from the tick table), then the ring.
@@ -808,7 +851,7 @@ impl DmaLine {
             self.segments = self.segments.wrapping_add(1);
             self.walk_ring(Some(self.table.end_at_idle(idle_seen)));
             // A telegram still incomplete at IDLE had a gap inside: dropped.
-            self.stream.idle(BitTimes::CHAR, &mut self.asm);
+            self.stream.idle(BitTimes::CHAR, &mut Tee { fast: self.fast.as_mut(), asm: &mut self.asm });
             // The next segment may have begun meanwhile (its RXNE already passed).
             let moved = self.ring_pos() != write;
             let sr_now = self.usart.sr().read().bits();
@@ -847,7 +890,7 @@ impl DmaLine {
         if walk.overrun {
             add(RING_OVERRUN, 1);
             self.pending = None;
-            self.stream.error(&mut self.asm);
+            self.stream.error(&mut Tee { fast: self.fast.as_mut(), asm: &mut self.asm });
             return;
         }
         let fresh = !walk.first.is_empty();
@@ -862,7 +905,11 @@ impl DmaLine {
         for (range, last_piece) in [(walk.first, walk.second.is_empty()), (walk.second, true)] {
             let (mut at, end) = (range.start, range.end);
             while at < end {
-                let (used, step) = feed(&mut self.stream, &self.ring[at..end], &mut self.asm);
+                let (used, step) = feed(
+                    &mut self.stream,
+                    &self.ring[at..end],
+                    &mut Tee { fast: self.fast.as_mut(), asm: &mut self.asm },
+                );
                 at += used;
                 if step == Step::Complete {
                     let more = at < end || !last_piece;
@@ -933,9 +980,11 @@ impl DmaLine {
 
     /// The TIM5 interrupt: the T_SYN check (compare 2) and the delayed response start
     /// (compare 1).
-    // In RAM (module documentation "In RAM").
+    // In flash (ART cache), not RAM: compare 1 starts a response that was ready *before*
+    // min_TSDR (the answer waits for the line's rule, not for this code), and the T_SYN proof
+    // only re-synchronises the receiver — neither is on the path that MaxTsdr bounds. Keeps
+    // the card-only build within its 32 KiB RAM (issue 13).
     #[inline(never)]
-    #[link_section = ".data.pbcard_line"]
     pub fn on_timer(&mut self) {
         self.on_command();
         if self.silent {
@@ -948,7 +997,7 @@ impl DmaLine {
             self.tim.dier().modify(|r, w| unsafe { w.bits(r.bits() & !TIM_CC2) });
             if let Some(pos) = self.tsyn_pos.take() {
                 if self.rx_quiet(pos) {
-                    self.stream.idle(BitTimes::TSYN, &mut self.asm);
+                    self.stream.idle(BitTimes::TSYN, &mut Tee { fast: self.fast.as_mut(), asm: &mut self.asm });
                     self.publish_rx();
                 }
             }
@@ -1149,8 +1198,8 @@ fn ring_pos(dma: &DMA2) -> usize {
 /// per-character path passes one-byte pieces, the DMA path the ring's pieces.
 #[inline(never)]
 #[link_section = ".data.pbcard_line"]
-fn feed(stream: &mut Stream, bytes: &[u8], asm: &mut Assemble) -> (usize, Step) {
-    stream.piece(bytes, asm)
+fn feed(stream: &mut Stream, bytes: &[u8], sink: &mut Tee<'_>) -> (usize, Step) {
+    stream.piece(bytes, sink)
 }
 
 /// The telegram accounted to the rate control (`pbcard::phy::line::classify` decodes it
