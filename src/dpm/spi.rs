@@ -293,11 +293,13 @@ static CRC: crc::Crc<u16, crc::Table<1>> = crc::Crc::<u16, crc::Table<1>>::new(&
 
 /// CRC-16/CCITT-FALSE of `data`: polynomial 0x1021, init 0xFFFF, no reflection, no final
 /// XOR (check value 0x29B1 for "123456789").
+#[inline(never)]
 pub fn crc16(data: &[u8]) -> u16 {
     CRC.checksum(data)
 }
 
 /// Continue a CRC-16/CCITT-FALSE over more bytes (`crc` = the value over the bytes before).
+#[inline(never)]
 pub fn crc16_update(crc: u16, data: &[u8]) -> u16 {
     let mut d = CRC.digest_with_initial(crc);
     d.update(data);

@@ -146,6 +146,7 @@ pub struct Cyclic {
     stats: CyclicStats,
 }
 
+#[inline(never)]
 fn word(b: &[u8], i: usize) -> u16 {
     b.get(2 * i..2 * i + 2).map_or(0, |w| u16::from_be_bytes([w[0], w[1]]))
 }

@@ -654,6 +654,7 @@ impl<'b> ValueWriter<'b> {
         s.iter().try_for_each(|&c| self.push_u8(c))
     }
 
+    #[inline(never)]
     fn push(&mut self, implied: Format, value: &[u8]) -> Result<(), ParamError> {
         let end = self.len + value.len();
         if self.count >= MAX_ELEMENTS || end > self.buf.len() {

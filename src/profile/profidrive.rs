@@ -284,6 +284,8 @@ pub struct SpeedScale {
 }
 
 /// Division rounding to the nearest value (halves away from zero); 0 for a zero divisor.
+/// Out of line: an `i128` division, called from every scaling (footprint, issue 13 item 1).
+#[inline(never)]
 fn div_round(num: i128, den: i128) -> i128 {
     if den == 0 {
         return 0;
@@ -348,6 +350,7 @@ impl SpeedScale {
     }
 
     /// The N2 value of a profile value (saturating).
+    #[inline(never)]
     pub fn to_n2(&self, raw: i32) -> i16 {
         let raw = self.clamp_raw(raw);
         let fs = self.full_scale as i128;
@@ -359,6 +362,7 @@ impl SpeedScale {
 
     /// The profile value of an N2 value (rounded, limited to `limit`; speeds below `min`
     /// give 0).
+    #[inline(never)]
     pub fn from_n2(&self, n2: i16) -> i32 {
         let n2 = n2 as i128;
         let span = self.max as i128 - self.min as i128;
@@ -371,6 +375,7 @@ impl SpeedScale {
     }
 
     /// The profile word for an N2 actual value, as a raw word (two's complement).
+    #[inline(never)]
     pub fn word_from_n2(&self, n2: i16) -> u16 {
         saturate_i16(self.from_n2(n2) as i128) as u16
     }

@@ -110,6 +110,7 @@ pub const MAX_KINDS: usize = 4;
 static CRC: crc::Crc<u16, crc::Table<1>> = crc::Crc::<u16, crc::Table<1>>::new(&crc::CRC_16_IBM_3740);
 
 /// The CRC-16 of a slot ([`CRC`]).
+#[inline(never)]
 pub fn crc16(data: &[u8]) -> u16 {
     CRC.checksum(data)
 }
@@ -243,6 +244,7 @@ impl<F: Flash> Journal<F> {
         self.flash
     }
 
+    #[inline(never)]
     fn read_slot(&self, sector: u8, slot: u32) -> [u8; SLOT_SIZE] {
         let mut b = [0u8; SLOT_SIZE];
         self.flash.read(sector, slot * SLOT_SIZE as u32, &mut b);
@@ -329,11 +331,17 @@ impl<F: Flash> Journal<F> {
         const { assert!(R::LEN <= MAX_PAYLOAD && R::KIND != 0 && R::KIND != 0xFF) };
         let mut buf = [0xFF; MAX_PAYLOAD];
         record.encode(&mut buf[..R::LEN]);
-        let payload = &buf[..R::LEN];
+        self.save_payload(R::KIND, &buf[..R::LEN])
+    }
+
+    /// [`Self::save`] of an encoded record: one copy of the compaction logic for every
+    /// record type (footprint, issue 13 item 1).
+    #[inline(never)]
+    fn save_payload(&mut self, kind: u8, payload: &[u8]) -> Result<bool, StoreError<F::Error>> {
         let mut scan = self.scan();
-        if let Some(loc) = scan.find(R::KIND) {
+        if let Some(loc) = scan.find(kind) {
             let b = self.read_slot(loc.sector, loc.slot);
-            if b[5] as usize == R::LEN && &b[HEADER_LEN..HEADER_LEN + R::LEN] == payload {
+            if b[5] as usize == payload.len() && &b[HEADER_LEN..HEADER_LEN + payload.len()] == payload {
                 return Ok(false);
             }
         }
@@ -347,7 +355,7 @@ impl<F: Flash> Journal<F> {
             let outside = scan.kinds.iter().flatten().filter(|(_, l)| l.sector != active);
             let mut carry = [None; MAX_KINDS];
             let mut n = 0;
-            for &(_, l) in outside.clone().filter(|(k, _)| *k != R::KIND) {
+            for &(_, l) in outside.clone().filter(|(k, _)| *k != kind) {
                 carry[n] = Some(l);
                 n += 1;
             }
@@ -356,7 +364,7 @@ impl<F: Flash> Journal<F> {
                     break (active, first_free, carry);
                 }
                 // Compaction: every other kind's newest into the erased other sector.
-                for &(_, l) in scan.kinds.iter().flatten().filter(|(k, _)| *k != R::KIND) {
+                for &(_, l) in scan.kinds.iter().flatten().filter(|(k, _)| *k != kind) {
                     carry[n] = Some(l);
                     n += 1;
                 }
@@ -387,7 +395,7 @@ impl<F: Flash> Journal<F> {
             slot += 1;
         }
         seq = seq.checked_add(1).ok_or(StoreError::Exhausted)?;
-        self.write_slot(sector, slot, seq, R::KIND, payload)?;
+        self.write_slot(sector, slot, seq, kind, payload)?;
         Ok(true)
     }
 
