@@ -5,45 +5,39 @@
 
 use host_tests::scripted::Ans;
 use pbcard::card;
-use pbcard::dp::{DpSlave, DpState};
+use pbcard::dp::DpState;
 use pbcard::dpv1::pdu::ErrorCode1;
 use pbcard::fdl::telegram::{FunctionCode, Header};
-use pbcard::node::Node;
 use pbcard::profile::records::CardRecords;
-use pbcard::testkit::{self, FakeDrive, ScriptedMaster, SetPrm};
-use pbcard::time::Instant;
+use pbcard::testkit::{self, FakeDrive, NodeRig, Rig, SetPrm};
+use pbcard::time::{Duration, Instant};
 
 const ME: u8 = 3;
 const M1: u8 = 2;
 const M2: u8 = 4;
 
+/// The shared node rig ([`NodeRig`]: the node, the scripted master, the clock 500 µs on per
+/// request) with what the DP-V1 tests add: the card's records and the fake drive behind them.
 struct Master {
-    node: Node,
+    rig: NodeRig,
     /// The card's data records (records 47 / 48), owned by the application.
     records: CardRecords,
     /// The tests' fake drive table (PNU 100 u16[4] ≤ 1000, PNU 101 read-only 1234).
     drive: FakeDrive,
-    master: ScriptedMaster,
-    now: u64,
 }
 
 impl Master {
     fn new() -> Self {
         Master {
-            node: Node::new(DpSlave::new(&pbcard::card::SLAVE, ME)),
+            rig: NodeRig::new(M1, ME),
             records: CardRecords::new(&pbcard::card::RECORDS),
             drive: FakeDrive { p100: [50, 0, 0, 0], ..FakeDrive::new() },
-            master: ScriptedMaster::new(M1, ME),
-            now: 0,
         }
     }
 
     fn send(&mut self, sa: u8, dsap: Option<u8>, ssap: Option<u8>, pdu: &[u8], toggle: bool) -> Ans {
-        let f = self.master.request(sa, dsap, ssap, pdu, toggle);
-        self.now += 500;
-        let now = Instant::from_micros(self.now);
-        self.node.poll(now);
-        let r = testkit::feed(&mut self.node, now, &f);
+        let f = self.rig.master.request(sa, dsap, ssap, pdu, toggle);
+        let r = self.rig.deliver(&f);
         Ans::of(&f, r.as_deref(), Some(0x08))
     }
 
@@ -53,7 +47,7 @@ impl Master {
 
     /// Let the card's DP-V1 task run.
     fn process(&mut self) {
-        self.node.process_acyclic(Instant::from_micros(self.now), &mut self.records.with(&mut self.drive));
+        self.rig.node.process_acyclic(self.rig.now, &mut self.records.with(&mut self.drive));
     }
 
     /// Request, then poll until the response (at most 3 polls), as a class-1 master does.
@@ -71,7 +65,7 @@ impl Master {
         let prm = SetPrm::CARD.watchdog(10, 10).user([dpv1_status_1, 0, 0, 0, 0]).pdu();
         assert_eq!(self.send(M1, Some(61), Some(62), &prm, true), Ans::Sc);
         assert_eq!(self.send(M1, Some(62), Some(62), card::MODULES[0].cfg, true), Ans::Sc);
-        assert_eq!(self.node.slave().state(), DpState::DataExch);
+        assert_eq!(self.rig.node.slave().state(), DpState::DataExch);
     }
 }
 
@@ -245,8 +239,8 @@ fn class2_send_timeout_aborts_the_connection() {
     let mut m = Master::new();
     let sap = m.connect(10);
     // 3 s of silence (Send_Timeout 300 × 10 ms): the connection is aborted by the slave.
-    m.now += 3_100_000;
-    m.node.poll(Instant::from_micros(m.now));
+    m.rig.now = m.rig.now + Duration::from_micros(3_100_000);
+    m.rig.node.poll(m.rig.now);
     match m.c2(10, sap, &[0x5E, 0, 47, 240]) {
         Ans::Pdu(p) => assert_eq!((p[0], p[2] & 0x0F), (0x58, 3), "Abort, reason 3 timeout"),
         Ans::Sd1(0x03) => {}
@@ -262,7 +256,7 @@ use pbcard::drive::params::{self, DriveTable};
 /// Request, process with `table` as the drive, poll: one MSAC_C1 exchange.
 fn table_transact(m: &mut Master, table: &mut DriveTable, pdu: &[u8]) -> Vec<u8> {
     assert_eq!(m.c1(M1, pdu), Ans::Sc, "request acknowledged with SC");
-    m.node.process_acyclic(Instant::from_micros(m.now), &mut m.records.with(table));
+    m.rig.node.process_acyclic(m.rig.now, &mut m.records.with(table));
     match m.c1(M1, &[]) {
         Ans::Pdu(p) => p,
         other => panic!("poll after processing: {other:?}"),
@@ -414,8 +408,8 @@ fn c1_ignores_sdn_and_drops_requests_across_sessions() {
     assert_eq!(m.c1(M1, &[0x5F, 0, 47, 10, 1, 1, 1, 1, 0x10, 1, 0x03, 0x96, 0, 0]), Ans::Sc);
     // SDN high from the locking master on SAP 51 with an Alarm_Ack PDU: ignored.
     let hdr = Header { da: 127, sa: M1, fc: FunctionCode::request(0x06, false, false), dsap: Some(51), ssap: Some(51) };
-    let now = Instant::from_micros(m.now);
-    assert_eq!(testkit::feed(&mut m.node, now, &testkit::frame(&hdr, &[0x5C, 0, 1, 2])), None);
+    let now = m.rig.now;
+    assert_eq!(testkit::feed(&mut m.rig.node, now, &testkit::frame(&hdr, &[0x5C, 0, 1, 2])), None);
     m.process();
     assert_eq!(m.c1(M1, &[]), Ans::Pdu(vec![0x5F, 0, 47, 10]), "the write's answer, not an Alarm_Ack error");
     // A request acknowledged, then Set_Prm + Chk_Cfg: the old request is gone.
@@ -470,7 +464,7 @@ fn identification_and_maintenance_over_c1_and_c2() {
     im1.extend_from_slice(b"Hall B, cabinet 12    ");
     let write = [&[0x5F, 0x00, 0xFF, 68, 0x08, 0x00, 0xFD, 0xE9][..], &im1].concat();
     assert_eq!(m.transact(&write), [0x5F, 0x00, 0xFF, 68]);
-    assert_eq!(m.node.im_mut().take_changed().map(|d| d.records[0].to_vec()), Some(im1[10..].to_vec()));
+    assert_eq!(m.rig.node.im_mut().take_changed().map(|d| d.records[0].to_vec()), Some(im1[10..].to_vec()));
     // Errors: write to I&M0, unknown FI_Index, wrong length, not a call, another slot.
     let mut w0 = vec![0x5F, 0x00, 0xFF, 68, 0x08, 0x00, 0xFD, 0xE8];
     w0.extend_from_slice(&[0; 64]);
@@ -507,18 +501,18 @@ fn diagnostic_alarm_and_alarm_ack_on_sap_51() {
     let prm = SetPrm::CARD.watchdog(10, 10).user([0x80, 0x20, 0x00, 0, 0]).pdu();
     assert_eq!(m.send(M1, Some(61), Some(62), &prm, true), Ans::Sc);
     assert_eq!(m.send(M1, Some(62), Some(62), card::MODULES[0].cfg, true), Ans::Sc);
-    assert_eq!(m.node.slave().state(), DpState::DataExch);
+    assert_eq!(m.rig.node.slave().state(), DpState::DataExch);
     let diag = |m: &mut Master| match m.send(M1, Some(60), Some(62), &[], true) {
         Ans::Pdu(p) => p,
         other => panic!("diag {other:?}"),
     };
     assert_eq!(diag(&mut m)[6..], [] as [u8; 0]);
     // The drive faults (what the DPM link hands the slave).
-    m.node.slave_mut().set_ext_diag(&[0x03, 0x01, 0x01], true).unwrap();
-    m.node.slave_mut().set_drive_fault(0x2310);
-    let f = m.master.request(M1, None, None, &[0x04, 0x7E, 0, 0], true);
-    m.now += 500;
-    let r = testkit::feed(&mut m.node, Instant::from_micros(m.now), &f).expect("Data_Exchange answered");
+    m.rig.node.slave_mut().set_ext_diag(&[0x03, 0x01, 0x01], true).unwrap();
+    m.rig.node.slave_mut().set_drive_fault(0x2310);
+    let f = m.rig.master.request(M1, None, None, &[0x04, 0x7E, 0, 0], true);
+    m.rig.now = m.rig.now + Duration::from_micros(500);
+    let r = testkit::feed(&mut m.rig.node, m.rig.now, &f).expect("Data_Exchange answered");
     assert_eq!(r[6], 0x0A, "DH: new diagnosis");
     let d = diag(&mut m);
     assert_eq!(d[0] & 0x08, 0x08, "Ext_Diag");
@@ -580,7 +574,7 @@ impl pbcard::node::DataRecords for OwnRecords {
 /// Request, one DP-V1 pass over `records`, poll: one MSAC_C1 exchange.
 fn exchange(m: &mut Master, records: &mut impl pbcard::node::DataRecords, pdu: &[u8]) -> Vec<u8> {
     assert_eq!(m.c1(M1, pdu), Ans::Sc, "request acknowledged with SC");
-    m.node.process_acyclic(Instant::from_micros(m.now), records);
+    m.rig.node.process_acyclic(m.rig.now, records);
     match m.c1(M1, &[]) {
         Ans::Pdu(p) => p,
         other => panic!("poll after processing: {other:?}"),
@@ -599,11 +593,11 @@ fn a_products_own_data_records_behind_im() {
     let mut own = OwnRecords::default();
     let w = exchange(&mut m, &mut own, &[0x5F, 3, 9, 2, 0x12, 0x34]);
     assert_eq!(w, [0x5F, 3, 9, 2]);
-    assert!(m.node.has_acyclic_work(), "the records' job keeps the DP-V1 task running");
+    assert!(m.rig.node.has_acyclic_work(), "the records' job keeps the DP-V1 task running");
     own.busy = false;
     let r = exchange(&mut m, &mut own, &[0x5E, 3, 9, 240]);
     assert_eq!(r, [0x5E, 3, 9, 2, 0x12, 0x34]);
-    assert!(!m.node.has_acyclic_work());
+    assert!(!m.rig.node.has_acyclic_work());
     let e = exchange(&mut m, &mut own, &[0x5E, 3, 8, 240]);
     assert_eq!(e, [0xDE, 0x80, 0xB0, 0x00]);
     // I&M0 (slot 0 / index 255) is the node's: a call, then the read.
@@ -619,6 +613,6 @@ fn a_products_own_data_records_behind_im() {
     assert_eq!(e, [0xDE, 0x80, 0xB2, 0x00]);
     // MSAC_C1 ends with a new Set_Prm: the records hear of it at the next pass.
     m.bring_up(0x80);
-    m.node.process_acyclic(Instant::from_micros(m.now), &mut own);
+    m.rig.node.process_acyclic(m.rig.now, &mut own);
     assert_eq!(own.ended, [pbcard::dpv1::records::RELATION_C1]);
 }
