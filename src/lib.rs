@@ -45,7 +45,7 @@ pub mod dpm;
 pub mod dpv1;
 pub mod drive;
 pub mod fast;
-pub mod fdl;
+pub use pbcard_fdl::fdl;
 pub mod led;
 pub mod node;
 pub mod phy;
@@ -53,4 +53,4 @@ pub mod profile;
 pub mod store;
 #[cfg(any(test, feature = "test-support"))]
 pub mod testkit;
-pub mod time;
+pub use pbcard_fdl::time;

@@ -11,7 +11,7 @@
 //!   the framer drops one byte and tries again at the next byte that could start a frame.
 //!
 //! **Cutting only** ([`Framer::cut`], issue 11): for a receiver that hands the bytes to a
-//! [`TelegramSink`](crate::phy::stream::TelegramSink) as they arrive, the framer only finds
+//! `TelegramSink` (`pbcard::phy::stream`, the layer above) as they arrive, the framer only finds
 //! where a telegram starts and ends — from the header's length
 //! ([`telegram::frame_len`](super::telegram::frame_len)), without decoding, so its work per
 //! byte, the last one included, does not grow with the telegram; the checksum and the rest
