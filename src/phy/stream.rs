@@ -271,14 +271,23 @@ impl Stream {
                 State::Hunting => match bytes[used..].iter().position(|&b| is_start_delimiter(b)) {
                     Some(k) => {
                         used += k;
-                        let step = self.start(bytes[used], sink);
-                        used += 1;
+                        self.begin_telegram(sink);
+                        let (n, step) = self.header_run(&bytes[used..], sink);
+                        used += n;
                         if step != Step::Pending {
                             return (used, step);
                         }
                     }
                     None => return (bytes.len(), Step::Pending),
                 },
+                State::Ready if is_start_delimiter(bytes[used]) => {
+                    self.begin_telegram(sink);
+                    let (n, step) = self.header_run(&bytes[used..], sink);
+                    used += n;
+                    if step != Step::Pending {
+                        return (used, step);
+                    }
+                }
                 State::Telegram | State::Skipping if self.len != 0 && self.pos > self.da_at as u16 => {
                     let left = (self.len - self.pos) as usize;
                     let take = left.min(bytes.len() - used);
@@ -287,6 +296,13 @@ impl Stream {
                     }
                     used += take;
                     let step = self.advance(take as u16);
+                    if step != Step::Pending {
+                        return (used, step);
+                    }
+                }
+                State::Telegram => {
+                    let (n, step) = self.header_run(&bytes[used..], sink);
+                    used += n;
                     if step != Step::Pending {
                         return (used, step);
                     }
@@ -301,6 +317,69 @@ impl Stream {
             }
         }
         (used, Step::Pending)
+    }
+
+    /// A start delimiter: a telegram begins (the sink's `begin`; the delimiter itself is the
+    /// header's first byte).
+    #[inline(always)]
+    fn begin_telegram<S: TelegramSink + ?Sized>(&mut self, sink: &mut S) {
+        self.state = State::Telegram;
+        self.pos = 0;
+        self.len = 0;
+        self.da_at = 0;
+        sink.begin();
+    }
+
+    /// The header bytes at the front of `bytes` (while the length or the destination is not
+    /// known; `State::Telegram`): the checks of [`Self::header`] byte by byte, but the bytes
+    /// into the sink as **one** slice — at the end of the header, of the telegram or of
+    /// `bytes` —, not one call per byte. A piece (the DMA mode's IDLE remainder) that holds a
+    /// whole short request then costs the sink one call for its header (issue 11, the DMA
+    /// rates). A foreign destination or a bad header aborts the sink as before (the bytes
+    /// not yet handed over do not matter then). Returns the bytes used and the step.
+    fn header_run<S: TelegramSink + ?Sized>(&mut self, bytes: &[u8], sink: &mut S) -> (usize, Step) {
+        let mut k = 0;
+        while k < bytes.len() && (self.len == 0 || self.pos <= self.da_at as u16) {
+            let byte = bytes[k];
+            let i = self.pos as usize;
+            if i < self.head.len() {
+                self.head[i] = byte;
+            }
+            if self.len == 0 {
+                match expected_len(&self.head[..i + 1]) {
+                    Expect::Len(n) => {
+                        self.len = n as u16;
+                        self.da_at = match self.head[0] {
+                            SD1 | SD3 | SD4 => 1,
+                            SD2 => 4,
+                            _ => 0,
+                        };
+                    }
+                    Expect::More(_) => {}
+                    Expect::NotAFrame => return (k + 1, self.bad_header(i + 1, sink)),
+                }
+            }
+            if self.da_at != 0 && i == self.da_at as usize {
+                if let Some(own) = self.filter {
+                    let da = byte & 0x7F;
+                    if da != own && da != BROADCAST {
+                        sink.abort();
+                        self.state = State::Skipping;
+                        return (k + 1, self.advance(1));
+                    }
+                }
+            }
+            k += 1;
+            let step = self.advance(1);
+            if step != Step::Pending {
+                sink.bytes(&bytes[..k]);
+                return (k, step);
+            }
+        }
+        if k > 0 {
+            sink.bytes(&bytes[..k]);
+        }
+        (k, Step::Pending)
     }
 
     fn start<S: TelegramSink + ?Sized>(&mut self, byte: u8, sink: &mut S) -> Step {
