@@ -1,13 +1,15 @@
 #!/usr/bin/env bash
 # The firmware on QEMU's netduinoplus2 (STM32F405): build, boot, test, benchmark.
 #
-#   bash scripts/qemu.sh build         # target/qemu/pbcard-qemu.elf (demo, e2e) and pbcard-bench.elf
+#   bash scripts/qemu.sh build         # target/qemu/pbcard-qemu.elf (demo, e2e), pbcard-bench.elf and
+#                                      #   pbcard-bench-dma.elf (the F411's DMA receive emulated)
 #   bash scripts/qemu.sh run [SERIAL]  # boot pbcard-qemu.elf, decoded log on stdout; USART1 on
 #                                      #   SERIAL (QEMU -serial syntax; default: a Unix socket,
 #                                      #   e.g. `pty` or `tcp:127.0.0.1:5020,server=on,wait=off`)
 #   bash scripts/qemu.sh demo          # README command 1 without the setup step
 #   bash scripts/qemu.sh test          # the end-to-end tests (host-tests/tests/qemu.rs)
-#   bash scripts/qemu.sh bench         # the instruction-count benchmark table (README "Benchmark")
+#   bash scripts/qemu.sh bench         # the instruction-count benchmark tables (README "Benchmark"):
+#                                      #   per-character receive, then the DMA receive (`--dma`)
 #
 # The board is a cargo feature of the one RTIC application: `--no-default-features --features
 # qemu` (or `bench`, which adds the TIM2 instrumentation). The default build stays the F411.
@@ -20,6 +22,7 @@ OUT=$TARGET_DIR/qemu
 ELF=$TARGET_DIR/thumbv7em-none-eabihf/release/pbcard
 export PBCARD_QEMU_ELF=${PBCARD_QEMU_ELF:-$OUT/pbcard-qemu.elf}
 export PBCARD_BENCH_ELF=${PBCARD_BENCH_ELF:-$OUT/pbcard-bench.elf}
+export PBCARD_BENCH_DMA_ELF=${PBCARD_BENCH_DMA_ELF:-$OUT/pbcard-bench-dma.elf}
 
 build_one() { # feature, output file
   cargo build --release --no-default-features --features "$1"
@@ -30,8 +33,8 @@ build_one() { # feature, output file
 build() {
   case "${1:-all}" in
     qemu) build_one qemu "$PBCARD_QEMU_ELF" ;;
-    bench) build_one bench "$PBCARD_BENCH_ELF" ;;
-    all) build_one qemu "$PBCARD_QEMU_ELF"; build_one bench "$PBCARD_BENCH_ELF" ;;
+    bench) build_one bench "$PBCARD_BENCH_ELF"; build_one bench-dma "$PBCARD_BENCH_DMA_ELF" ;;
+    all) build_one qemu "$PBCARD_QEMU_ELF"; build_one bench "$PBCARD_BENCH_ELF"; build_one bench-dma "$PBCARD_BENCH_DMA_ELF" ;;
     *) echo "build: qemu, bench or all" >&2; exit 2 ;;
   esac
 }
@@ -62,7 +65,8 @@ case "${1:-}" in
     ;;
   bench)
     build bench
-    exec cargo run -q -p host-tests --bin qemu_bench --target "$HOST"
+    cargo run -q -p host-tests --bin qemu_bench --target "$HOST"
+    exec cargo run -q -p host-tests --bin qemu_bench --target "$HOST" -- --dma
     ;;
-  *) sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'; exit 2 ;;
+  *) sed -n '2,16p' "$0" | sed 's/^# \{0,1\}//'; exit 2 ;;
 esac

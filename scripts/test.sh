@@ -22,11 +22,12 @@ echo "== firmware: release build for the STM32F411 (thumbv7em-none-eabihf), the 
 cargo build --release
 bash scripts/footprint.sh
 
-echo "== firmware: QEMU netduinoplus2 builds (features qemu, bench) and clippy of both firmware builds, -D warnings"
+echo "== firmware: QEMU netduinoplus2 builds (features qemu, bench, bench-dma) and clippy of the firmware builds, -D warnings"
 bash scripts/qemu.sh build
 arm-none-eabi-size "${CARGO_TARGET_DIR:-target}/qemu/pbcard-qemu.elf"
 cargo clippy --bins -- -D warnings
 cargo clippy --bins --no-default-features --features bench -- -D warnings
+cargo clippy --bins --no-default-features --features bench-dma -- -D warnings
 
 echo "== unit tests beside the code (protocol library on the host: pbcard and its bottom crate pbcard-fdl)"
 cargo test -p pbcard -p pbcard-fdl --lib --target "$HOST"
@@ -54,6 +55,8 @@ cargo test -p dpm-host --target "$HOST"
 
 echo "== benchmark: instructions from the last request byte to the first response byte (QEMU -icount)"
 cargo run -q -p host-tests --bin qemu_bench --target "$HOST"
+echo "== benchmark: the F411's DMA receive (≥ 3 Mbit/s) emulated: last character (IDLE) to the first response byte"
+cargo run -q -p host-tests --bin qemu_bench --target "$HOST" -- --dma
 
 echo "== fuzz smoke: every parser and the whole slave under libFuzzer (stable, --sanitizer none)"
 FUZZ_SECONDS=${FUZZ_SECONDS:-15} bash scripts/fuzz-smoke.sh

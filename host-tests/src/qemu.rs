@@ -48,6 +48,9 @@ pub enum Build {
     Qemu,
     /// `--features bench`: logs TIM2 instruction counts per response.
     Bench,
+    /// `--features bench-dma`: the same with the F411's DMA receive emulated (16-byte chunks,
+    /// the rest at the telegram's end: `bsp::qemu::DmaEmu`).
+    BenchDma,
 }
 
 /// The workspace's `target/` (or `$CARGO_TARGET_DIR`, relative to the workspace root).
@@ -65,6 +68,7 @@ pub fn firmware_elf(build: Build) -> PathBuf {
     let (var, name) = match build {
         Build::Qemu => ("PBCARD_QEMU_ELF", "pbcard-qemu.elf"),
         Build::Bench => ("PBCARD_BENCH_ELF", "pbcard-bench.elf"),
+        Build::BenchDma => ("PBCARD_BENCH_DMA_ELF", "pbcard-bench-dma.elf"),
     };
     std::env::var_os(var).map(PathBuf::from).unwrap_or_else(|| target_dir().join("qemu").join(name))
 }

@@ -111,7 +111,7 @@ fn every_rate_supported_with_card_max_tsdr() {
 }
 
 /// The GSD's MaxTsdr follow from the cycle model (`card::modelled_tsdr` of the measured
-/// `card::LINE_BUDGET_INSTRUCTIONS`, capped by the customary value) once `card::GSD_FROM_MODEL`
+/// `card::budget_instructions` — per character or DMA mode —, capped by the customary value) once `card::GSD_FROM_MODEL`
 /// is set (the F411 runs the split); until then they are the customary values. None is below
 /// the model's floor (IDLE detection after min_TSDR).
 #[test]
@@ -120,7 +120,7 @@ fn gsd_max_tsdr_follows_from_the_cycle_model() {
     for rate in Baudrate::ALL {
         let (_, name) = gsd_rate(rate);
         let declared = u32::from(gsd_max_tsdr(&gsd, rate));
-        let model = card::modelled_tsdr(rate, card::LINE_BUDGET_INSTRUCTIONS);
+        let model = card::modelled_tsdr(rate, card::budget_instructions(rate));
         let ceiling = u32::from(card::customary_max_tsdr(rate));
         let expect = if card::GSD_FROM_MODEL { model.min(ceiling) } else { ceiling };
         println!("MaxTsdr_{name}: declared {declared}, model {model}, customary {ceiling}");

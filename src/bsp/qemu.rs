@@ -195,6 +195,8 @@ pub struct QemuLine {
     staged: Option<(Instant, FrameMeta, bool)>,
     /// A character arrived while the core worked on the request in `awaiting`.
     active_while_awaiting: bool,
+    /// The F411's DMA receive, emulated (feature `bench-dma`; empty otherwise).
+    emu: DmaEmu,
 }
 
 /// Characters the line holds at most while the core catches up (two longest telegrams).
@@ -212,6 +214,7 @@ impl QemuLine {
             held: heapless::Deque::new(),
             staged: None,
             active_while_awaiting: false,
+            emu: DmaEmu::new(),
         }
     }
 
@@ -258,6 +261,7 @@ impl QemuLine {
                 fast,
                 &mut self.awaiting,
                 &mut self.staged,
+                &mut self.emu,
                 byte,
                 at,
                 entry,
@@ -291,6 +295,7 @@ impl QemuLine {
                             fast,
                             &mut self.awaiting,
                             &mut self.staged,
+                            &mut self.emu,
                             byte,
                             at,
                             entry,
@@ -308,6 +313,7 @@ impl QemuLine {
                     inc(&mut self.stats.noise, e.noise);
                     inc(&mut self.stats.overrun, e.overrun);
                     self.framer.line_error();
+                    self.emu.line_error(fast);
                     fast.abort();
                 }
                 LineEvent::TxDone => {}
@@ -355,6 +361,7 @@ impl QemuLine {
 /// interrupt busy so that the core never ran between two requests; the answer itself waits
 /// only for its quiet window, [`QUIET_US`]). The F411's DMA receiver needs nothing of the kind.
 #[allow(clippy::too_many_arguments)]
+#[cfg(not(feature = "bench-dma"))]
 fn take(
     port: &mut Port,
     stats: &mut LineStats,
@@ -362,6 +369,7 @@ fn take(
     fast: &mut pbcard::fast::FastPath<'static>,
     awaiting: &mut Option<FrameMeta>,
     staged: &mut Option<(Instant, FrameMeta, bool)>,
+    _emu: &mut DmaEmu,
     byte: u8,
     at: Instant,
     entry: u32,
@@ -405,6 +413,157 @@ fn take(
         pbcard::fast::Verdict::Silent => {}
     }
     fast.stats().queued != before
+}
+
+/// [`take`] of the `bench-dma` build: the character into [`DmaEmu`].
+#[allow(clippy::too_many_arguments)]
+#[cfg(feature = "bench-dma")]
+fn take(
+    port: &mut Port,
+    stats: &mut LineStats,
+    framer: &mut Framer,
+    fast: &mut pbcard::fast::FastPath<'static>,
+    awaiting: &mut Option<FrameMeta>,
+    staged: &mut Option<(Instant, FrameMeta, bool)>,
+    emu: &mut DmaEmu,
+    byte: u8,
+    at: Instant,
+    _entry: u32,
+) -> bool {
+    emu.take(port, stats, framer, fast, awaiting, staged, byte, at)
+}
+
+/// The fast path's decision at the end of a telegram and its answer staged (or the telegram
+/// left to the core): whether the fast path queued it (the `bench-dma` build; the
+/// per-character [`take`] has the same lines inline).
+#[cfg(feature = "bench-dma")]
+fn finish(
+    port: &mut Port,
+    stats: &mut LineStats,
+    fast: &mut pbcard::fast::FastPath<'static>,
+    awaiting: &mut Option<FrameMeta>,
+    staged: &mut Option<(Instant, FrameMeta, bool)>,
+    meta: FrameMeta,
+    at: Instant,
+) -> bool {
+    let before = fast.stats().queued;
+    match fast.finish(at) {
+        pbcard::fast::Verdict::Answer(bytes) => stage(port, stats, staged, meta, bytes, false, at),
+        pbcard::fast::Verdict::Core => *awaiting = Some(meta),
+        pbcard::fast::Verdict::Silent => {}
+    }
+    fast.stats().queued != before
+}
+
+/// The F411's DMA receive (≥ 3 Mbit/s, `bsp::f411::DmaLine::walk_ring`) emulated on QEMU's
+/// per-byte USART for the benchmark (feature `bench-dma`; a zero-sized stand-in otherwise):
+/// every character goes into a 16-byte chunk as the DMA would put it into the ring, not into
+/// the stream. At every 16th character of the line (the ring's half- and full-transfer
+/// points, which do not follow the telegrams) the chunk goes through `Stream::piece` into the
+/// fast path's sink — the HT/TC interrupt's work, counted per chunk (`CHUNK` log lines). At a
+/// telegram's last character — where on the F411 the USART's IDLE interrupt comes one
+/// character later — the count starts (`entry`: the IDLE handler's entry), the remainder of
+/// 1 … 16 characters goes through `Stream::piece` and `FastPath::finish` decides: the window
+/// the F411's IDLE handler runs between the line going quiet and its answer's DMA start,
+/// without the handler's own register work (SR, NDTR, the ring walk, the T_SYN compare:
+/// estimated from the source, `card::F411_IDLE_ENTRY_INSTRUCTIONS`). The end is known here from
+/// a shadow [`Framer::cut`] of every character, outside the count (the F411 learns it from
+/// the IDLE flag).
+#[cfg(feature = "bench-dma")]
+pub struct DmaEmu {
+    stream: pbcard::phy::stream::Stream,
+    chunk: [u8; 16],
+    n: usize,
+    /// Characters of the line so far, modulo 16 (the ring's half).
+    pos: u8,
+    /// The largest chunk cost of the telegram in progress.
+    chunk_max: u32,
+}
+
+/// The zero-sized stand-in of every build but `bench-dma`.
+#[cfg(not(feature = "bench-dma"))]
+pub struct DmaEmu;
+
+#[cfg(not(feature = "bench-dma"))]
+impl DmaEmu {
+    const fn new() -> Self {
+        DmaEmu
+    }
+    #[inline(always)]
+    fn line_error(&mut self, _fast: &mut pbcard::fast::FastPath<'static>) {}
+}
+
+#[cfg(feature = "bench-dma")]
+impl DmaEmu {
+    const fn new() -> Self {
+        DmaEmu {
+            stream: pbcard::phy::stream::Stream::new(pbcard::phy::stream::Resync::Hunt),
+            chunk: [0; 16],
+            n: 0,
+            pos: 0,
+            chunk_max: 0,
+        }
+    }
+
+    /// A character error: the telegram in progress and the unfed chunk are dropped.
+    fn line_error(&mut self, fast: &mut pbcard::fast::FastPath<'static>) {
+        self.n = 0;
+        self.stream.error(fast);
+    }
+
+    /// One received character (see the type's documentation).
+    #[allow(clippy::too_many_arguments)]
+    fn take(
+        &mut self,
+        port: &mut Port,
+        stats: &mut LineStats,
+        framer: &mut Framer,
+        fast: &mut pbcard::fast::FastPath<'static>,
+        awaiting: &mut Option<FrameMeta>,
+        staged: &mut Option<(Instant, FrameMeta, bool)>,
+        byte: u8,
+        at: Instant,
+    ) -> bool {
+        use pbcard::phy::stream::Step;
+        let last = matches!(framer.cut(byte), Cut::Byte { last: true, .. });
+        self.chunk[self.n] = byte;
+        self.n += 1;
+        self.pos = (self.pos + 1) % 16;
+        if !last {
+            if self.pos == 0 {
+                // The half- or full-transfer interrupt: the chunk into the stream.
+                let t0 = bench::count();
+                let (_, step) = self.stream.piece(&self.chunk[..self.n], fast);
+                self.chunk_max = self.chunk_max.max(bench::count().wrapping_sub(t0));
+                self.n = 0;
+                if step == Step::Complete {
+                    // The stream found an end the shadow cut did not: not a telegram here.
+                    fast.abort();
+                }
+            }
+            return false;
+        }
+        // The IDLE interrupt: the remainder, then the decision.
+        let entry = bench::count();
+        let (_, step) = self.stream.piece(&self.chunk[..self.n], fast);
+        self.n = 0;
+        let len = framer.telegram_len();
+        let who = match fast.receiving_for_us() {
+            Some(true) => "us",
+            Some(false) => "other",
+            None => "unknown",
+        };
+        let queued =
+            step == Step::Complete && finish(port, stats, fast, awaiting, staged, FrameMeta { entry, len }, at);
+        // After the count of the answer (it ended at the answer's staging): this telegram's
+        // largest chunk and its IDLE handler's part (remainder + `finish`).
+        let end = bench::count().wrapping_sub(entry);
+        if len >= 32 {
+            defmt::info!("CHUNK {=str} len {=usize} chunk {=u32} end {=u32}", who, len, self.chunk_max, end);
+        }
+        self.chunk_max = 0;
+        queued
+    }
 }
 
 /// Put a response into the port's buffer to start once the line has been quiet for
@@ -872,6 +1031,7 @@ pub mod bench {
 
     /// The line took character `len - 1` of a telegram (`last`: its last by length; `us`:
     /// [`FastPath::receiving_for_us`](pbcard::fast::FastPath::receiving_for_us)).
+    #[cfg_attr(feature = "bench-dma", allow(dead_code))]
     pub fn char_in(len: usize, last: bool, us: Option<bool>, sink: u32) {
         let who = match us {
             Some(true) => 1,

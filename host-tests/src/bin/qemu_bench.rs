@@ -111,6 +111,13 @@ impl<S: std::io::Read + std::io::Write> Script<S> {
 /// The firmware log, printed when the benchmark fails.
 static LOG: OnceLock<Arc<Mutex<Vec<String>>>> = OnceLock::new();
 
+/// A row of the bench build's own modules (not a request the shipped card can get).
+fn bench_only(l: &str) -> bool {
+    l.contains("bench build only")
+        || l.starts_with("Data_Exchange 32 out / 32 in")
+        || l.starts_with("Data_Exchange 244 out / 244 in")
+}
+
 fn fail(what: &str) -> ! {
     if let Some(log) = LOG.get() {
         eprintln!("--- firmware log ---\n{}", log.lock().unwrap().join("\n"));
@@ -120,7 +127,9 @@ fn fail(what: &str) -> ! {
 }
 
 fn main() {
-    let elf = qemu::firmware_elf(Build::Bench);
+    // `--dma`: the bench-dma build, the F411's DMA receive emulated (`bsp::qemu::DmaEmu`).
+    let dma = std::env::args().any(|a| a == "--dma");
+    let elf = qemu::firmware_elf(if dma { Build::BenchDma } else { Build::Bench });
     let q = Qemu::boot(&elf, &QemuOptions { icount: true, echo_log: None }).unwrap_or_else(|e| fail(&e.to_string()));
     let _ = LOG.set(q.log_handle());
     let mut phy = q.connect().unwrap_or_else(|e| fail(&e.to_string()));
@@ -303,6 +312,10 @@ fn main() {
     if stop.iter().any(|l| l.contains("panic") || l.contains("HardFault")) {
         fail(&stop.join("\n"));
     }
+    if dma {
+        dma_report(&rows, &stop);
+        return;
+    }
     // The lower-priority work under the Node lock (USART1 masked): `LOCK <what> <n> ...`, and
     // the unlocked middle of the step: `UNLOCKED <what> <n> ...`.
     let mut locks: Vec<(String, Vec<u32>)> = Vec::new();
@@ -420,11 +433,6 @@ fn main() {
     // The shipped card: every row but the bench build's own modules (their Chk_Cfg and
     // Data_Exchange); the line or the core answering. A Data_Exchange of 244 bytes to PPO 5
     // (RS) is a request the shipped card can get, so it counts.
-    let bench_only = |l: &str| {
-        l.contains("bench build only")
-            || l.starts_with("Data_Exchange 32 out / 32 in")
-            || l.starts_with("Data_Exchange 244 out / 244 in")
-    };
     let shipped = rows
         .iter()
         .filter(|r| !bench_only(&r.0))
@@ -505,7 +513,7 @@ fn streaming(log: &[String]) {
             card::STREAM_CHAR_INSTRUCTIONS
         ));
     }
-    println!("\n(F411 cycle model, `card::modelled_tsdr` of card::LINE_BUDGET_INSTRUCTIONS = {} and card::STREAM_CHAR_INSTRUCTIONS = {}; bit times)\n", card::LINE_BUDGET_INSTRUCTIONS, card::STREAM_CHAR_INSTRUCTIONS);
+    println!("\n(F411 cycle model, `card::modelled_tsdr` of card::LINE_BUDGET_INSTRUCTIONS = {} per character and card::DMA_FINISH_INSTRUCTIONS = {} + card::F411_IDLE_ENTRY_INSTRUCTIONS = {} in DMA mode (`qemu_bench --dma`); bit times)\n", card::LINE_BUDGET_INSTRUCTIONS, card::DMA_FINISH_INSTRUCTIONS, card::F411_IDLE_ENTRY_INSTRUCTIONS);
     println!("| rate | receive | modelled | customary | GSD MaxTsdr |");
     println!("|---|---|---:|---:|---:|");
     for rate in pbcard::time::Baudrate::ALL.iter().rev() {
@@ -513,7 +521,7 @@ fn streaming(log: &[String]) {
         println!(
             "| {} bit/s | {how} | {} | {} | {} |",
             rate.bits_per_second(),
-            card::modelled_tsdr(*rate, card::LINE_BUDGET_INSTRUCTIONS),
+            card::modelled_tsdr(*rate, card::budget_instructions(*rate)),
             card::customary_max_tsdr(*rate),
             card::max_tsdr(*rate)
         );
@@ -535,5 +543,90 @@ fn streaming(log: &[String]) {
         let lo = card::foreign_load_per_mille(pbcard::time::Baudrate::B12M, len, chunk_lo, end_other);
         let hi = card::foreign_load_per_mille(pbcard::time::Baudrate::B12M, len, chunk_hi, end_other);
         println!("| {what} | {:.1} % | {:.1} % |", f64::from(lo) / 10.0, f64::from(hi) / 10.0);
+    }
+}
+
+/// The `--dma` run (`bench-dma` build, the F411's DMA receive emulated by
+/// `bsp::qemu::DmaEmu`): per request the instructions from the IDLE interrupt's entry to the
+/// first response byte — the remainder of 1 … 16 characters through `Stream::piece`,
+/// `FastPath::finish`, the answer staged —, the cost of a 16-byte chunk (`CHUNK <us|other> len
+/// <n> chunk <c> end <e>` lines, one per telegram of 32 bytes or more), the DMA rates' cycle
+/// model and the CPU share of other stations' traffic from these measurements.
+fn dma_report(rows: &[(String, usize, usize, Vec<u32>, String)], log: &[String]) {
+    println!("QEMU netduinoplus2, `-icount shift=0,align=off,sleep=off`, firmware built with `--features bench-dma`");
+    println!("(the F411's DMA receive emulated: characters to the fast path in 16-byte chunks, the rest at the telegram's end;");
+    println!(
+        " instructions from the IDLE interrupt's entry — the last character — to the first response byte in DR)\n"
+    );
+    println!("| request | frame bytes in → out | instructions | samples |");
+    println!("|---|---:|---:|---:|");
+    for (label, req, resp, v, _) in rows {
+        let (lo, hi) = (v.iter().min().unwrap(), v.iter().max().unwrap());
+        let instr = if lo == hi { format!("{lo}") } else { format!("{lo} – {hi}") };
+        println!("| {label} | {req} → {resp} | {instr} | {} |", v.len());
+    }
+    let worst = rows
+        .iter()
+        .filter(|r| !bench_only(&r.0) && r.4 != "core")
+        .map(|r| (*r.3.iter().max().unwrap(), &r.0))
+        .max_by_key(|r| r.0)
+        .unwrap_or_else(|| fail("no fast-path answer"));
+    println!("\nworst DMA-mode finish: {} instructions ({})", worst.0, worst.1);
+    if worst.0 > card::DMA_FINISH_INSTRUCTIONS {
+        fail(&format!(
+            "worst DMA-mode finish {} instructions ({}) exceeds card::DMA_FINISH_INSTRUCTIONS = {}",
+            worst.0,
+            worst.1,
+            card::DMA_FINISH_INSTRUCTIONS
+        ));
+    }
+    /// (who, len, chunk, end) of one `CHUNK` line.
+    type ChunkRow = (String, u32, u32, u32);
+    let chunks: Vec<ChunkRow> = log
+        .iter()
+        .filter_map(|l| {
+            let f: Vec<&str> = l.split_whitespace().collect();
+            let p = f.iter().position(|w| *w == "CHUNK")?;
+            let n = |k: usize| f.get(p + k).and_then(|v| v.parse::<u32>().ok());
+            Some((f.get(p + 1)?.to_string(), n(3)?, n(5)?, n(7)?))
+        })
+        .collect();
+    let max =
+        |who: &str, pick: fn(&ChunkRow) -> u32| chunks.iter().filter(|r| r.0 == who && r.1 >= 200).map(pick).max();
+    let (Some(chunk_us), Some(chunk_other), Some(end_other)) =
+        (max("us", |r| r.2), max("other", |r| r.2), max("other", |r| r.3))
+    else {
+        fail("no CHUNK lines of a long Data_Exchange to the card and to another station in the firmware log")
+    };
+    println!("\n(the chunk interrupts: `Stream::piece` of 16 characters into the fast path's sink; largest of every telegram ≥ 200 bytes)\n");
+    println!("| piece | instructions |");
+    println!("|---|---:|");
+    println!("| a 16-byte chunk of a Data_Exchange 244/244 to the card | {chunk_us} |");
+    println!("| a 16-byte chunk of a Data_Exchange 244 to another station | {chunk_other} |");
+    println!("| another station's telegram at IDLE (the remainder, `finish`: counted, dropped) | {end_other} |");
+    println!("\n(F411 cycle model of the DMA rates: {} bit times to IDLE, then the interrupt entry and (card::DMA_FINISH_INSTRUCTIONS = {} + the handler's own register work card::F411_IDLE_ENTRY_INSTRUCTIONS = {}, estimated) × CPI 3/2 + DMA start, + 20 %)\n", card::IDLE_DETECT_BITS, card::DMA_FINISH_INSTRUCTIONS, card::F411_IDLE_ENTRY_INSTRUCTIONS);
+    println!("| rate | modelled | customary | GSD MaxTsdr |");
+    println!("|---|---:|---:|---:|");
+    for rate in pbcard::time::Baudrate::ALL.iter().rev().filter(|r| !card::per_character(**r)) {
+        println!(
+            "| {} bit/s | {} | {} | {} |",
+            rate.bits_per_second(),
+            card::modelled_tsdr(*rate, card::DMA_FINISH_INSTRUCTIONS),
+            card::customary_max_tsdr(*rate),
+            card::max_tsdr(*rate)
+        );
+    }
+    let chunk = chunk_other + card::F411_CHUNK_ENTRY_INSTRUCTIONS;
+    let idle = end_other + card::F411_IDLE_ENTRY_INSTRUCTIONS;
+    println!("\n(CPU share of a saturated 12 Mbit/s bus of other stations' telegrams, `card::foreign_load_per_mille` of the measured costs: a chunk interrupt {chunk_other} + card::F411_CHUNK_ENTRY_INSTRUCTIONS = {} (its register work, estimated), an IDLE interrupt {end_other} + card::F411_IDLE_ENTRY_INSTRUCTIONS = {}; 33 idle bits before every telegram, CPI 1.5, entry 12 cycles)\n", card::F411_CHUNK_ENTRY_INSTRUCTIONS, card::F411_IDLE_ENTRY_INSTRUCTIONS);
+    println!("| telegram mix (all for other stations) | CPU share |");
+    println!("|---|---:|");
+    for (what, len) in [
+        ("tokens and SD1 status telegrams (6 bytes)", 6u32),
+        ("Data_Exchange 32/32 cycles (41-byte telegrams)", 41),
+        ("Data_Exchange 244/244 cycles (253-byte telegrams)", 253),
+    ] {
+        let share = card::foreign_load_per_mille(pbcard::time::Baudrate::B12M, len, chunk, idle);
+        println!("| {what} | {:.1} % |", f64::from(share) / 10.0);
     }
 }
