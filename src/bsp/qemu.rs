@@ -460,7 +460,9 @@ fn finish(
 /// every character goes into a 16-byte chunk as the DMA would put it into the ring, not into
 /// the stream. At every 16th character of the line (the ring's half- and full-transfer
 /// points, which do not follow the telegrams) the chunk goes through `Stream::piece` into the
-/// fast path's sink — the HT/TC interrupt's work, counted per chunk (`CHUNK` log lines). At a
+/// fast path's sink — the HT/TC interrupt's work, counted per chunk (`CHUNK` log lines), with
+/// the F411's destination filter (`Stream::set_filter`, other stations' telegrams skipped by
+/// length). At a
 /// telegram's last character — where on the F411 the USART's IDLE interrupt comes one
 /// character later — the count starts (`entry`: the IDLE handler's entry), the remainder of
 /// 1 … 16 characters goes through `Stream::piece` and `FastPath::finish` decides: the window
@@ -476,8 +478,12 @@ pub struct DmaEmu {
     n: usize,
     /// Characters of the line so far, modulo 16 (the ring's half).
     pos: u8,
-    /// The largest chunk cost of the telegram in progress.
+    /// The cost of the telegram's first chunk (its start delimiter and header: the sink's
+    /// `begin`, the destination filter) and the largest of its later chunks.
+    chunk_first: Option<u32>,
     chunk_max: u32,
+    /// The smallest of its later chunks (a chunk the SysTick interrupt did not preempt).
+    chunk_min: u32,
 }
 
 /// The zero-sized stand-in of every build but `bench-dma`.
@@ -501,7 +507,9 @@ impl DmaEmu {
             chunk: [0; 16],
             n: 0,
             pos: 0,
+            chunk_first: None,
             chunk_max: 0,
+            chunk_min: u32::MAX,
         }
     }
 
@@ -534,7 +542,14 @@ impl DmaEmu {
                 // The half- or full-transfer interrupt: the chunk into the stream.
                 let t0 = bench::count();
                 let (_, step) = self.stream.piece(&self.chunk[..self.n], fast);
-                self.chunk_max = self.chunk_max.max(bench::count().wrapping_sub(t0));
+                let cost = bench::count().wrapping_sub(t0);
+                match self.chunk_first {
+                    None => self.chunk_first = Some(cost),
+                    Some(_) => {
+                        self.chunk_max = self.chunk_max.max(cost);
+                        self.chunk_min = self.chunk_min.min(cost);
+                    }
+                }
                 self.n = 0;
                 if step == Step::Complete {
                     // The stream found an end the shadow cut did not: not a telegram here.
@@ -548,10 +563,11 @@ impl DmaEmu {
         let (_, step) = self.stream.piece(&self.chunk[..self.n], fast);
         self.n = 0;
         let len = framer.telegram_len();
-        let who = match fast.receiving_for_us() {
-            Some(true) => "us",
-            Some(false) => "other",
-            None => "unknown",
+        // Another station's telegram skipped by the filter ends `Skipped` (its sink aborted at DA).
+        let who = match (step, fast.receiving_for_us()) {
+            (Step::Skipped, _) | (_, Some(false)) => "other",
+            (_, Some(true)) => "us",
+            _ => "unknown",
         };
         let queued =
             step == Step::Complete && finish(port, stats, fast, awaiting, staged, FrameMeta { entry, len }, at);
@@ -559,9 +575,23 @@ impl DmaEmu {
         // largest chunk and its IDLE handler's part (remainder + `finish`).
         let end = bench::count().wrapping_sub(entry);
         if len >= 32 {
-            defmt::info!("CHUNK {=str} len {=usize} chunk {=u32} end {=u32}", who, len, self.chunk_max, end);
+            let first = self.chunk_first.unwrap_or(0);
+            defmt::info!(
+                "CHUNK {=str} len {=usize} first {=u32} chunk {=u32} low {=u32} end {=u32}",
+                who,
+                len,
+                first,
+                self.chunk_max,
+                self.chunk_min,
+                end
+            );
         }
+        self.chunk_first = None;
         self.chunk_max = 0;
+        self.chunk_min = u32::MAX;
+        // As the F411 after every decision with its rate locked (QEMU's is fixed): other
+        // stations' telegrams are skipped by length, their bytes not read.
+        self.stream.set_filter(Some(fast.address()));
         queued
     }
 }

@@ -580,29 +580,39 @@ fn dma_report(rows: &[(String, usize, usize, Vec<u32>, String)], log: &[String])
             card::DMA_FINISH_INSTRUCTIONS
         ));
     }
-    /// (who, len, chunk, end) of one `CHUNK` line.
-    type ChunkRow = (String, u32, u32, u32);
+    /// (who, len, first, chunk, end, low) of one `CHUNK` line.
+    type ChunkRow = (String, u32, u32, u32, u32, u32);
     let chunks: Vec<ChunkRow> = log
         .iter()
         .filter_map(|l| {
             let f: Vec<&str> = l.split_whitespace().collect();
             let p = f.iter().position(|w| *w == "CHUNK")?;
             let n = |k: usize| f.get(p + k).and_then(|v| v.parse::<u32>().ok());
-            Some((f.get(p + 1)?.to_string(), n(3)?, n(5)?, n(7)?))
+            Some((f.get(p + 1)?.to_string(), n(3)?, n(5)?, n(7)?, n(11)?, n(9)?))
         })
         .collect();
     let max =
         |who: &str, pick: fn(&ChunkRow) -> u32| chunks.iter().filter(|r| r.0 == who && r.1 >= 200).map(pick).max();
-    let (Some(chunk_us), Some(chunk_other), Some(end_other)) =
-        (max("us", |r| r.2), max("other", |r| r.2), max("other", |r| r.3))
-    else {
+    let low = |who: &str| chunks.iter().filter(|r| r.0 == who && r.1 >= 200).map(|r| r.5).min();
+    let (Some(first_us), Some(chunk_us), Some(first_other), Some(chunk_other), Some(end_other), Some(low_other)) = (
+        max("us", |r| r.2),
+        max("us", |r| r.3),
+        max("other", |r| r.2),
+        max("other", |r| r.3),
+        max("other", |r| r.4),
+        low("other"),
+    ) else {
         fail("no CHUNK lines of a long Data_Exchange to the card and to another station in the firmware log")
     };
     println!("\n(the chunk interrupts: `Stream::piece` of 16 characters into the fast path's sink; largest of every telegram ≥ 200 bytes)\n");
     println!("| piece | instructions |");
     println!("|---|---:|");
-    println!("| a 16-byte chunk of a Data_Exchange 244/244 to the card | {chunk_us} |");
-    println!("| a 16-byte chunk of a Data_Exchange 244 to another station | {chunk_other} |");
+    println!("| the first chunk of a Data_Exchange 244/244 to the card (header: `begin`, the answer prepared) | {first_us} |");
+    println!("| a later 16-byte chunk of a Data_Exchange 244/244 to the card | {chunk_us} |");
+    println!(
+        "| the first chunk of a Data_Exchange 244 to another station (header: its DA, then skipped) | {first_other} |"
+    );
+    println!("| a later 16-byte chunk of a Data_Exchange 244 to another station (skipped by length): lowest – highest (a SysTick preemption) | {low_other} – {chunk_other} |");
     println!("| another station's telegram at IDLE (the remainder, `finish`: counted, dropped) | {end_other} |");
     println!("\n(F411 cycle model of the DMA rates: {} bit times to IDLE, then the interrupt entry and (card::DMA_FINISH_INSTRUCTIONS = {} + the handler's own register work card::F411_IDLE_ENTRY_INSTRUCTIONS = {}, estimated) × CPI 3/2 + DMA start, + 20 %)\n", card::IDLE_DETECT_BITS, card::DMA_FINISH_INSTRUCTIONS, card::F411_IDLE_ENTRY_INSTRUCTIONS);
     println!("| rate | modelled | customary | GSD MaxTsdr |");
@@ -616,9 +626,12 @@ fn dma_report(rows: &[(String, usize, usize, Vec<u32>, String)], log: &[String])
             card::max_tsdr(*rate)
         );
     }
-    let chunk = chunk_other + card::F411_CHUNK_ENTRY_INSTRUCTIONS;
-    let idle = end_other + card::F411_IDLE_ENTRY_INSTRUCTIONS;
-    println!("\n(CPU share of a saturated 12 Mbit/s bus of other stations' telegrams, `card::foreign_load_per_mille` of the measured costs: a chunk interrupt {chunk_other} + card::F411_CHUNK_ENTRY_INSTRUCTIONS = {} (its register work, estimated), an IDLE interrupt {end_other} + card::F411_IDLE_ENTRY_INSTRUCTIONS = {}; 33 idle bits before every telegram, CPI 1.5, entry 12 cycles)\n", card::F411_CHUNK_ENTRY_INSTRUCTIONS, card::F411_IDLE_ENTRY_INSTRUCTIONS);
+    // Per telegram: its chunks at the later chunks' cost, and once the first chunk's surplus
+    // (the header) and the IDLE interrupt.
+    let chunk = low_other + card::F411_CHUNK_ENTRY_INSTRUCTIONS;
+    let surplus = first_other.saturating_sub(low_other);
+    let idle = end_other + surplus + card::F411_IDLE_ENTRY_INSTRUCTIONS;
+    println!("\n(CPU share of a saturated 12 Mbit/s bus of other stations' telegrams, `card::foreign_load_per_mille` of the measured costs: a chunk interrupt {low_other} (the lowest: the load is the typical chunk's) + card::F411_CHUNK_ENTRY_INSTRUCTIONS = {} (its register work, estimated); per telegram once the header's surplus {surplus} and the IDLE interrupt {end_other} + card::F411_IDLE_ENTRY_INSTRUCTIONS = {} (estimated); 33 idle bits before every telegram, CPI 1.5, entry 12 cycles)\n", card::F411_CHUNK_ENTRY_INSTRUCTIONS, card::F411_IDLE_ENTRY_INSTRUCTIONS);
     println!("| telegram mix (all for other stations) | CPU share |");
     println!("|---|---:|");
     for (what, len) in [
