@@ -368,7 +368,7 @@ impl Shared {
             w: 0,
             rxb: &mut rx[..],
             rx: Rx::IDLE,
-            prep: None,
+            prep: Prepared::None,
             given: Out::Silent,
             sd1: [0; 6],
             deferred: [0; MAX_FRAME_LEN],
@@ -509,6 +509,19 @@ fn pdu_sum(frame: &[u8], pdu_len: usize) -> u8 {
     fcs.wrapping_sub(telegram::fcs(frame.get(start..end).unwrap_or(&[])))
 }
 
+/// The SD1 frame without SAPs and PDU `[SD1, da, sa, fc, FCS, ED]` into `out` — what
+/// [`telegram::emit`] lays out for that header (`header_sd1_equals_emit`), written directly:
+/// every status answer of the line (FDL_Status, RS, RR, DH without inputs). Its length (6).
+fn sd1_status(out: &mut [u8], da: u8, sa: u8, s: ResponseStatus) -> u16 {
+    let fc = FunctionCode::response(s).0;
+    if let Some(o) = out.get_mut(..6) {
+        o.copy_from_slice(&[telegram::SD1, da, sa, fc, da.wrapping_add(sa).wrapping_add(fc), telegram::ED]);
+        6
+    } else {
+        0
+    }
+}
+
 /// How far the line got with the telegram being received ([`TelegramSink`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum RxState {
@@ -563,6 +576,16 @@ struct Prep {
     status1: u8,
 }
 
+/// What the line prepared into `bufs[w]` while the request's header arrived.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Prepared {
+    None,
+    /// A staged frame patched for this request ([`FastPath::patched`]).
+    Patch(Prep),
+    /// A DP-V1 answer and the decision it belongs to ([`dpv1`]).
+    Dpv1(dpv1::Decided),
+}
+
 /// Where a decision's answer is.
 #[derive(Debug, Clone, Copy)]
 enum Out {
@@ -607,8 +630,8 @@ pub struct FastPath<'a> {
     rxb: &'a mut [u8],
     rx: Rx,
     /// The answer prepared into `bufs[w]` once the header was in: the arguments of
-    /// [`FastPath::patched`] it was made with.
-    prep: Option<Prep>,
+    /// [`FastPath::patched`] it was made with, or the DP-V1 decision ([`dpv1`]).
+    prep: Prepared,
     /// Where the last answer given is ([`FastPath::answer_given`]).
     given: Out,
     sd1: [u8; 6],
@@ -794,7 +817,7 @@ impl<'a> FastPath<'a> {
                 Out::Silent
             }
         };
-        self.prep = None;
+        self.prep = Prepared::None;
         match out {
             Out::Silent => Verdict::Silent,
             Out::Core => Verdict::Core,
@@ -849,20 +872,9 @@ impl<'a> FastPath<'a> {
         let fingerprint = (t.dsap, t.ssap, t.pdu.len(), pdu_sum(frame, t.pdu.len()));
         let answer: Option<u16> = match function {
             RequestFunction::FdlStatus => {
-                let hdr = Header {
-                    da: t.sa,
-                    sa: own,
-                    fc: FunctionCode::response(ResponseStatus::Ok),
-                    dsap: None,
-                    ssap: None,
-                };
-                return match telegram::emit(&mut self.sd1, &hdr, &[]) {
-                    Ok(n) => {
-                        self.stats.answered = self.stats.answered.wrapping_add(1);
-                        Out::Sd1(n as u16)
-                    }
-                    Err(_) => Out::Silent,
-                };
+                let n = sd1_status(&mut self.sd1, t.sa, own, ResponseStatus::Ok);
+                self.stats.answered = self.stats.answered.wrapping_add(1);
+                return Out::Sd1(n);
             }
             RequestFunction::SdnLow | RequestFunction::SdnHigh => {
                 if let Some(seq) = self.queue(now, frame.len(), false) {
@@ -974,8 +986,7 @@ impl<'a> FastPath<'a> {
 
     /// An SD1 status answer to `da` in `buf`; its length.
     fn status(&mut self, da: u8, s: ResponseStatus) -> u16 {
-        let hdr = Header { da, sa: self.st.address, fc: FunctionCode::response(s), dsap: None, ssap: None };
-        telegram::emit(&mut self.bufs[self.w], &hdr, &[]).map_or(0, |n| n as u16)
+        sd1_status(&mut self.bufs[self.w], da, self.st.address, s)
     }
 
     fn sc(&mut self) -> u16 {
@@ -988,7 +999,7 @@ impl<'a> FastPath<'a> {
     /// octet (the not-ready diagnosis).
     fn patched(&mut self, at: usize, len: usize, da: u8, fc: u8, dsap: Option<u8>, status1: u8) -> u16 {
         let key = Prep { at, len, da, fc, dsap, status1 };
-        if self.prep == Some(key) {
+        if self.prep == Prepared::Patch(key) {
             // Prepared into `bufs[w]` while the request arrived, from this staging.
             return len as u16;
         }
@@ -1138,7 +1149,7 @@ impl<'a> FastPath<'a> {
 impl TelegramSink for FastPath<'_> {
     fn begin(&mut self) {
         self.rx = Rx::IDLE;
-        self.prep = None;
+        self.prep = Prepared::None;
         self.refresh();
         self.rx =
             Rx { state: RxState::Open, own: self.st.address, slot: slot_of(self.seq.wrapping_add(1)), ..Rx::IDLE };
@@ -1229,16 +1240,18 @@ impl TelegramSink for FastPath<'_> {
 
     fn abort(&mut self) {
         self.rx = Rx::IDLE;
-        self.prep = None;
+        self.prep = Prepared::None;
     }
 }
 
 impl FastPath<'_> {
-    /// Once DA, SA, FC and the SAPs are in (`have` bytes, the covered bytes end at `end`):
-    /// the answer the decision will likely give, prepared into `bufs[w]` — the staged
-    /// Data_Exchange response for the locking master in data exchange, or the staged
-    /// diagnosis for a Slave_Diag. A guess: [`patched`](Self::patched) uses it only for
-    /// exactly these arguments.
+    /// Once DA, SA, FC and the SAPs are in (`have` bytes, the covered bytes end at `end`;
+    /// with both SAPs, also the first PDU octet): the answer the decision will likely give,
+    /// prepared into `bufs[w]` — the staged Data_Exchange response for the locking master in
+    /// data exchange, the staged diagnosis for a Slave_Diag, or a DP-V1 answer with the
+    /// decision it comes from (`dpv1`'s `prepare_dpv1`). A guess: [`patched`](Self::patched)
+    /// uses it only for exactly these arguments, the DP-V1 decision only for this request
+    /// before the next timer of the relations it looked at.
     fn prepare(&mut self, have: usize, end: usize) {
         let s = self.rx.start;
         if have < s + 2 {
@@ -1250,6 +1263,11 @@ impl FastPath<'_> {
         if have < header {
             return;
         }
+        let ext = (da_raw & 0x80 != 0, sa_raw & 0x80 != 0);
+        if ext == (true, true) && have == header && header < end {
+            // A DP-V1 answer depends on the first PDU octet as well: wait for it.
+            return;
+        }
         self.rx.header_seen = true;
         let fc = b[s + 2];
         let srd = fc & 0xC0 == 0x40 && matches!(fc & 0x0F, 0x0C | 0x0D);
@@ -1259,7 +1277,7 @@ impl FastPath<'_> {
         }
         let st = self.st;
         let window = after(self.judge_seq, st.done_seq);
-        let key = match (da_raw & 0x80 != 0, sa_raw & 0x80 != 0) {
+        let key = match ext {
             (false, false) => {
                 let pdu_len = end - header;
                 let dx = st.state() == DpState::DataExch && st.master() == Some(sa) && st.in_len != 0;
@@ -1275,10 +1293,16 @@ impl FastPath<'_> {
                 let dsap = Some(b[s + 4] & 0x3F);
                 Prep { at: DIAG_AT, len: usize::from(st.diag_len), da: sa, fc: ResponseStatus::Dl as u8, dsap, status1 }
             }
+            (true, true) => {
+                let (dsap, ssap) = (b[s + 3] & 0x3F, b[s + 4] & 0x3F);
+                let first = (header < end).then(|| b[header]);
+                self.prepare_dpv1(sa, da, fc, dsap, ssap, first);
+                return;
+            }
             _ => return,
         };
         if self.patch_into_scratch(key) != 0 {
-            self.prep = Some(key);
+            self.prep = Prepared::Patch(key);
         }
     }
 }
@@ -1686,6 +1710,23 @@ mod tests {
     /// `load_words` gives the packed bytes of the words, then zeros past their end, for every
     /// length (whole words, a partial last word, reads past the end).
     #[test]
+    fn header_sd1_equals_emit() {
+        for (da, sa) in [(0u8, 0u8), (2, 8), (126, 125), (127, 3), (45, 126)] {
+            for s in
+                [ResponseStatus::Ok, ResponseStatus::Rs, ResponseStatus::Rr, ResponseStatus::Dh, ResponseStatus::Dl]
+            {
+                let hdr = Header { da, sa, fc: FunctionCode::response(s), dsap: None, ssap: None };
+                let mut want = [0u8; 8];
+                let n = telegram::emit(&mut want, &hdr, &[]).unwrap();
+                let mut got = [0u8; 8];
+                assert_eq!(usize::from(sd1_status(&mut got, da, sa, s)), n);
+                assert_eq!(got[..n], want[..n]);
+            }
+        }
+        assert_eq!(sd1_status(&mut [0u8; 5], 1, 2, ResponseStatus::Rs), 0);
+    }
+
+    #[test]
     fn load_words_reads_packed_bytes_then_zeros() {
         let words = [AtomicU32::new(0x0403_0201), AtomicU32::new(0x0807_0605)];
         for n in 0..=13 {
@@ -1896,6 +1937,110 @@ mod tests {
         assert_eq!(parts(res).1[0], 0x57, "Initiate.res");
         core.run(&mut node);
         assert_eq!(fast.stats().deferred, 0);
+    }
+
+    /// The DP-V1 decision prepared while the header arrives (`prepare_dpv1`) is the last
+    /// character's only while it still holds: a reservation that expires between the header
+    /// and the last character frees its connection (the RM names it, not the one prepared),
+    /// a bad FCS leaves nothing behind, a staging published while the telegram arrives does
+    /// not change the decision, and a connection SAP's Abort PDU is decided by its full
+    /// parse. Every answer as the core alone's at the same time.
+    #[test]
+    fn dpv1_prepared_decision_is_rechecked_at_finish() {
+        use crate::dpv1::c2;
+        let mut node = Node::new(DpSlave::new(&crate::card::SLAVE, 8));
+        let mut alone = Node::new(DpSlave::new(&crate::card::SLAVE, 8));
+        let mut shared = Shared::new();
+        let (mut fast, mut core) = shared.split(&mut node);
+        let mut m = ScriptedMaster::new(2, 8);
+        let t0 = Instant::from_micros(100);
+        let prm = SetPrm::CARD.dpv1_status_1(0x80).pdu();
+        for f in [m.srd(Some(61), &prm), m.srd(Some(62), card::MODULES[0].cfg)] {
+            assert_eq!(fast.on_frame(t0, &f), Verdict::Answer(&[telegram::SC]));
+            let _ = alone.on_frame(t0, &f);
+        }
+        core.run(&mut node);
+        let mut init = [0u8; 64];
+        let req = crate::dpv1::pdu::InitiateRequest {
+            send_timeout: 300,
+            features_supported: [1, 0],
+            profile_features_supported: [0, 0],
+            profile_ident_number: 0,
+            source: crate::dpv1::pdu::AddressBlock { kind: 0, bytes: &[0, 0] },
+            destination: crate::dpv1::pdu::AddressBlock { kind: 0, bytes: &[0, 0] },
+        };
+        let n = req.emit(&mut init).unwrap();
+        let init = &init[..n];
+        let alone_says = |alone: &mut Node, at: Instant, f: &[u8]| match alone.on_frame(at, f) {
+            Some(a) => (1, a.to_vec()),
+            None => (0, std::vec::Vec::new()),
+        };
+        // The line in two pieces: all but the last character (the header and the first PDU
+        // octet in: prepared), then the last one and the decision at `at`.
+        let split_says = |fast: &mut FastPath<'_>, at: Instant, f: &[u8]| {
+            fast.begin();
+            fast.bytes(&f[..f.len() - 1]);
+            assert!(matches!(fast.prep, Prepared::Dpv1(_)), "prepared: {f:02x?}");
+            fast.bytes(&f[f.len() - 1..]);
+            owned(fast.finish(at))
+        };
+        // Master 3 reserves SAP 48 (for 1 s, the minimum Send_Timeout).
+        let f = m.request(3, Some(c2::RM_SAP), Some(40), init, true);
+        let a = split_says(&mut fast, t0, &f);
+        assert_eq!(a, alone_says(&mut alone, t0, &f));
+        assert_eq!(parts(&a.1).1[1], 48);
+        core.run(&mut node);
+        // 2 s later master 4 asks: the reservation has expired by the last character, so
+        // the RM names 48 again — the header's view (48 reserved) would have named 47.
+        let t1 = Instant::from_micros(2_000_000);
+        let f = m.request(4, Some(c2::RM_SAP), Some(41), init, true);
+        let a = split_says(&mut fast, t1, &f);
+        assert_eq!(a, alone_says(&mut alone, t1, &f));
+        assert_eq!(parts(&a.1).1[1], 48);
+        core.run(&mut node);
+        // A bad FCS: nothing, and nothing prepared is left for the next telegram.
+        let mut bad = m.request(5, Some(c2::RM_SAP), Some(42), init, true).to_vec();
+        let k = bad.len() - 2;
+        bad[k] ^= 1;
+        assert_eq!(split_says(&mut fast, t1, &bad), (0, std::vec::Vec::new()));
+        assert_eq!(alone_says(&mut alone, t1, &bad), (0, std::vec::Vec::new()));
+        assert!(matches!(fast.prep, Prepared::None));
+        let f = m.request(5, Some(c2::RM_SAP), Some(42), init, true);
+        let a = split_says(&mut fast, t1, &f);
+        assert_eq!(a, alone_says(&mut alone, t1, &f));
+        assert_eq!(parts(&a.1).1[1], 47);
+        core.run(&mut node);
+        // A staging published while a telegram arrives: the line keeps the one of its begin
+        // (both connections reserved: RR), the core alone agrees at that time.
+        let f = m.request(6, Some(c2::RM_SAP), Some(43), init, true);
+        fast.begin();
+        fast.bytes(&f[..f.len() - 1]);
+        assert!(matches!(fast.prep, Prepared::Dpv1(_)));
+        core.poll(t1, &mut node);
+        fast.bytes(&f[f.len() - 1..]);
+        let a = owned(fast.finish(t1));
+        assert_eq!(a, alone_says(&mut alone, t1, &f));
+        assert_eq!(parts(&a.1).0, ResponseStatus::Rr as u8);
+        core.run(&mut node);
+        // Master 5 opens 47 (SC), then aborts it: the Abort PDU is not prepared (its full
+        // parse decides), answered SC; a poll afterwards on 47 is RS.
+        let f = m.request(5, Some(47), Some(42), init, true);
+        assert_eq!(split_says(&mut fast, t1, &f), alone_says(&mut alone, t1, &f));
+        core.run(&mut node);
+        let abort = [0x58, 0, 0, 0];
+        let f = m.request(5, Some(47), Some(42), &abort, true);
+        fast.begin();
+        fast.bytes(&f[..f.len() - 1]);
+        assert!(matches!(fast.prep, Prepared::None), "an Abort PDU is not prepared");
+        fast.bytes(&f[f.len() - 1..]);
+        assert_eq!(owned(fast.finish(t1)), (1, std::vec![telegram::SC]));
+        let _ = alone_says(&mut alone, t1, &f);
+        core.run(&mut node);
+        let f = m.request(5, Some(47), Some(42), &[], true);
+        let a = split_says(&mut fast, t1, &f);
+        assert_eq!(a, alone_says(&mut alone, t1, &f));
+        assert_eq!(parts(&a.1).0, ResponseStatus::Rs as u8);
+        core.run(&mut node);
     }
 
     /// The benchmark's sequence: after every core run the line sees the core idle.
