@@ -368,7 +368,8 @@ impl Shared {
             w: 0,
             rxb: &mut rx[..],
             rx: Rx::IDLE,
-            prep: Prepared::None,
+            prep: None,
+            dprep: None,
             given: Out::Silent,
             sd1: [0; 6],
             deferred: [0; MAX_FRAME_LEN],
@@ -576,16 +577,6 @@ struct Prep {
     status1: u8,
 }
 
-/// What the line prepared into `bufs[w]` while the request's header arrived.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Prepared {
-    None,
-    /// A staged frame patched for this request ([`FastPath::patched`]).
-    Patch(Prep),
-    /// A DP-V1 answer and the decision it belongs to ([`dpv1`]).
-    Dpv1(dpv1::Decided),
-}
-
 /// Where a decision's answer is.
 #[derive(Debug, Clone, Copy)]
 enum Out {
@@ -630,8 +621,10 @@ pub struct FastPath<'a> {
     rxb: &'a mut [u8],
     rx: Rx,
     /// The answer prepared into `bufs[w]` once the header was in: the arguments of
-    /// [`FastPath::patched`] it was made with, or the DP-V1 decision ([`dpv1`]).
-    prep: Prepared,
+    /// [`FastPath::patched`] it was made with.
+    prep: Option<Prep>,
+    /// Or the DP-V1 decision whose answer was prepared into `bufs[w]` ([`dpv1`]).
+    dprep: Option<dpv1::Decided>,
     /// Where the last answer given is ([`FastPath::answer_given`]).
     given: Out,
     sd1: [u8; 6],
@@ -817,7 +810,8 @@ impl<'a> FastPath<'a> {
                 Out::Silent
             }
         };
-        self.prep = Prepared::None;
+        self.prep = None;
+        self.dprep = None;
         match out {
             Out::Silent => Verdict::Silent,
             Out::Core => Verdict::Core,
@@ -999,7 +993,7 @@ impl<'a> FastPath<'a> {
     /// octet (the not-ready diagnosis).
     fn patched(&mut self, at: usize, len: usize, da: u8, fc: u8, dsap: Option<u8>, status1: u8) -> u16 {
         let key = Prep { at, len, da, fc, dsap, status1 };
-        if self.prep == Prepared::Patch(key) {
+        if self.prep == Some(key) {
             // Prepared into `bufs[w]` while the request arrived, from this staging.
             return len as u16;
         }
@@ -1149,7 +1143,8 @@ impl<'a> FastPath<'a> {
 impl TelegramSink for FastPath<'_> {
     fn begin(&mut self) {
         self.rx = Rx::IDLE;
-        self.prep = Prepared::None;
+        self.prep = None;
+        self.dprep = None;
         self.refresh();
         self.rx =
             Rx { state: RxState::Open, own: self.st.address, slot: slot_of(self.seq.wrapping_add(1)), ..Rx::IDLE };
@@ -1179,9 +1174,24 @@ impl TelegramSink for FastPath<'_> {
                 return;
             }
         }
-        if !matches!(self.rx.state, RxState::Open | RxState::Own) {
-            return;
+        if matches!(self.rx.state, RxState::Open | RxState::Own) {
+            self.piece(piece);
         }
+    }
+
+    fn abort(&mut self) {
+        self.rx = Rx::IDLE;
+        self.prep = None;
+        self.dprep = None;
+    }
+}
+
+impl FastPath<'_> {
+    /// [`TelegramSink::bytes`] of any piece while the header is open or the telegram is the
+    /// station's: kept out of line, so the single character's path stays small where it is
+    /// inlined (the receiver's per-character handler).
+    #[inline(never)]
+    fn piece(&mut self, piece: &[u8]) {
         let at = self.rx.len;
         let n = piece.len().min(self.rxb.len().saturating_sub(at));
         let have = at + n;
@@ -1238,13 +1248,6 @@ impl TelegramSink for FastPath<'_> {
         }
     }
 
-    fn abort(&mut self) {
-        self.rx = Rx::IDLE;
-        self.prep = Prepared::None;
-    }
-}
-
-impl FastPath<'_> {
     /// Once DA, SA, FC and the SAPs are in (`have` bytes, the covered bytes end at `end`;
     /// with both SAPs, also the first PDU octet): the answer the decision will likely give,
     /// prepared into `bufs[w]` — the staged Data_Exchange response for the locking master in
@@ -1302,7 +1305,7 @@ impl FastPath<'_> {
             _ => return,
         };
         if self.patch_into_scratch(key) != 0 {
-            self.prep = Prepared::Patch(key);
+            self.prep = Some(key);
         }
     }
 }
@@ -1980,7 +1983,7 @@ mod tests {
         let split_says = |fast: &mut FastPath<'_>, at: Instant, f: &[u8]| {
             fast.begin();
             fast.bytes(&f[..f.len() - 1]);
-            assert!(matches!(fast.prep, Prepared::Dpv1(_)), "prepared: {f:02x?}");
+            assert!(fast.dprep.is_some(), "prepared: {f:02x?}");
             fast.bytes(&f[f.len() - 1..]);
             owned(fast.finish(at))
         };
@@ -2004,7 +2007,7 @@ mod tests {
         bad[k] ^= 1;
         assert_eq!(split_says(&mut fast, t1, &bad), (0, std::vec::Vec::new()));
         assert_eq!(alone_says(&mut alone, t1, &bad), (0, std::vec::Vec::new()));
-        assert!(matches!(fast.prep, Prepared::None));
+        assert!(fast.dprep.is_none());
         let f = m.request(5, Some(c2::RM_SAP), Some(42), init, true);
         let a = split_says(&mut fast, t1, &f);
         assert_eq!(a, alone_says(&mut alone, t1, &f));
@@ -2015,7 +2018,7 @@ mod tests {
         let f = m.request(6, Some(c2::RM_SAP), Some(43), init, true);
         fast.begin();
         fast.bytes(&f[..f.len() - 1]);
-        assert!(matches!(fast.prep, Prepared::Dpv1(_)));
+        assert!(fast.dprep.is_some());
         core.poll(t1, &mut node);
         fast.bytes(&f[f.len() - 1..]);
         let a = owned(fast.finish(t1));
@@ -2031,7 +2034,7 @@ mod tests {
         let f = m.request(5, Some(47), Some(42), &abort, true);
         fast.begin();
         fast.bytes(&f[..f.len() - 1]);
-        assert!(matches!(fast.prep, Prepared::None), "an Abort PDU is not prepared");
+        assert!(fast.dprep.is_none(), "an Abort PDU is not prepared");
         fast.bytes(&f[f.len() - 1..]);
         assert_eq!(owned(fast.finish(t1)), (1, std::vec![telegram::SC]));
         let _ = alone_says(&mut alone, t1, &f);

@@ -178,23 +178,29 @@ pub struct LineStats {
 /// [`Framer`] (frame ends by length; QEMU reports no gaps), complete telegrams go into a queue
 /// for the core; the fast path's (or the core's) answer starts after the quiet window
 /// ([`QUIET_US`]: no line timing under QEMU).
+///
+/// `repr(C)`, the fast path first and the held characters (8 KiB) last: every field the
+/// per-character path touches stays within an immediate load offset of the line's base
+/// (the compiler's own field order can put the fast path behind the held characters, which
+/// costs an extra instruction per field access on the response path).
+#[repr(C)]
 pub struct QemuLine {
+    /// The line half of the split (`pbcard::fast`), attached once in `init`.
+    fast: Option<pbcard::fast::FastPath<'static>>,
     port: Port,
     framer: Framer,
     stats: LineStats,
     /// A request the fast path left to the core: its data, until the core's answer is back.
     awaiting: Option<FrameMeta>,
-    /// The line half of the split (`pbcard::fast`), attached once in `init`.
-    fast: Option<pbcard::fast::FastPath<'static>>,
-    /// Characters are held until the core has caught up (see [`take`]).
-    hold: bool,
-    /// The held characters and their arrival times.
-    held: heapless::Deque<(u8, Instant), HELD>,
     /// An answer in the port's buffer, waiting for its quiet window: since when, for which
     /// request, through the core.
     staged: Option<(Instant, FrameMeta, bool)>,
+    /// Characters are held until the core has caught up (see [`take`]).
+    hold: bool,
     /// A character arrived while the core worked on the request in `awaiting`.
     active_while_awaiting: bool,
+    /// The held characters and their arrival times.
+    held: heapless::Deque<(u8, Instant), HELD>,
 }
 
 /// Characters the line holds at most while the core catches up (two longest telegrams).

@@ -43,7 +43,7 @@
 //!   answer is impossible there. A class-2 master opens one connection at a time, so this is
 //!   a second master's Initiate racing the first one's.
 
-use super::{after, round4, CoreLink, FastPath, Prepared, DPV1_AT, QUEUE_LEN};
+use super::{after, round4, CoreLink, FastPath, DPV1_AT, QUEUE_LEN};
 use crate::dpv1::c1;
 use crate::dpv1::c2::{self, ConnectionState};
 use crate::dpv1::pdu::{Abort, AbortReason, Function, Instance, Response, Subnet};
@@ -287,10 +287,8 @@ impl FastPath<'_> {
     /// the header arrived ([`Decided`]) are taken when they are still this telegram's.
     pub(super) fn dpv1(&mut self, at: Instant, len: usize, t: &DataTelegram<'_>) -> Dpv1 {
         let now = at.as_micros();
-        let (plan, flight, built) = match self.prep {
-            Prepared::Dpv1(p) if p.sa == t.sa && Some(p.dsap) == t.dsap && now < p.until() => {
-                (p.plan, p.flight, Some(p.n))
-            }
+        let (plan, flight, built) = match self.dprep {
+            Some(p) if p.sa == t.sa && Some(p.dsap) == t.dsap && now < p.until() => (p.plan, p.flight, Some(p.n)),
             _ => {
                 let Some((plan, flight)) = self.plan(now, &mut { u64::MAX }, t) else { return Dpv1::Core };
                 (plan, flight, None)
@@ -340,7 +338,7 @@ impl FastPath<'_> {
 
     /// While an SRD's header arrives (SA `sa` to `da` with FC `fc`, both SAPs, `first`: the
     /// first PDU octet, `None` for a poll): the DP-V1 decision and its answer, into
-    /// `bufs[w]` and [`Prepared::Dpv1`] — as [`plan`](Self::plan) at the earliest time,
+    /// `bufs[w]` and `dprep` — as [`plan`](Self::plan) at the earliest time,
     /// valid up to the relations' next timer ([`Decided`]). Nothing for another SAP, a frame
     /// the core answers, and a connection SAP's Abort PDU (its full parse decides).
     pub(super) fn prepare_dpv1(&mut self, sa: u8, da: u8, fc: u8, dsap: u8, ssap: u8, first: Option<u8>) {
@@ -365,7 +363,7 @@ impl FastPath<'_> {
         let Some((plan, flight)) = self.plan(0, &mut until, &t) else { return };
         let n = self.build(0, plan, &t);
         let until = [until as u32, (until >> 32) as u32];
-        self.prep = Prepared::Dpv1(Decided { until, plan, flight, n, sa, dsap });
+        self.dprep = Some(Decided { until, plan, flight, n, sa, dsap });
     }
 
     /// A queued SDN (`seq`): the master's Abort PDU on its connection SAP closes the
