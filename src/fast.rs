@@ -201,9 +201,9 @@ fn store_words(words: &[AtomicU32], bytes: &[u8]) {
     }
     let rem = chunks.remainder();
     if let (false, Some(w)) = (rem.is_empty(), words.next()) {
-        let mut b = [0u8; 4];
-        b[..rem.len()].copy_from_slice(rem);
-        w.store(u32::from_le_bytes(b), Ordering::Relaxed);
+        // 1 – 3 bytes, shifted in (no library copy for a partial word).
+        let v = rem.iter().rev().fold(0u32, |v, &b| v << 8 | u32::from(b));
+        w.store(v, Ordering::Relaxed);
     }
 }
 
@@ -556,13 +556,26 @@ struct Rx {
     words: usize,
     /// The header (DA, SA, FC, DAE, SAE) was looked at for an answer to prepare.
     header_seen: bool,
+    /// Once `header_seen`: [`telegram::fcs`] of the header bytes (DA, SA, FC, DAE, SAE), so
+    /// that the retry fingerprint's PDU sum is the FCS byte minus this ([`pdu_sum`]).
+    hsum: u8,
     /// The core's queue slot the bytes go to: that of sequence number `seq + 1`.
     slot: usize,
 }
 
 impl Rx {
-    const IDLE: Rx =
-        Rx { state: RxState::Idle, own: 0, len: 0, expect: 0, start: 1, sum: 0, words: 0, header_seen: false, slot: 0 };
+    const IDLE: Rx = Rx {
+        state: RxState::Idle,
+        own: 0,
+        len: 0,
+        expect: 0,
+        start: 1,
+        sum: 0,
+        words: 0,
+        header_seen: false,
+        hsum: 0,
+        slot: 0,
+    };
 }
 
 /// The arguments of a staged frame copied and patched into the answer buffer
@@ -791,7 +804,18 @@ impl<'a> FastPath<'a> {
                     store_words(&self.slots[rx.slot][whole / 4..], &frame[whole..]);
                 }
                 let out = match telegram::decode_summed(frame, rx.sum) {
-                    Decoded::Frame(Telegram::Data(t), n) if n == frame.len() => self.decide(now, frame, &t, rx.own),
+                    Decoded::Frame(Telegram::Data(t), n) if n == frame.len() => {
+                        // The retry fingerprint's PDU sum: from the header's sum taken while
+                        // it arrived, else (no header seen: not reached for a decoded frame)
+                        // over the header bytes now.
+                        let sum = match rx.header_seen {
+                            true => frame.get(frame.len().wrapping_sub(2)).map_or(0, |f| f.wrapping_sub(rx.hsum)),
+                            false => pdu_sum(frame, t.pdu.len()),
+                        };
+                        #[cfg(test)]
+                        assert_eq!(sum, pdu_sum(frame, t.pdu.len()), "{frame:02x?}");
+                        self.decide(now, frame, &t, rx.own, sum)
+                    }
                     _ => {
                         self.stats.invalid = self.stats.invalid.wrapping_add(1);
                         Out::Silent
@@ -835,8 +859,9 @@ impl<'a> FastPath<'a> {
     }
 
     /// The decision on the decoded telegram `t` (`frame`: its bytes, already in the core's
-    /// queue slot) to the station `own`.
-    fn decide(&mut self, now: Instant, frame: &[u8], t: &telegram::DataTelegram<'_>, own: u8) -> Out {
+    /// queue slot) to the station `own`; `psum`: its PDU's sum for the retry fingerprint
+    /// ([`pdu_sum`]).
+    fn decide(&mut self, now: Instant, frame: &[u8], t: &telegram::DataTelegram<'_>, own: u8, psum: u8) -> Out {
         let t = *t;
         if self.last.is_some_and(|l| l.own != own || l.epoch != self.st.epoch) {
             self.last = None;
@@ -863,7 +888,7 @@ impl<'a> FastPath<'a> {
             }
             return Out::Silent;
         }
-        let fingerprint = (t.dsap, t.ssap, t.pdu.len(), pdu_sum(frame, t.pdu.len()));
+        let fingerprint = (t.dsap, t.ssap, t.pdu.len(), psum);
         let answer: Option<u16> = match function {
             RequestFunction::FdlStatus => {
                 let n = sd1_status(&mut self.sd1, t.sa, own, ResponseStatus::Ok);
@@ -1272,6 +1297,7 @@ impl FastPath<'_> {
             return;
         }
         self.rx.header_seen = true;
+        self.rx.hsum = telegram::fcs(&b[s..header]);
         let fc = b[s + 2];
         let srd = fc & 0xC0 == 0x40 && matches!(fc & 0x0F, 0x0C | 0x0D);
         let (da, sa) = (da_raw & 0x7F, sa_raw & 0x7F);
