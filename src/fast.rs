@@ -86,8 +86,9 @@
 //! `bytes` in pieces of any size, `abort`) and asks for the decision with
 //! [`FastPath::finish`] right after the last one. What grows with the telegram's length — the
 //! destination filter, the FCS, the retry fingerprint, the copy into the core's queue slot,
-//! the likely answer (the staged Data_Exchange response or diagnosis patched for this master)
-//! — is done per piece; `finish` checks length, FCS, ED, state, window and retry and commits
+//! the likely answer (the staged Data_Exchange response or diagnosis patched for this master,
+//! or the DP-V1 decision with its answer: `dpv1`'s "Decided at the header") — is done per
+//! piece; `finish` checks length, FCS, ED, state, window and retry and commits
 //! in a time that does not grow with the length. [`FastPath::on_frame`] is `begin`, `bytes`
 //! and `finish` of a whole telegram (`any_chunking_equals_on_frame`: every chunking gives its
 //! verdicts). The line decides on the staging it had at `begin` (refreshed there once).

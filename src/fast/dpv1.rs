@@ -35,6 +35,16 @@
 //! PDU) stays for the next poll, so a response is never lost and never delivered twice
 //! (except as the FCB retry the station and the line both repeat byte for byte).
 //!
+//! **Decided at the header** ([`FastPath::prepare_dpv1`], issue 11): the decision depends only
+//! on the header (SA, the SAPs), whether the PDU is empty and its first octet, the staging
+//! and the line's relation view (neither changes while a telegram arrives) and the time. So
+//! once the first PDU octet is in, the line plans at the earliest time, builds the answer
+//! into its free answer buffer and keeps the plan with the earliest timer of the relations it
+//! looked at ([`Decided`]); at the last character `finish` takes it when the telegram decoded
+//! (FCS, ED, extensions), SA and DSAP match and the arrival is before that timer — otherwise
+//! it plans again as before. A connection SAP's Abort PDU is not prepared (its full parse
+//! decides).
+//!
 //! **Deferred to the core** ([`Verdict::Core`](super::Verdict::Core), the line waits as before the split):
 //! * SAP 51 in the not-ready window (a queued Set_Prm / Chk_Cfg decides whether MSAC_C1 is
 //!   open at all);
