@@ -493,11 +493,19 @@ fn state_code(s: DpState) -> u8 {
 struct Last {
     sa: u8,
     fcb: bool,
-    request: (Option<u8>, Option<u8>, usize, u8),
+    /// The request's [`fingerprint`].
+    request: u32,
     own: u8,
     epoch: u32,
     /// `Some(n)`: the first `n` bytes of `buf` (0 = no answer); `None`: the core answered.
     answer: Option<u16>,
+}
+
+/// The station's retry fingerprint of a request — DSAP, SSAP, PDU length and the PDU's sum —
+/// in one word: the SAPs are 6-bit values (0xFF for none) and a PDU is shorter than 256
+/// octets, so two fingerprints are equal exactly when the four values are.
+fn fingerprint(dsap: Option<u8>, ssap: Option<u8>, pdu_len: usize, sum: u8) -> u32 {
+    u32::from_le_bytes([dsap.unwrap_or(0xFF), ssap.unwrap_or(0xFF), pdu_len as u8, sum])
 }
 
 /// `telegram::fcs` of the last `pdu_len` bytes before the FCS of a decoded (checksum-verified)
@@ -794,7 +802,8 @@ impl<'a> FastPath<'a> {
     /// the length, FCS, ED, state, window and retry are checked and the telegram committed.
     pub fn finish(&mut self, now: Instant) -> Verdict<'_> {
         let rx = self.rx;
-        self.rx = Rx::IDLE;
+        // Idle: nothing reads the other fields until the next `begin` sets them all.
+        self.rx.state = RxState::Idle;
         let out = match rx.state {
             RxState::Own => {
                 // The partial last word into the slot (the whole words went in as they came).
@@ -889,7 +898,7 @@ impl<'a> FastPath<'a> {
             }
             return Out::Silent;
         }
-        let fingerprint = (t.dsap, t.ssap, t.pdu.len(), psum);
+        let fingerprint = fingerprint(t.dsap, t.ssap, t.pdu.len(), psum);
         let answer: Option<u16> = match function {
             RequestFunction::FdlStatus => {
                 let n = sd1_status(&mut self.sd1, t.sa, own, ResponseStatus::Ok);
@@ -987,13 +996,7 @@ impl<'a> FastPath<'a> {
     }
 
     /// The line answered `t` with `buf[..n]`: remember it for FCB retries, hand it out.
-    fn answered(
-        &mut self,
-        t: &telegram::DataTelegram<'_>,
-        request: (Option<u8>, Option<u8>, usize, u8),
-        own: u8,
-        n: u16,
-    ) -> Out {
+    fn answered(&mut self, t: &telegram::DataTelegram<'_>, request: u32, own: u8, n: u16) -> Out {
         let last = Last { sa: t.sa, fcb: t.fc.fcb(), request, own, epoch: self.st.epoch, answer: Some(n) };
         self.last = if t.fc.fcv() || t.fc.fcb() { Some(last) } else { None };
         if n == 0 {
@@ -1739,6 +1742,21 @@ mod tests {
 
     /// `load_words` gives the packed bytes of the words, then zeros past their end, for every
     /// length (whole words, a partial last word, reads past the end).
+    #[test]
+    fn fingerprints_differ_when_a_part_does() {
+        let saps = [None, Some(0u8), Some(0x3F)];
+        let mut seen = std::collections::HashSet::new();
+        for d in saps {
+            for s in saps {
+                for len in [0usize, 1, 244, 246] {
+                    for sum in [0u8, 0xFF] {
+                        assert!(seen.insert(fingerprint(d, s, len, sum)), "{d:?} {s:?} {len} {sum}");
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn header_sd1_equals_emit() {
         for (da, sa) in [(0u8, 0u8), (2, 8), (126, 125), (127, 3), (45, 126)] {
