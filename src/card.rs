@@ -30,20 +30,20 @@ pub const MAX_STATION_ADDRESS: u8 = crate::fdl::telegram::MAX_STATION_ADDRESS;
 /// issue 11's streaming receive it does not grow with the telegram's length: the checksum,
 /// the copy into the core's queue slot and the likely answer are done while the bytes arrive;
 /// the DP-V1 answers (RM PDU, ready frames, Abort PDUs, SC / RS / RR) are decided and built at
-/// the header too, `finish` only confirms them. Measured 667 (Slave_Diag; DP-V1 at most 623,
-/// Data_Exchange 616, FDL_Status 408; branch `tsdr`, before it 1152 for the MSAC_C2
+/// the header too, `finish` only confirms them. Measured 651 (Slave_Diag; DP-V1 at most 607,
+/// Data_Exchange 601, FDL_Status 414; branch `tsdr`, before it 1152 for the MSAC_C2
 /// Initiate.req to the resource manager), with an allowance of ≈ 5 % for the run-to-run spread
 /// (`bash scripts/qemu.sh bench`).
-pub const LINE_BUDGET_INSTRUCTIONS: u32 = 700;
+pub const LINE_BUDGET_INSTRUCTIONS: u32 = 684;
 
 /// The streaming receive's cost per character, in instructions: `Framer::cut` and
 /// `TelegramSink::bytes` of one character of a long Data_Exchange after its header, measured by
 /// `qemu_bench` (its `per-character streaming cost` line; `qemu_bench` fails when a run
 /// exceeds this). At ≥ 3 Mbit/s the F411's DMA mode leaves up to [`DMA_CHUNK`] − 1 received
 /// characters unprocessed when the USART IDLE interrupt comes; the model charges this per
-/// character of that remainder. Measured 77 (branch `tsdr`; 91 before), with an allowance of
+/// character of that remainder. Measured 80 (branch `tsdr`; 91 before), with an allowance of
 /// ≈ 5 %.
-pub const STREAM_CHAR_INSTRUCTIONS: u32 = 81;
+pub const STREAM_CHAR_INSTRUCTIONS: u32 = 84;
 
 /// Core clock of the F411 build (HCLK = 96 MHz, `src/bsp/f411.rs`), cycles per second.
 pub const CPU_HZ: u32 = 96_000_000;
