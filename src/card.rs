@@ -28,19 +28,21 @@ pub const MAX_STATION_ADDRESS: u8 = crate::fdl::telegram::MAX_STATION_ADDRESS;
 /// the status and data register reads, the clock, `Framer::cut`, `TelegramSink::bytes` of
 /// that character and `FastPath::finish`; `qemu_bench` fails when a run exceeds this). Since
 /// issue 11's streaming receive it does not grow with the telegram's length: the checksum,
-/// the copy into the core's queue slot and the likely answer are done while the bytes arrive.
-/// Measured 1152 – 1170 (MSAC_C2 Initiate.req to the resource manager; Data_Exchange 244/244:
-/// 789, FDL_Status 702), with an allowance of ≈ 5 % for the run-to-run spread
+/// the copy into the core's queue slot and the likely answer are done while the bytes arrive;
+/// the DP-V1 answers (RM PDU, ready frames, Abort PDUs, SC / RS / RR) are decided and built at
+/// the header too, `finish` only confirms them. Measured 651 (Slave_Diag; DP-V1 at most 607,
+/// Data_Exchange 601, FDL_Status 414; branch `tsdr`, before it 1152 for the MSAC_C2
+/// Initiate.req to the resource manager), with an allowance of ≈ 5 % for the run-to-run spread
 /// (`bash scripts/qemu.sh bench`).
-pub const LINE_BUDGET_INSTRUCTIONS: u32 = 1230;
+pub const LINE_BUDGET_INSTRUCTIONS: u32 = 684;
 
 /// The streaming receive's cost per character, in instructions: `Framer::cut` and
 /// `TelegramSink::bytes` of one character of a long Data_Exchange after its header, measured by
 /// `qemu_bench` (its `per-character streaming cost` line; `qemu_bench` fails when a run
 /// exceeds this). The per-character receive's work while a request arrives; the DMA mode's
-/// remainder at IDLE is measured itself ([`DMA_FINISH_INSTRUCTIONS`]). Measured 88, with an
-/// allowance.
-pub const STREAM_CHAR_INSTRUCTIONS: u32 = 96;
+/// remainder at IDLE is measured itself ([`DMA_FINISH_INSTRUCTIONS`]). Measured 80 (branch
+/// `tsdr`; 91 before), with an allowance of ≈ 5 %.
+pub const STREAM_CHAR_INSTRUCTIONS: u32 = 84;
 
 /// The worst **finish in the DMA mode** (≥ 3 Mbit/s) of any request the fast path answers, in
 /// instructions: measured by `qemu_bench --dma` on the `bench-dma` build, which emulates the

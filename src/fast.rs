@@ -86,8 +86,9 @@
 //! `bytes` in pieces of any size, `abort`) and asks for the decision with
 //! [`FastPath::finish`] right after the last one. What grows with the telegram's length — the
 //! destination filter, the FCS, the retry fingerprint, the copy into the core's queue slot,
-//! the likely answer (the staged Data_Exchange response or diagnosis patched for this master)
-//! — is done per piece; `finish` checks length, FCS, ED, state, window and retry and commits
+//! the likely answer (the staged Data_Exchange response or diagnosis patched for this master,
+//! or the DP-V1 decision with its answer: `dpv1`'s "Decided at the header") — is done per
+//! piece; `finish` checks length, FCS, ED, state, window and retry and commits
 //! in a time that does not grow with the length. [`FastPath::on_frame`] is `begin`, `bytes`
 //! and `finish` of a whole telegram (`any_chunking_equals_on_frame`: every chunking gives its
 //! verdicts). The line decides on the staging it had at `begin` (refreshed there once).
@@ -201,9 +202,9 @@ fn store_words(words: &[AtomicU32], bytes: &[u8]) {
     }
     let rem = chunks.remainder();
     if let (false, Some(w)) = (rem.is_empty(), words.next()) {
-        let mut b = [0u8; 4];
-        b[..rem.len()].copy_from_slice(rem);
-        w.store(u32::from_le_bytes(b), Ordering::Relaxed);
+        // 1 – 3 bytes, shifted in (no library copy for a partial word).
+        let v = rem.iter().rev().fold(0u32, |v, &b| v << 8 | u32::from(b));
+        w.store(v, Ordering::Relaxed);
     }
 }
 
@@ -369,6 +370,7 @@ impl Shared {
             rxb: &mut rx[..],
             rx: Rx::IDLE,
             prep: None,
+            dprep: None,
             given: Out::Silent,
             sd1: [0; 6],
             deferred: [0; MAX_FRAME_LEN],
@@ -491,11 +493,19 @@ fn state_code(s: DpState) -> u8 {
 struct Last {
     sa: u8,
     fcb: bool,
-    request: (Option<u8>, Option<u8>, usize, u8),
+    /// The request's [`fingerprint`].
+    request: u32,
     own: u8,
     epoch: u32,
     /// `Some(n)`: the first `n` bytes of `buf` (0 = no answer); `None`: the core answered.
     answer: Option<u16>,
+}
+
+/// The station's retry fingerprint of a request — DSAP, SSAP, PDU length and the PDU's sum —
+/// in one word: the SAPs are 6-bit values (0xFF for none) and a PDU is shorter than 256
+/// octets, so two fingerprints are equal exactly when the four values are.
+fn fingerprint(dsap: Option<u8>, ssap: Option<u8>, pdu_len: usize, sum: u8) -> u32 {
+    u32::from_le_bytes([dsap.unwrap_or(0xFF), ssap.unwrap_or(0xFF), pdu_len as u8, sum])
 }
 
 /// `telegram::fcs` of the last `pdu_len` bytes before the FCS of a decoded (checksum-verified)
@@ -507,6 +517,19 @@ fn pdu_sum(frame: &[u8], pdu_len: usize) -> u8 {
     let end = n.saturating_sub(2 + pdu_len).max(start);
     let fcs = frame.get(n.wrapping_sub(2)).copied().unwrap_or(0);
     fcs.wrapping_sub(telegram::fcs(frame.get(start..end).unwrap_or(&[])))
+}
+
+/// The SD1 frame without SAPs and PDU `[SD1, da, sa, fc, FCS, ED]` into `out` — what
+/// [`telegram::emit`] lays out for that header (`header_sd1_equals_emit`), written directly:
+/// every status answer of the line (FDL_Status, RS, RR, DH without inputs). Its length (6).
+fn sd1_status(out: &mut [u8], da: u8, sa: u8, s: ResponseStatus) -> u16 {
+    let fc = FunctionCode::response(s).0;
+    if let Some(o) = out.get_mut(..6) {
+        o.copy_from_slice(&[telegram::SD1, da, sa, fc, da.wrapping_add(sa).wrapping_add(fc), telegram::ED]);
+        6
+    } else {
+        0
+    }
 }
 
 /// How far the line got with the telegram being received ([`TelegramSink`]).
@@ -542,13 +565,26 @@ struct Rx {
     words: usize,
     /// The header (DA, SA, FC, DAE, SAE) was looked at for an answer to prepare.
     header_seen: bool,
+    /// Once `header_seen`: [`telegram::fcs`] of the header bytes (DA, SA, FC, DAE, SAE), so
+    /// that the retry fingerprint's PDU sum is the FCS byte minus this ([`pdu_sum`]).
+    hsum: u8,
     /// The core's queue slot the bytes go to: that of sequence number `seq + 1`.
     slot: usize,
 }
 
 impl Rx {
-    const IDLE: Rx =
-        Rx { state: RxState::Idle, own: 0, len: 0, expect: 0, start: 1, sum: 0, words: 0, header_seen: false, slot: 0 };
+    const IDLE: Rx = Rx {
+        state: RxState::Idle,
+        own: 0,
+        len: 0,
+        expect: 0,
+        start: 1,
+        sum: 0,
+        words: 0,
+        header_seen: false,
+        hsum: 0,
+        slot: 0,
+    };
 }
 
 /// The arguments of a staged frame copied and patched into the answer buffer
@@ -609,6 +645,8 @@ pub struct FastPath<'a> {
     /// The answer prepared into `bufs[w]` once the header was in: the arguments of
     /// [`FastPath::patched`] it was made with.
     prep: Option<Prep>,
+    /// Or the DP-V1 decision whose answer was prepared into `bufs[w]` ([`dpv1`]).
+    dprep: Option<dpv1::Decided>,
     /// Where the last answer given is ([`FastPath::answer_given`]).
     given: Out,
     sd1: [u8; 6],
@@ -764,7 +802,8 @@ impl<'a> FastPath<'a> {
     /// the length, FCS, ED, state, window and retry are checked and the telegram committed.
     pub fn finish(&mut self, now: Instant) -> Verdict<'_> {
         let rx = self.rx;
-        self.rx = Rx::IDLE;
+        // Idle: nothing reads the other fields until the next `begin` sets them all.
+        self.rx.state = RxState::Idle;
         let out = match rx.state {
             RxState::Own => {
                 // The partial last word into the slot (the whole words went in as they came).
@@ -775,7 +814,18 @@ impl<'a> FastPath<'a> {
                     store_words(&self.slots[rx.slot][whole / 4..], &frame[whole..]);
                 }
                 let out = match telegram::decode_summed(frame, rx.sum) {
-                    Decoded::Frame(Telegram::Data(t), n) if n == frame.len() => self.decide(now, frame, &t, rx.own),
+                    Decoded::Frame(Telegram::Data(t), n) if n == frame.len() => {
+                        // The retry fingerprint's PDU sum: from the header's sum taken while
+                        // it arrived, else (no header seen: not reached for a decoded frame)
+                        // over the header bytes now.
+                        let sum = match rx.header_seen {
+                            true => frame.get(frame.len().wrapping_sub(2)).map_or(0, |f| f.wrapping_sub(rx.hsum)),
+                            false => pdu_sum(frame, t.pdu.len()),
+                        };
+                        #[cfg(test)]
+                        assert_eq!(sum, pdu_sum(frame, t.pdu.len()), "{frame:02x?}");
+                        self.decide(now, frame, &t, rx.own, sum)
+                    }
                     _ => {
                         self.stats.invalid = self.stats.invalid.wrapping_add(1);
                         Out::Silent
@@ -795,6 +845,7 @@ impl<'a> FastPath<'a> {
             }
         };
         self.prep = None;
+        self.dprep = None;
         match out {
             Out::Silent => Verdict::Silent,
             Out::Core => Verdict::Core,
@@ -818,8 +869,9 @@ impl<'a> FastPath<'a> {
     }
 
     /// The decision on the decoded telegram `t` (`frame`: its bytes, already in the core's
-    /// queue slot) to the station `own`.
-    fn decide(&mut self, now: Instant, frame: &[u8], t: &telegram::DataTelegram<'_>, own: u8) -> Out {
+    /// queue slot) to the station `own`; `psum`: its PDU's sum for the retry fingerprint
+    /// ([`pdu_sum`]).
+    fn decide(&mut self, now: Instant, frame: &[u8], t: &telegram::DataTelegram<'_>, own: u8, psum: u8) -> Out {
         let t = *t;
         if self.last.is_some_and(|l| l.own != own || l.epoch != self.st.epoch) {
             self.last = None;
@@ -846,23 +898,12 @@ impl<'a> FastPath<'a> {
             }
             return Out::Silent;
         }
-        let fingerprint = (t.dsap, t.ssap, t.pdu.len(), pdu_sum(frame, t.pdu.len()));
+        let fingerprint = fingerprint(t.dsap, t.ssap, t.pdu.len(), psum);
         let answer: Option<u16> = match function {
             RequestFunction::FdlStatus => {
-                let hdr = Header {
-                    da: t.sa,
-                    sa: own,
-                    fc: FunctionCode::response(ResponseStatus::Ok),
-                    dsap: None,
-                    ssap: None,
-                };
-                return match telegram::emit(&mut self.sd1, &hdr, &[]) {
-                    Ok(n) => {
-                        self.stats.answered = self.stats.answered.wrapping_add(1);
-                        Out::Sd1(n as u16)
-                    }
-                    Err(_) => Out::Silent,
-                };
+                let n = sd1_status(&mut self.sd1, t.sa, own, ResponseStatus::Ok);
+                self.stats.answered = self.stats.answered.wrapping_add(1);
+                return Out::Sd1(n);
             }
             RequestFunction::SdnLow | RequestFunction::SdnHigh => {
                 if let Some(seq) = self.queue(now, frame.len(), false) {
@@ -955,13 +996,7 @@ impl<'a> FastPath<'a> {
     }
 
     /// The line answered `t` with `buf[..n]`: remember it for FCB retries, hand it out.
-    fn answered(
-        &mut self,
-        t: &telegram::DataTelegram<'_>,
-        request: (Option<u8>, Option<u8>, usize, u8),
-        own: u8,
-        n: u16,
-    ) -> Out {
+    fn answered(&mut self, t: &telegram::DataTelegram<'_>, request: u32, own: u8, n: u16) -> Out {
         let last = Last { sa: t.sa, fcb: t.fc.fcb(), request, own, epoch: self.st.epoch, answer: Some(n) };
         self.last = if t.fc.fcv() || t.fc.fcb() { Some(last) } else { None };
         if n == 0 {
@@ -974,8 +1009,7 @@ impl<'a> FastPath<'a> {
 
     /// An SD1 status answer to `da` in `buf`; its length.
     fn status(&mut self, da: u8, s: ResponseStatus) -> u16 {
-        let hdr = Header { da, sa: self.st.address, fc: FunctionCode::response(s), dsap: None, ssap: None };
-        telegram::emit(&mut self.bufs[self.w], &hdr, &[]).map_or(0, |n| n as u16)
+        sd1_status(&mut self.bufs[self.w], da, self.st.address, s)
     }
 
     fn sc(&mut self) -> u16 {
@@ -1139,6 +1173,7 @@ impl TelegramSink for FastPath<'_> {
     fn begin(&mut self) {
         self.rx = Rx::IDLE;
         self.prep = None;
+        self.dprep = None;
         self.refresh();
         self.rx =
             Rx { state: RxState::Open, own: self.st.address, slot: slot_of(self.seq.wrapping_add(1)), ..Rx::IDLE };
@@ -1168,9 +1203,24 @@ impl TelegramSink for FastPath<'_> {
                 return;
             }
         }
-        if !matches!(self.rx.state, RxState::Open | RxState::Own) {
-            return;
+        if matches!(self.rx.state, RxState::Open | RxState::Own) {
+            self.piece(piece);
         }
+    }
+
+    fn abort(&mut self) {
+        self.rx = Rx::IDLE;
+        self.prep = None;
+        self.dprep = None;
+    }
+}
+
+impl FastPath<'_> {
+    /// [`TelegramSink::bytes`] of any piece while the header is open or the telegram is the
+    /// station's: kept out of line, so the single character's path stays small where it is
+    /// inlined (the receiver's per-character handler).
+    #[inline(never)]
+    fn piece(&mut self, piece: &[u8]) {
         let at = self.rx.len;
         let n = piece.len().min(self.rxb.len().saturating_sub(at));
         let have = at + n;
@@ -1227,18 +1277,13 @@ impl TelegramSink for FastPath<'_> {
         }
     }
 
-    fn abort(&mut self) {
-        self.rx = Rx::IDLE;
-        self.prep = None;
-    }
-}
-
-impl FastPath<'_> {
-    /// Once DA, SA, FC and the SAPs are in (`have` bytes, the covered bytes end at `end`):
-    /// the answer the decision will likely give, prepared into `bufs[w]` — the staged
-    /// Data_Exchange response for the locking master in data exchange, or the staged
-    /// diagnosis for a Slave_Diag. A guess: [`patched`](Self::patched) uses it only for
-    /// exactly these arguments.
+    /// Once DA, SA, FC and the SAPs are in (`have` bytes, the covered bytes end at `end`;
+    /// with both SAPs, also the first PDU octet): the answer the decision will likely give,
+    /// prepared into `bufs[w]` — the staged Data_Exchange response for the locking master in
+    /// data exchange, the staged diagnosis for a Slave_Diag, or a DP-V1 answer with the
+    /// decision it comes from (`dpv1`'s `prepare_dpv1`). A guess: [`patched`](Self::patched)
+    /// uses it only for exactly these arguments, the DP-V1 decision only for this request
+    /// before the next timer of the relations it looked at.
     fn prepare(&mut self, have: usize, end: usize) {
         let s = self.rx.start;
         if have < s + 2 {
@@ -1250,7 +1295,13 @@ impl FastPath<'_> {
         if have < header {
             return;
         }
+        let ext = (da_raw & 0x80 != 0, sa_raw & 0x80 != 0);
+        if ext == (true, true) && have == header && header < end {
+            // A DP-V1 answer depends on the first PDU octet as well: wait for it.
+            return;
+        }
         self.rx.header_seen = true;
+        self.rx.hsum = telegram::fcs(&b[s..header]);
         let fc = b[s + 2];
         let srd = fc & 0xC0 == 0x40 && matches!(fc & 0x0F, 0x0C | 0x0D);
         let (da, sa) = (da_raw & 0x7F, sa_raw & 0x7F);
@@ -1259,7 +1310,7 @@ impl FastPath<'_> {
         }
         let st = self.st;
         let window = after(self.judge_seq, st.done_seq);
-        let key = match (da_raw & 0x80 != 0, sa_raw & 0x80 != 0) {
+        let key = match ext {
             (false, false) => {
                 let pdu_len = end - header;
                 let dx = st.state() == DpState::DataExch && st.master() == Some(sa) && st.in_len != 0;
@@ -1274,6 +1325,12 @@ impl FastPath<'_> {
                 let status1 = if window { Status1::STATION_NOT_READY.bits() } else { 0 };
                 let dsap = Some(b[s + 4] & 0x3F);
                 Prep { at: DIAG_AT, len: usize::from(st.diag_len), da: sa, fc: ResponseStatus::Dl as u8, dsap, status1 }
+            }
+            (true, true) => {
+                let (dsap, ssap) = (b[s + 3] & 0x3F, b[s + 4] & 0x3F);
+                let first = (header < end).then(|| b[header]);
+                self.prepare_dpv1(sa, da, fc, dsap, ssap, first);
+                return;
             }
             _ => return,
         };
@@ -1686,6 +1743,38 @@ mod tests {
     /// `load_words` gives the packed bytes of the words, then zeros past their end, for every
     /// length (whole words, a partial last word, reads past the end).
     #[test]
+    fn fingerprints_differ_when_a_part_does() {
+        let saps = [None, Some(0u8), Some(0x3F)];
+        let mut seen = std::collections::HashSet::new();
+        for d in saps {
+            for s in saps {
+                for len in [0usize, 1, 244, 246] {
+                    for sum in [0u8, 0xFF] {
+                        assert!(seen.insert(fingerprint(d, s, len, sum)), "{d:?} {s:?} {len} {sum}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn header_sd1_equals_emit() {
+        for (da, sa) in [(0u8, 0u8), (2, 8), (126, 125), (127, 3), (45, 126)] {
+            for s in
+                [ResponseStatus::Ok, ResponseStatus::Rs, ResponseStatus::Rr, ResponseStatus::Dh, ResponseStatus::Dl]
+            {
+                let hdr = Header { da, sa, fc: FunctionCode::response(s), dsap: None, ssap: None };
+                let mut want = [0u8; 8];
+                let n = telegram::emit(&mut want, &hdr, &[]).unwrap();
+                let mut got = [0u8; 8];
+                assert_eq!(usize::from(sd1_status(&mut got, da, sa, s)), n);
+                assert_eq!(got[..n], want[..n]);
+            }
+        }
+        assert_eq!(sd1_status(&mut [0u8; 5], 1, 2, ResponseStatus::Rs), 0);
+    }
+
+    #[test]
     fn load_words_reads_packed_bytes_then_zeros() {
         let words = [AtomicU32::new(0x0403_0201), AtomicU32::new(0x0807_0605)];
         for n in 0..=13 {
@@ -1896,6 +1985,110 @@ mod tests {
         assert_eq!(parts(res).1[0], 0x57, "Initiate.res");
         core.run(&mut node);
         assert_eq!(fast.stats().deferred, 0);
+    }
+
+    /// The DP-V1 decision prepared while the header arrives (`prepare_dpv1`) is the last
+    /// character's only while it still holds: a reservation that expires between the header
+    /// and the last character frees its connection (the RM names it, not the one prepared),
+    /// a bad FCS leaves nothing behind, a staging published while the telegram arrives does
+    /// not change the decision, and a connection SAP's Abort PDU is decided by its full
+    /// parse. Every answer as the core alone's at the same time.
+    #[test]
+    fn dpv1_prepared_decision_is_rechecked_at_finish() {
+        use crate::dpv1::c2;
+        let mut node = Node::new(DpSlave::new(&crate::card::SLAVE, 8));
+        let mut alone = Node::new(DpSlave::new(&crate::card::SLAVE, 8));
+        let mut shared = Shared::new();
+        let (mut fast, mut core) = shared.split(&mut node);
+        let mut m = ScriptedMaster::new(2, 8);
+        let t0 = Instant::from_micros(100);
+        let prm = SetPrm::CARD.dpv1_status_1(0x80).pdu();
+        for f in [m.srd(Some(61), &prm), m.srd(Some(62), card::MODULES[0].cfg)] {
+            assert_eq!(fast.on_frame(t0, &f), Verdict::Answer(&[telegram::SC]));
+            let _ = alone.on_frame(t0, &f);
+        }
+        core.run(&mut node);
+        let mut init = [0u8; 64];
+        let req = crate::dpv1::pdu::InitiateRequest {
+            send_timeout: 300,
+            features_supported: [1, 0],
+            profile_features_supported: [0, 0],
+            profile_ident_number: 0,
+            source: crate::dpv1::pdu::AddressBlock { kind: 0, bytes: &[0, 0] },
+            destination: crate::dpv1::pdu::AddressBlock { kind: 0, bytes: &[0, 0] },
+        };
+        let n = req.emit(&mut init).unwrap();
+        let init = &init[..n];
+        let alone_says = |alone: &mut Node, at: Instant, f: &[u8]| match alone.on_frame(at, f) {
+            Some(a) => (1, a.to_vec()),
+            None => (0, std::vec::Vec::new()),
+        };
+        // The line in two pieces: all but the last character (the header and the first PDU
+        // octet in: prepared), then the last one and the decision at `at`.
+        let split_says = |fast: &mut FastPath<'_>, at: Instant, f: &[u8]| {
+            fast.begin();
+            fast.bytes(&f[..f.len() - 1]);
+            assert!(fast.dprep.is_some(), "prepared: {f:02x?}");
+            fast.bytes(&f[f.len() - 1..]);
+            owned(fast.finish(at))
+        };
+        // Master 3 reserves SAP 48 (for 1 s, the minimum Send_Timeout).
+        let f = m.request(3, Some(c2::RM_SAP), Some(40), init, true);
+        let a = split_says(&mut fast, t0, &f);
+        assert_eq!(a, alone_says(&mut alone, t0, &f));
+        assert_eq!(parts(&a.1).1[1], 48);
+        core.run(&mut node);
+        // 2 s later master 4 asks: the reservation has expired by the last character, so
+        // the RM names 48 again — the header's view (48 reserved) would have named 47.
+        let t1 = Instant::from_micros(2_000_000);
+        let f = m.request(4, Some(c2::RM_SAP), Some(41), init, true);
+        let a = split_says(&mut fast, t1, &f);
+        assert_eq!(a, alone_says(&mut alone, t1, &f));
+        assert_eq!(parts(&a.1).1[1], 48);
+        core.run(&mut node);
+        // A bad FCS: nothing, and nothing prepared is left for the next telegram.
+        let mut bad = m.request(5, Some(c2::RM_SAP), Some(42), init, true).to_vec();
+        let k = bad.len() - 2;
+        bad[k] ^= 1;
+        assert_eq!(split_says(&mut fast, t1, &bad), (0, std::vec::Vec::new()));
+        assert_eq!(alone_says(&mut alone, t1, &bad), (0, std::vec::Vec::new()));
+        assert!(fast.dprep.is_none());
+        let f = m.request(5, Some(c2::RM_SAP), Some(42), init, true);
+        let a = split_says(&mut fast, t1, &f);
+        assert_eq!(a, alone_says(&mut alone, t1, &f));
+        assert_eq!(parts(&a.1).1[1], 47);
+        core.run(&mut node);
+        // A staging published while a telegram arrives: the line keeps the one of its begin
+        // (both connections reserved: RR), the core alone agrees at that time.
+        let f = m.request(6, Some(c2::RM_SAP), Some(43), init, true);
+        fast.begin();
+        fast.bytes(&f[..f.len() - 1]);
+        assert!(fast.dprep.is_some());
+        core.poll(t1, &mut node);
+        fast.bytes(&f[f.len() - 1..]);
+        let a = owned(fast.finish(t1));
+        assert_eq!(a, alone_says(&mut alone, t1, &f));
+        assert_eq!(parts(&a.1).0, ResponseStatus::Rr as u8);
+        core.run(&mut node);
+        // Master 5 opens 47 (SC), then aborts it: the Abort PDU is not prepared (its full
+        // parse decides), answered SC; a poll afterwards on 47 is RS.
+        let f = m.request(5, Some(47), Some(42), init, true);
+        assert_eq!(split_says(&mut fast, t1, &f), alone_says(&mut alone, t1, &f));
+        core.run(&mut node);
+        let abort = [0x58, 0, 0, 0];
+        let f = m.request(5, Some(47), Some(42), &abort, true);
+        fast.begin();
+        fast.bytes(&f[..f.len() - 1]);
+        assert!(fast.dprep.is_none(), "an Abort PDU is not prepared");
+        fast.bytes(&f[f.len() - 1..]);
+        assert_eq!(owned(fast.finish(t1)), (1, std::vec![telegram::SC]));
+        let _ = alone_says(&mut alone, t1, &f);
+        core.run(&mut node);
+        let f = m.request(5, Some(47), Some(42), &[], true);
+        let a = split_says(&mut fast, t1, &f);
+        assert_eq!(a, alone_says(&mut alone, t1, &f));
+        assert_eq!(parts(&a.1).0, ResponseStatus::Rs as u8);
+        core.run(&mut node);
     }
 
     /// The benchmark's sequence: after every core run the line sees the core idle.

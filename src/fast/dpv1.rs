@@ -35,6 +35,16 @@
 //! PDU) stays for the next poll, so a response is never lost and never delivered twice
 //! (except as the FCB retry the station and the line both repeat byte for byte).
 //!
+//! **Decided at the header** ([`FastPath::prepare_dpv1`], issue 11): the decision depends only
+//! on the header (SA, the SAPs), whether the PDU is empty and its first octet, the staging
+//! and the line's relation view (neither changes while a telegram arrives) and the time. So
+//! once the first PDU octet is in, the line plans at the earliest time, builds the answer
+//! into its free answer buffer and keeps the plan with the earliest timer of the relations it
+//! looked at ([`Decided`]); at the last character `finish` takes it when the telegram decoded
+//! (FCS, ED, extensions), SA and DSAP match and the arrival is before that timer — otherwise
+//! it plans again as before. A connection SAP's Abort PDU is not prepared (its full parse
+//! decides).
+//!
 //! **Deferred to the core** ([`Verdict::Core`](super::Verdict::Core), the line waits as before the split):
 //! * SAP 51 in the not-ready window (a queued Set_Prm / Chk_Cfg decides whether MSAC_C1 is
 //!   open at all);
@@ -47,7 +57,7 @@ use super::{after, round4, CoreLink, FastPath, DPV1_AT, QUEUE_LEN};
 use crate::dpv1::c1;
 use crate::dpv1::c2::{self, ConnectionState};
 use crate::dpv1::pdu::{Abort, AbortReason, Function, Instance, Response, Subnet};
-use crate::fdl::telegram::{DataTelegram, ResponseStatus, MAX_FRAME_LEN};
+use crate::fdl::telegram::{DataFormat, DataTelegram, FunctionCode, ResponseStatus, MAX_FRAME_LEN};
 use crate::node::Node;
 use crate::time::Instant;
 
@@ -105,17 +115,51 @@ struct View {
 }
 
 /// What the line answers (built into `buf` once the frame is queued).
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Plan {
     Status(ResponseStatus),
     /// SC; the core hands out nothing on this frame.
     Sc,
     /// The staged response frame of relation `r`.
-    Ready(usize),
+    Ready(u8),
     /// The RM PDU naming connection `i`.
-    Rm(usize),
+    Rm(u8),
     /// The Abort PDU of connection `i` (reason code).
-    Abort(usize, u8),
+    Abort(u8, u8),
+}
+
+/// The relation a frame puts in flight, with its view after the frame (open for master and
+/// master SAP, or closed).
+type Flight = Option<(u8, Option<(u8, u8)>)>;
+
+/// A DP-V1 decision made while the request's header arrived ([`FastPath::prepare_dpv1`]),
+/// its answer in `bufs[w]`: the decision at the last character is this one as long as the
+/// telegram is the one it was made for (SA, DSAP; the rest of the header and the first PDU
+/// octet are the same received bytes) and `now` is before `until` — the earliest timer
+/// (reservation, Send_Timeout, pending Abort) of the staged relations it looked at, after
+/// which [`FastPath::plan`] could see another state. The staging and the line's own
+/// relation view do not change while a telegram arrives.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct Decided {
+    /// `until` in µs, low and high word (no u64 alignment: the fast path's RAM is tight).
+    until: [u32; 2],
+    plan: Plan,
+    flight: Flight,
+    /// The answer's length in `bufs[w]` (0: none).
+    n: u16,
+    sa: u8,
+    dsap: u8,
+}
+
+impl Decided {
+    fn until(&self) -> u64 {
+        u64::from(self.until[0]) | u64::from(self.until[1]) << 32
+    }
+}
+
+/// A timer of a staged relation runs in this state (`staged_view` moves it on).
+fn timed(kind: u8) -> bool {
+    matches!(kind, K_RESERVED | K_OPEN | K_ABORTING)
 }
 
 /// The line's decision on a DP-V1 SRD.
@@ -142,8 +186,9 @@ impl FastPath<'_> {
         l.set && self.seq.wrapping_sub(l.seq) < QUEUE_LEN as u32 && after(l.seq, self.st.done_seq)
     }
 
-    /// Relation `r` from the staging, its timer run up to `now` as `C2::expire` would.
-    fn staged_view(&self, r: usize, now: Instant) -> View {
+    /// Relation `r` from the staging, its timer run up to `now` (µs) as `C2::expire` would;
+    /// `until` is lowered to the next deadline that would change the view after `now`.
+    fn staged_view(&self, r: usize, now: u64, until: &mut u64) -> View {
         let w = rel_at(r) / 4;
         let [kind, master, ssap, reason] = self.staging.word(w).to_le_bytes();
         let lens = self.staging.word(w + 1);
@@ -151,7 +196,13 @@ impl FastPath<'_> {
         let send_timeout = u64::from(lens >> 16) * 10_000;
         let mut deadline = u64::from(self.staging.word(w + 2)) | u64::from(self.staging.word(w + 3)) << 32;
         if r > 0 {
-            while now.as_micros() >= deadline {
+            loop {
+                if now < deadline {
+                    if timed(v.kind) {
+                        *until = (*until).min(deadline);
+                    }
+                    break;
+                }
                 v.kind = match v.kind {
                     K_RESERVED | K_ABORTING => K_CLOSED,
                     K_OPEN => {
@@ -168,7 +219,7 @@ impl FastPath<'_> {
     }
 
     /// Relation `r` at `now`: the line's own view while in flight, else the staging's.
-    fn view(&self, r: usize, now: Instant) -> View {
+    fn view(&self, r: usize, now: u64, until: &mut u64) -> View {
         if self.in_flight(r) {
             let (kind, (master, ssap)) = match self.rel[r].open {
                 Some(o) => (K_FLIGHT, o),
@@ -176,20 +227,20 @@ impl FastPath<'_> {
             };
             return View { kind, master, ssap, reason: 0, frame_len: 0 };
         }
-        self.staged_view(r, now)
+        self.staged_view(r, now, until)
     }
 
-    /// The plan for a DP-V1 SRD, and the relation it puts in flight (with its view after
-    /// the frame). `None`: not DP-V1, or the core must answer.
-    #[allow(clippy::type_complexity)]
-    fn plan(&self, now: Instant, t: &DataTelegram<'_>) -> Option<(Plan, Option<(usize, Option<(u8, u8)>)>)> {
+    /// The plan for a DP-V1 SRD at `now` (µs), and the relation it puts in flight (with its
+    /// view after the frame). `None`: not DP-V1, or the core must answer. The plan stays the
+    /// same for any later time before `until` (lowered to the next timer it depends on).
+    fn plan(&self, now: u64, until: &mut u64, t: &DataTelegram<'_>) -> Option<(Plan, Flight)> {
         let dsap = t.dsap?;
         let poll = t.pdu.is_empty();
         if dsap == c1::SAP {
             if after(self.judge_seq, self.st.done_seq) {
                 return None;
             }
-            let v = self.staged_view(0, now);
+            let v = self.staged_view(0, now, until);
             if v.kind != K_OPEN || v.master != t.sa || t.ssap != Some(c1::SAP) {
                 return Some((Plan::Status(ResponseStatus::Rs), None));
             }
@@ -208,7 +259,7 @@ impl FastPath<'_> {
             let mut same = None;
             let mut free = None;
             for i in 0..C2_CONNECTIONS {
-                let v = self.staged_view(1 + i, now);
+                let v = self.staged_view(1 + i, now, until);
                 if v.kind == K_CLOSED {
                     free = free.or(Some(i));
                 } else if (v.master, v.ssap) == (t.sa, ssap) {
@@ -216,16 +267,17 @@ impl FastPath<'_> {
                 }
             }
             return Some(match same.or(free) {
-                Some(i) => (Plan::Rm(i), Some((1 + i, Some((t.sa, ssap))))),
+                Some(i) => (Plan::Rm(i as u8), Some((1 + i as u8, Some((t.sa, ssap))))),
                 None => (Plan::Status(ResponseStatus::Rr), None),
             });
         }
         let i = conn_of(dsap)?;
         let r = 1 + i;
-        let v = self.view(r, now);
+        let v = self.view(r, now, until);
         if v.kind == K_CLOSED || v.master != t.sa || t.ssap != Some(v.ssap) {
             return Some((Plan::Status(ResponseStatus::Rs), None));
         }
+        let (i, r) = (i as u8, r as u8);
         let open = Some((r, Some((t.sa, v.ssap))));
         if t.pdu.first() == Some(&Function::Abort.code())
             && matches!(crate::dpv1::pdu::parse(t.pdu), Ok(crate::dpv1::pdu::Request::Abort(_)))
@@ -241,26 +293,45 @@ impl FastPath<'_> {
     }
 
     /// A DP-V1 SRD (SAP 51, 49, a connection SAP): answered from the staging and queued, or
-    /// left to the core (see the module docs).
-    pub(super) fn dpv1(&mut self, now: Instant, len: usize, t: &DataTelegram<'_>) -> Dpv1 {
-        let Some((plan, flight)) = self.plan(now, t) else { return Dpv1::Core };
+    /// left to the core (see the module docs). The decision and its answer prepared while
+    /// the header arrived ([`Decided`]) are taken when they are still this telegram's.
+    pub(super) fn dpv1(&mut self, at: Instant, len: usize, t: &DataTelegram<'_>) -> Dpv1 {
+        let now = at.as_micros();
+        let (plan, flight, built) = match self.dprep {
+            Some(p) if p.sa == t.sa && Some(p.dsap) == t.dsap && now < p.until() => (p.plan, p.flight, Some(p.n)),
+            _ => {
+                let Some((plan, flight)) = self.plan(now, &mut { u64::MAX }, t) else { return Dpv1::Core };
+                (plan, flight, None)
+            }
+        };
         let held = matches!(plan, Plan::Sc);
-        let Some(seq) = self.queue_as(now, len, false, held) else { return Dpv1::QueueFull };
+        let Some(seq) = self.queue_as(at, len, false, held) else { return Dpv1::QueueFull };
         if let Some((r, open)) = flight {
-            self.rel[r] = RelLine { seq, set: true, open };
+            self.rel[usize::from(r)] = RelLine { seq, set: true, open };
         }
+        let n = match built {
+            Some(n) => n,
+            None => self.build(now, plan, t),
+        };
+        self.stats.dpv1 = self.stats.dpv1.wrapping_add(1);
+        Dpv1::Answer(n)
+    }
+
+    /// The answer of `plan` to `t` at `now` (µs) into `bufs[w]`; its length.
+    fn build(&mut self, now: u64, plan: Plan, t: &DataTelegram<'_>) -> u16 {
         let own = self.st.address;
-        let n = match plan {
+        match plan {
             Plan::Status(s) => self.status(t.sa, s),
             Plan::Sc => self.sc(),
             Plan::Ready(r) => {
-                let len = usize::from(self.staged_view(r, now).frame_len).min(MAX_FRAME_LEN);
+                let r = usize::from(r);
+                let len = usize::from(self.staged_view(r, now, &mut { u64::MAX }).frame_len).min(MAX_FRAME_LEN);
                 self.staging.read(rel_at(r) + REL_HDR, &mut self.bufs[self.w][..len]);
                 len as u16
             }
             Plan::Rm(i) => {
                 let poll_timeout = self.staging.word(DPV1_AT / 4) as u16;
-                let rm = Response::ResourceManager { server_sap: c2::HIGHEST_SAP - i as u8, poll_timeout };
+                let rm = Response::ResourceManager { server_sap: c2::HIGHEST_SAP - i, poll_timeout };
                 self.pdu_frame(t, own, c2::RM_SAP, &rm)
             }
             Plan::Abort(i, reason) => {
@@ -270,18 +341,46 @@ impl FastPath<'_> {
                     reason: AbortReason::from_bits(reason),
                     detail: Some(0),
                 };
-                self.pdu_frame(t, own, c2::HIGHEST_SAP - i as u8, &Response::Abort(a))
+                self.pdu_frame(t, own, c2::HIGHEST_SAP - i, &Response::Abort(a))
             }
+        }
+    }
+
+    /// While an SRD's header arrives (SA `sa` to `da` with FC `fc`, both SAPs, `first`: the
+    /// first PDU octet, `None` for a poll): the DP-V1 decision and its answer, into
+    /// `bufs[w]` and `dprep` — as [`plan`](Self::plan) at the earliest time,
+    /// valid up to the relations' next timer ([`Decided`]). Nothing for another SAP, a frame
+    /// the core answers, and a connection SAP's Abort PDU (its full parse decides).
+    pub(super) fn prepare_dpv1(&mut self, sa: u8, da: u8, fc: u8, dsap: u8, ssap: u8, first: Option<u8>) {
+        if dsap != c1::SAP && dsap != c2::RM_SAP && conn_of(dsap).is_none() {
+            return;
+        }
+        if conn_of(dsap).is_some() && first == Some(Function::Abort.code()) {
+            return;
+        }
+        let one = [first.unwrap_or(0)];
+        let pdu = if first.is_some() { &one[..] } else { &[] };
+        let t = DataTelegram {
+            format: DataFormat::Sd2,
+            da,
+            sa,
+            fc: FunctionCode(fc),
+            dsap: Some(dsap),
+            ssap: Some(ssap),
+            pdu,
         };
-        self.stats.dpv1 = self.stats.dpv1.wrapping_add(1);
-        Dpv1::Answer(n)
+        let mut until = u64::MAX;
+        let Some((plan, flight)) = self.plan(0, &mut until, &t) else { return };
+        let n = self.build(0, plan, &t);
+        let until = [until as u32, (until >> 32) as u32];
+        self.dprep = Some(Decided { until, plan, flight, n, sa, dsap });
     }
 
     /// A queued SDN (`seq`): the master's Abort PDU on its connection SAP closes the
     /// connection (unanswered), so the relation is in flight, closed.
     pub(super) fn dpv1_sdn(&mut self, now: Instant, seq: u32, t: &DataTelegram<'_>) {
         let Some(r) = t.dsap.and_then(conn_of).map(|i| 1 + i) else { return };
-        let v = self.view(r, now);
+        let v = self.view(r, now.as_micros(), &mut { u64::MAX });
         let mine = v.kind != K_CLOSED && v.master == t.sa && t.ssap == Some(v.ssap);
         if mine && matches!(crate::dpv1::pdu::parse(t.pdu), Ok(crate::dpv1::pdu::Request::Abort(_))) {
             self.rel[r] = RelLine { seq, set: true, open: None };
