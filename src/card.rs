@@ -32,17 +32,18 @@ pub const MAX_STATION_ADDRESS: u8 = crate::fdl::telegram::MAX_STATION_ADDRESS;
 /// the DP-V1 answers (RM PDU, ready frames, Abort PDUs, SC / RS / RR) are decided and built at
 /// the header too, `finish` only confirms them. Measured 651 (Slave_Diag; DP-V1 at most 607,
 /// Data_Exchange 601, FDL_Status 414; branch `tsdr`, before it 1152 for the MSAC_C2
-/// Initiate.req to the resource manager), with an allowance of ≈ 5 % for the run-to-run spread
-/// (`bash scripts/qemu.sh bench`).
-pub const LINE_BUDGET_INSTRUCTIONS: u32 = 684;
+/// Initiate.req to the resource manager; 666 with `opt-level = 2` on main), with an allowance
+/// of ≈ 5 % for the run-to-run spread (`bash scripts/qemu.sh bench`). MaxTsdr_1.5M is 23 for
+/// any budget up to 720.
+pub const LINE_BUDGET_INSTRUCTIONS: u32 = 700;
 
 /// The streaming receive's cost per character, in instructions: `Framer::cut` and
 /// `TelegramSink::bytes` of one character of a long Data_Exchange after its header, measured by
 /// `qemu_bench` (its `per-character streaming cost` line; `qemu_bench` fails when a run
 /// exceeds this). The per-character receive's work while a request arrives; the DMA mode's
 /// remainder at IDLE is measured itself ([`DMA_FINISH_INSTRUCTIONS`]). Measured 80 (branch
-/// `tsdr`; 91 before), with an allowance of ≈ 5 %.
-pub const STREAM_CHAR_INSTRUCTIONS: u32 = 84;
+/// `tsdr`; 91 before; 83 on main), with an allowance of ≈ 5 %.
+pub const STREAM_CHAR_INSTRUCTIONS: u32 = 88;
 
 /// The worst **finish in the DMA mode** (≥ 3 Mbit/s) of any request the fast path answers, in
 /// instructions: measured by `qemu_bench --dma` on the `bench-dma` build, which emulates the
@@ -52,11 +53,11 @@ pub const STREAM_CHAR_INSTRUCTIONS: u32 = 84;
 /// interrupt's entry to the first response byte: the remainder of 1 … 16 characters through
 /// `Stream::piece` into the sink, `FastPath::finish`, the answer staged; `qemu_bench --dma`
 /// fails when a run exceeds this). Replaces the earlier charge of 15 single characters'
-/// cost ([`STREAM_CHAR_INSTRUCTIONS`] each) for the remainder. Measured 1814 (Slave_Diag: a
-/// short request that arrives entirely after the last chunk, so its whole header — the
-/// sink's `begin`, the destination filter, the prepared answer — runs at IDLE; the same
-/// request with its header in an earlier chunk: 720), with an allowance of ≈ 5 %.
-pub const DMA_FINISH_INSTRUCTIONS: u32 = 1905;
+/// cost ([`STREAM_CHAR_INSTRUCTIONS`] each) for the remainder. Measured 1844 (an MSAC_C2
+/// poll, 11 bytes: a short request that arrives entirely after the last chunk, so its whole
+/// header — the sink's `begin`, the destination filter, the prepared answer — runs at IDLE;
+/// the same request with its header in an earlier chunk: ≈ 700), with an allowance of ≈ 5 %.
+pub const DMA_FINISH_INSTRUCTIONS: u32 = 1936;
 
 /// The F411's IDLE handler's own work before and around the fast path in the DMA mode, which
 /// QEMU does not execute (no DMA, no IDLE flag): SR, the receive gate, TIM5, NDTR, the T_SYN
