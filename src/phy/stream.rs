@@ -340,36 +340,10 @@ impl Stream {
     fn header_run<S: TelegramSink + ?Sized>(&mut self, bytes: &[u8], sink: &mut S) -> (usize, Step) {
         let mut k = 0;
         while k < bytes.len() && (self.len == 0 || self.pos <= self.da_at as u16) {
-            let byte = bytes[k];
-            let i = self.pos as usize;
-            if i < self.head.len() {
-                self.head[i] = byte;
-            }
-            if self.len == 0 {
-                match expected_len(&self.head[..i + 1]) {
-                    Expect::Len(n) => {
-                        self.len = n as u16;
-                        self.da_at = match self.head[0] {
-                            SD1 | SD3 | SD4 => 1,
-                            SD2 => 4,
-                            _ => 0,
-                        };
-                    }
-                    Expect::More(_) => {}
-                    Expect::NotAFrame => return (k + 1, self.bad_header(i + 1, sink)),
-                }
-            }
-            if self.da_at != 0 && i == self.da_at as usize {
-                if let Some(own) = self.filter {
-                    let da = byte & 0x7F;
-                    if da != own && da != BROADCAST {
-                        sink.abort();
-                        self.state = State::Skipping;
-                        return (k + 1, self.advance(1));
-                    }
-                }
-            }
             k += 1;
+            if let Some(step) = self.header_check(bytes[k - 1], sink) {
+                return (k, step);
+            }
             let step = self.advance(1);
             if step != Step::Pending {
                 sink.bytes(&bytes[..k]);
@@ -384,11 +358,7 @@ impl Stream {
 
     fn start<S: TelegramSink + ?Sized>(&mut self, byte: u8, sink: &mut S) -> Step {
         if is_start_delimiter(byte) {
-            self.state = State::Telegram;
-            self.pos = 0;
-            self.len = 0;
-            self.da_at = 0;
-            sink.begin();
+            self.begin_telegram(sink);
             return self.header(byte, sink);
         }
         if self.state == State::Hunting {
@@ -404,6 +374,20 @@ impl Stream {
 
     /// One byte while the length or the destination is not known yet.
     fn header<S: TelegramSink + ?Sized>(&mut self, byte: u8, sink: &mut S) -> Step {
+        if let Some(step) = self.header_check(byte, sink) {
+            return step;
+        }
+        sink.bytes(core::slice::from_ref(&byte));
+        self.advance(1)
+    }
+
+    /// The stream's own work on a header byte (its length, its destination), shared by
+    /// [`Self::header`] and [`Self::header_run`]: `Some(step)` when the byte ends the
+    /// telegram for the sink — no frame (the sink aborted, [`Self::bad_header`]) or another
+    /// station's destination under the filter (aborted, the rest skipped) —, `None` when the
+    /// byte belongs to the sink (handed over by the caller, then `advance`).
+    #[inline(always)]
+    fn header_check<S: TelegramSink + ?Sized>(&mut self, byte: u8, sink: &mut S) -> Option<Step> {
         let i = self.pos as usize;
         if i < self.head.len() {
             self.head[i] = byte;
@@ -419,7 +403,7 @@ impl Stream {
                     };
                 }
                 Expect::More(_) => {}
-                Expect::NotAFrame => return self.bad_header(i + 1, sink),
+                Expect::NotAFrame => return Some(self.bad_header(i + 1, sink)),
             }
         }
         if self.da_at != 0 && i == self.da_at as usize {
@@ -428,12 +412,11 @@ impl Stream {
                 if da != own && da != BROADCAST {
                     sink.abort();
                     self.state = State::Skipping;
-                    return self.advance(1);
+                    return Some(self.advance(1));
                 }
             }
         }
-        sink.bytes(core::slice::from_ref(&byte));
-        self.advance(1)
+        None
     }
 
     /// The header bytes `head[..n]` are no telegram.
