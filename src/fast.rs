@@ -1965,15 +1965,7 @@ mod tests {
         core.run(&mut node);
         // MSAC_C2: the RM names SAP 48 with the core not run.
         let mut init = [0u8; 64];
-        let req = crate::dpv1::pdu::InitiateRequest {
-            send_timeout: 300,
-            features_supported: [1, 0],
-            profile_features_supported: [0, 0],
-            profile_ident_number: 0,
-            source: crate::dpv1::pdu::AddressBlock { kind: 0, bytes: &[0, 0] },
-            destination: crate::dpv1::pdu::AddressBlock { kind: 0, bytes: &[0, 0] },
-        };
-        let n = req.emit(&mut init).unwrap();
+        let n = initiate_pdu(&mut init);
         let mut c2f = |sap: u8, pdu: &[u8]| m.request(3, Some(sap), Some(40), pdu, true);
         let Verdict::Answer(rm) = fast.on_frame(now, &c2f(c2::RM_SAP, &init[..n])) else { panic!() };
         assert_eq!(parts(rm).1, [0x56, 48, 0, c2::DEFAULT_MIN_SEND_TIMEOUT as u8]);
@@ -1985,6 +1977,20 @@ mod tests {
         assert_eq!(parts(res).1[0], 0x57, "Initiate.res");
         core.run(&mut node);
         assert_eq!(fast.stats().deferred, 0);
+    }
+
+    /// An MSAC_C2 Initiate.req PDU into `buf` (Send_Timeout 3 s, Read/Write supported, 2-byte
+    /// address blocks of type 0): its length.
+    fn initiate_pdu(buf: &mut [u8]) -> usize {
+        let req = crate::dpv1::pdu::InitiateRequest {
+            send_timeout: 300,
+            features_supported: [1, 0],
+            profile_features_supported: [0, 0],
+            profile_ident_number: 0,
+            source: crate::dpv1::pdu::AddressBlock { kind: 0, bytes: &[0, 0] },
+            destination: crate::dpv1::pdu::AddressBlock { kind: 0, bytes: &[0, 0] },
+        };
+        req.emit(buf).unwrap()
     }
 
     /// The DP-V1 decision prepared while the header arrives (`prepare_dpv1`) is the last
@@ -2009,15 +2015,7 @@ mod tests {
         }
         core.run(&mut node);
         let mut init = [0u8; 64];
-        let req = crate::dpv1::pdu::InitiateRequest {
-            send_timeout: 300,
-            features_supported: [1, 0],
-            profile_features_supported: [0, 0],
-            profile_ident_number: 0,
-            source: crate::dpv1::pdu::AddressBlock { kind: 0, bytes: &[0, 0] },
-            destination: crate::dpv1::pdu::AddressBlock { kind: 0, bytes: &[0, 0] },
-        };
-        let n = req.emit(&mut init).unwrap();
+        let n = initiate_pdu(&mut init);
         let init = &init[..n];
         let alone_says = |alone: &mut Node, at: Instant, f: &[u8]| match alone.on_frame(at, f) {
             Some(a) => (1, a.to_vec()),
