@@ -416,15 +416,10 @@ fn take(
         #[cfg(feature = "bench")]
         len: framer.telegram_len(),
     };
-    let before = fast.stats().queued;
-    match fast.finish(at) {
-        pbcard::fast::Verdict::Answer(bytes) => stage(port, stats, staged, meta, bytes, false, at),
-        pbcard::fast::Verdict::Core => *awaiting = Some(meta),
-        pbcard::fast::Verdict::Silent => {}
-    }
+    let queued = finish(port, stats, fast, awaiting, staged, meta, at);
     #[cfg(feature = "bench")]
     bench::char_in(framer.telegram_len(), true, bench_us, 0);
-    fast.stats().queued != before
+    queued
 }
 
 /// [`take`] of the `bench-dma` build: the character into [`DmaEmu`].
@@ -446,9 +441,8 @@ fn take(
 }
 
 /// The fast path's decision at the end of a telegram and its answer staged (or the telegram
-/// left to the core): whether the fast path queued it (the `bench-dma` build; the
-/// per-character [`take`] has the same lines inline).
-#[cfg(feature = "bench-dma")]
+/// left to the core): whether the fast path queued it. Both receives' [`take`] end here.
+#[inline(always)]
 fn finish(
     port: &mut Port,
     stats: &mut LineStats,
