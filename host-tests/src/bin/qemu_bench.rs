@@ -118,6 +118,16 @@ fn bench_only(l: &str) -> bool {
         || l.starts_with("Data_Exchange 244 out / 244 in")
 }
 
+/// The samples' range as a table cell: `lo – hi`, or one figure.
+fn span(v: &[u32]) -> String {
+    let (lo, hi) = (v.iter().min().unwrap(), v.iter().max().unwrap());
+    if lo == hi {
+        format!("{lo}")
+    } else {
+        format!("{lo} – {hi}")
+    }
+}
+
 fn fail(what: &str) -> ! {
     if let Some(log) = LOG.get() {
         eprintln!("--- firmware log ---\n{}", log.lock().unwrap().join("\n"));
@@ -381,17 +391,15 @@ fn main() {
     println!("| request | answered by | frame bytes in → out | instructions | samples | ≥ µs at 96 MHz |");
     println!("|---|---|---:|---:|---:|---:|");
     for (label, req, resp, v, path) in &rows {
-        let (lo, hi) = (v.iter().min().unwrap(), v.iter().max().unwrap());
-        let instr = if lo == hi { format!("{lo}") } else { format!("{lo} – {hi}") };
+        let (instr, hi) = (span(v), *v.iter().max().unwrap());
         let by = if path == "core" { "via core (DP-V1, through the line)" } else { "fast path" };
-        println!("| {label} | {by} | {req} → {resp} | {instr} | {} | {:.1} |", v.len(), *hi as f64 / 96.0);
+        println!("| {label} | {by} | {req} → {resp} | {instr} | {} | {:.1} |", v.len(), hi as f64 / 96.0);
     }
     println!("\n(the core's work per queued telegram, after the answer: `CoreLink::step` = `Node::on_frame` + republishing the staging)\n");
     println!("| queued request | core instructions | samples |");
     println!("|---|---:|---:|");
     for (label, v) in &core_rows {
-        let (lo, hi) = (v.iter().min().unwrap(), v.iter().max().unwrap());
-        let instr = if lo == hi { format!("{lo}") } else { format!("{lo} – {hi}") };
+        let instr = span(v);
         println!("| {label} | {instr} | {} |", v.len());
     }
     println!("\n(critical sections a lower task still imposes on the fast path: every interrupt masked)\n");
@@ -545,8 +553,7 @@ fn dma_report(rows: &[(String, usize, usize, Vec<u32>, String)], log: &[String])
     println!("| request | frame bytes in → out | instructions | samples |");
     println!("|---|---:|---:|---:|");
     for (label, req, resp, v, _) in rows {
-        let (lo, hi) = (v.iter().min().unwrap(), v.iter().max().unwrap());
-        let instr = if lo == hi { format!("{lo}") } else { format!("{lo} – {hi}") };
+        let instr = span(v);
         println!("| {label} | {req} → {resp} | {instr} | {} |", v.len());
     }
     let worst = rows
