@@ -1272,7 +1272,7 @@ impl FastPath<'_> {
             store_words(&self.slots[self.rx.slot][self.rx.words..whole], &self.rxb[self.rx.words * 4..whole * 4]);
             self.rx.words = whole;
         }
-        if !self.rx.header_seen {
+        if !self.rx.header_seen && have < self.rx.expect {
             self.prepare(have, end);
         }
     }
