@@ -371,6 +371,7 @@ impl Shared {
             rx: Rx::IDLE,
             prep: None,
             dprep: None,
+            lean: None,
             given: Out::Silent,
             sd1: [0; 6],
             deferred: [0; MAX_FRAME_LEN],
@@ -599,6 +600,42 @@ struct Prep {
     status1: u8,
 }
 
+/// The whole decision on a request, made once its header was in ([`FastPath::prepare`]):
+/// what [`FastPath::decide`] would conclude for these header bytes, this staging and this
+/// retry memory — none of which changes while the rest of the telegram arrives —, so that
+/// `finish` only checks the checksum and the end delimiter and commits it
+/// ([`FastPath::decide_prepared`]; issue 11, the work left after the last byte). Made only
+/// where the PDU cannot change the decision — every staged service but Set_Slave_Add (whose
+/// PDU is judged): Data_Exchange and Slave_Diag ([`Prep`]), Set_Prm / Chk_Cfg (SC), Get_Cfg,
+/// Rd_Inp / Rd_Outp and the status answers, built into `bufs[w]` with the header; and the
+/// prepared DP-V1 decisions (`dpv1::Decided`, taken before its timer) — never for a request
+/// that could be an FCB retry of the last one (its PDU decides), and never for a telegram
+/// whose header arrived with its last byte (a DMA piece that holds the whole request: the
+/// general decision is as fast then). The property `any_chunking_equals_on_frame` compares
+/// it with the general decision of [`FastPath::on_frame`] in every chunking.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Lean {
+    sa: u8,
+    fc: u8,
+    dsap: Option<u8>,
+    ssap: Option<u8>,
+    /// The PDU's length (the retry fingerprint).
+    pdu_len: u8,
+    what: LeanWhat,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum LeanWhat {
+    /// A staged service's answer (`answer_srd`'s), `n` bytes already in `bufs[w]`: the
+    /// prepared Data_Exchange or Slave_Diag frame ([`Prep`]), an SC, a status frame, Get_Cfg,
+    /// Rd_Inp / Rd_Outp. `judge`: a Set_Prm / Chk_Cfg (it opens the not-ready window);
+    /// `not_ready`: a Slave_Diag answered with Station_Not_Ready; `consume`: a Slave_Diag of
+    /// the locking master that reads the staged DH.
+    Staged { n: u16, judge: bool, not_ready: bool, consume: bool },
+    /// The prepared DP-V1 decision (`dprep`).
+    Dpv1,
+}
+
 /// Where a decision's answer is.
 #[derive(Debug, Clone, Copy)]
 enum Out {
@@ -647,6 +684,8 @@ pub struct FastPath<'a> {
     prep: Option<Prep>,
     /// Or the DP-V1 decision whose answer was prepared into `bufs[w]` ([`dpv1`]).
     dprep: Option<dpv1::Decided>,
+    /// The whole decision, when the prepared answer is certain to be it ([`Lean`]).
+    lean: Option<Lean>,
     /// Where the last answer given is ([`FastPath::answer_given`]).
     given: Out,
     sd1: [u8; 6],
@@ -813,23 +852,33 @@ impl<'a> FastPath<'a> {
                 if whole < frame.len() {
                     store_words(&self.slots[rx.slot][whole / 4..], &frame[whole..]);
                 }
-                let out = match telegram::decode_summed(frame, rx.sum) {
-                    Decoded::Frame(Telegram::Data(t), n) if n == frame.len() => {
-                        // The retry fingerprint's PDU sum: from the header's sum taken while
-                        // it arrived, else (no header seen: not reached for a decoded frame)
-                        // over the header bytes now.
-                        let sum = match rx.header_seen {
-                            true => frame.get(frame.len().wrapping_sub(2)).map_or(0, |f| f.wrapping_sub(rx.hsum)),
-                            false => pdu_sum(frame, t.pdu.len()),
-                        };
-                        #[cfg(test)]
-                        assert_eq!(sum, pdu_sum(frame, t.pdu.len()), "{frame:02x?}");
-                        self.decide(now, frame, &t, rx.own, sum)
+                let n = frame.len();
+                let lean = match self.lean {
+                    Some(l) if n == rx.expect && frame[n - 2] == rx.sum && frame[n - 1] == telegram::ED => {
+                        self.decide_prepared(now, n, l, frame[n - 2].wrapping_sub(rx.hsum), rx.own)
                     }
-                    _ => {
-                        self.stats.invalid = self.stats.invalid.wrapping_add(1);
-                        Out::Silent
-                    }
+                    _ => None,
+                };
+                let out = match lean {
+                    Some(out) => out,
+                    None => match telegram::decode_summed(frame, rx.sum) {
+                        Decoded::Frame(Telegram::Data(t), n) if n == frame.len() => {
+                            // The retry fingerprint's PDU sum: from the header's sum taken while
+                            // it arrived, else (no header seen: not reached for a decoded frame)
+                            // over the header bytes now.
+                            let sum = match rx.header_seen {
+                                true => frame.get(frame.len().wrapping_sub(2)).map_or(0, |f| f.wrapping_sub(rx.hsum)),
+                                false => pdu_sum(frame, t.pdu.len()),
+                            };
+                            #[cfg(test)]
+                            assert_eq!(sum, pdu_sum(frame, t.pdu.len()), "{frame:02x?}");
+                            self.decide(now, frame, &t, rx.own, sum)
+                        }
+                        _ => {
+                            self.stats.invalid = self.stats.invalid.wrapping_add(1);
+                            Out::Silent
+                        }
+                    },
                 };
                 self.rxb = rxb;
                 out
@@ -846,6 +895,7 @@ impl<'a> FastPath<'a> {
         };
         self.prep = None;
         self.dprep = None;
+        self.lean = None;
         match out {
             Out::Silent => Verdict::Silent,
             Out::Core => Verdict::Core,
@@ -947,7 +997,7 @@ impl<'a> FastPath<'a> {
                     match self.dpv1(now, frame.len(), &t) {
                         dpv1::Dpv1::Core => {}
                         dpv1::Dpv1::QueueFull => return Out::Silent,
-                        dpv1::Dpv1::Answer(n) => return self.answered(&t, fingerprint, own, n),
+                        dpv1::Dpv1::Answer(n) => return self.answered(t.sa, t.fc, fingerprint, own, n),
                     }
                 }
                 let Some(seq) = self.queue(now, frame.len(), !staged) else {
@@ -995,16 +1045,51 @@ impl<'a> FastPath<'a> {
         }
     }
 
-    /// The line answered `t` with `buf[..n]`: remember it for FCB retries, hand it out.
-    fn answered(&mut self, t: &telegram::DataTelegram<'_>, request: u32, own: u8, n: u16) -> Out {
-        let last = Last { sa: t.sa, fcb: t.fc.fcb(), request, own, epoch: self.st.epoch, answer: Some(n) };
-        self.last = if t.fc.fcv() || t.fc.fcb() { Some(last) } else { None };
+    /// The line answered the request from `sa` with function code `fc` (its fingerprint
+    /// `request`) with `buf[..n]`: remember it for FCB retries, hand it out.
+    fn answered(&mut self, sa: u8, fc: FunctionCode, request: u32, own: u8, n: u16) -> Out {
+        let last = Last { sa, fcb: fc.fcb(), request, own, epoch: self.st.epoch, answer: Some(n) };
+        self.last = if fc.fcv() || fc.fcb() { Some(last) } else { None };
         if n == 0 {
             return Out::Silent;
         }
         self.stats.answered = self.stats.answered.wrapping_add(1);
         self.w ^= 1;
         Out::Stored(n)
+    }
+
+    /// [`decide`](Self::decide) for a telegram whose whole decision was made with its header
+    /// ([`Lean`]): its checksum and end delimiter are right (the caller checked them, and the
+    /// length), so it is committed — queued, its answer remembered for a retry — without
+    /// decoding it again. `None` where the prepared DP-V1 decision's timer has passed: the
+    /// general decision then.
+    fn decide_prepared(&mut self, now: Instant, len: usize, l: Lean, psum: u8, own: u8) -> Option<Out> {
+        if self.last.is_some_and(|x| x.own != own || x.epoch != self.st.epoch) {
+            self.last = None;
+        }
+        let fc = FunctionCode(l.fc);
+        let fp = fingerprint(l.dsap, l.ssap, usize::from(l.pdu_len), psum);
+        let n = match l.what {
+            LeanWhat::Dpv1 => match self.dpv1_prepared(now, len)? {
+                dpv1::Dpv1::Answer(n) => n,
+                dpv1::Dpv1::QueueFull => return Some(Out::Silent),
+                dpv1::Dpv1::Core => return None,
+            },
+            LeanWhat::Staged { n, judge, not_ready, consume } => {
+                let Some(seq) = self.queue(now, len, false) else { return Some(Out::Silent) };
+                if judge {
+                    self.judge_seq = seq;
+                }
+                if not_ready {
+                    self.stats.not_ready_diag = self.stats.not_ready_diag.wrapping_add(1);
+                }
+                if consume {
+                    self.diag_consumed = Some(seq);
+                }
+                n
+            }
+        };
+        Some(self.answered(l.sa, fc, fp, own, n))
     }
 
     /// An SD1 status answer to `da` in `buf`; its length.
@@ -1120,33 +1205,40 @@ impl<'a> FastPath<'a> {
                     self.status(t.sa, ResponseStatus::Rs)
                 }
             }
-            Some(sap::GET_CFG) => {
-                // The staged index is one of the configuration's modules (0 when the slave's
-                // Real_Cfg is none of them).
-                let cfg = self.config.modules.get(usize::from(st.module)).map_or(&[][..], |m| m.cfg);
-                let hdr = Header::response_to(t, ResponseStatus::Dl);
-                match telegram::emit(&mut self.bufs[self.w], &hdr, cfg) {
-                    Ok(n) => n as u16,
-                    Err(_) => self.status(t.sa, ResponseStatus::Rs),
-                }
-            }
-            Some(sap::RD_INP) | Some(sap::RD_OUTP) => {
-                if window || !dx {
-                    return self.status(t.sa, ResponseStatus::Rs);
-                }
-                if t.dsap == Some(sap::RD_INP) {
-                    let n = usize::from(st.in_len);
-                    let len = usize::from(st.dx_len);
-                    if n == 0 || len < n + 2 {
-                        return self.misc_from_staging(t, DX_AT, 0);
-                    }
-                    self.misc_from_staging(t, DX_AT + telegram::pdu_range(len, n).start, n)
-                } else {
-                    self.misc_from_staging(t, OUT_AT, usize::from(st.out_len))
-                }
-            }
+            Some(sap::GET_CFG) => self.get_cfg(t),
+            Some(sap::RD_INP) | Some(sap::RD_OUTP) => self.read_back(t),
             // Not reached: `staged` lists the services above.
             Some(_) => self.status(t.sa, ResponseStatus::Rs),
+        }
+    }
+
+    /// Get_Cfg's answer: the Real_Cfg of the staged module (the staged index is one of the
+    /// configuration's modules, 0 when the slave's Real_Cfg is none of them).
+    fn get_cfg(&mut self, t: &telegram::DataTelegram<'_>) -> u16 {
+        let cfg = self.config.modules.get(usize::from(self.st.module)).map_or(&[][..], |m| m.cfg);
+        let hdr = Header::response_to(t, ResponseStatus::Dl);
+        match telegram::emit(&mut self.bufs[self.w], &hdr, cfg) {
+            Ok(n) => n as u16,
+            Err(_) => self.status(t.sa, ResponseStatus::Rs),
+        }
+    }
+
+    /// Rd_Inp / Rd_Outp's answer (`t.dsap`): the staged inputs or outputs in data exchange
+    /// outside the not-ready window, else RS.
+    fn read_back(&mut self, t: &telegram::DataTelegram<'_>) -> u16 {
+        let st = self.st;
+        if after(self.judge_seq, st.done_seq) || st.state() != DpState::DataExch {
+            return self.status(t.sa, ResponseStatus::Rs);
+        }
+        if t.dsap == Some(sap::RD_INP) {
+            let n = usize::from(st.in_len);
+            let len = usize::from(st.dx_len);
+            if n == 0 || len < n + 2 {
+                return self.misc_from_staging(t, DX_AT, 0);
+            }
+            self.misc_from_staging(t, DX_AT + telegram::pdu_range(len, n).start, n)
+        } else {
+            self.misc_from_staging(t, OUT_AT, usize::from(st.out_len))
         }
     }
 }
@@ -1174,6 +1266,7 @@ impl TelegramSink for FastPath<'_> {
         self.rx = Rx::IDLE;
         self.prep = None;
         self.dprep = None;
+        self.lean = None;
         self.refresh();
         self.rx =
             Rx { state: RxState::Open, own: self.st.address, slot: slot_of(self.seq.wrapping_add(1)), ..Rx::IDLE };
@@ -1212,6 +1305,7 @@ impl TelegramSink for FastPath<'_> {
         self.rx = Rx::IDLE;
         self.prep = None;
         self.dprep = None;
+        self.lean = None;
     }
 }
 
@@ -1310,33 +1404,98 @@ impl FastPath<'_> {
         }
         let st = self.st;
         let window = after(self.judge_seq, st.done_seq);
-        let key = match ext {
-            (false, false) => {
-                let pdu_len = end - header;
-                let dx = st.state() == DpState::DataExch && st.master() == Some(sa) && st.in_len != 0;
-                if window || !dx || (pdu_len != 0 && pdu_len != usize::from(st.out_len)) {
+        // What `decide` needs beyond the header checks above to take the prepared answer as
+        // the whole decision ([`Lean`]): the SAP octets as `telegram::decode` accepts them
+        // (no region address, no chained extension), and no FCB retry of the last request
+        // possible (`decide`'s retry test before its fingerprint; the retry memory is reset
+        // there as here when the address or the epoch moved).
+        let ext_ok = (!ext.0 || b[s + 3] & 0xC0 == 0) && (!ext.1 || b[s + 4] & 0xC0 == 0);
+        let retry = fc & 0x10 != 0
+            && self.last.is_some_and(|l| {
+                l.own == self.rx.own && l.epoch == st.epoch && l.sa == sa && l.fcb == (fc & 0x20 != 0)
+            });
+        let (dsap, ssap) = (ext.0.then(|| b[s + 3] & 0x3F), ext.1.then(|| b[s + 4] & 0x3F));
+        let first = (header < end).then(|| b[header]);
+        let pdu_len = end - header;
+        let lean =
+            (ext_ok && !retry).then_some(Lean { sa, fc, dsap, ssap, pdu_len: pdu_len as u8, what: LeanWhat::Dpv1 });
+        let staged = |n: u16| LeanWhat::Staged { n, judge: false, not_ready: false, consume: false };
+        let dx = st.state() == DpState::DataExch;
+        // The answer `answer_srd` gives, into `bufs[w]` now.
+        let what = match (dsap, ssap) {
+            (None, None) => {
+                // Data_Exchange.
+                if window || !dx || st.master() != Some(sa) || (pdu_len != 0 && pdu_len != usize::from(st.out_len)) {
+                    staged(self.status(sa, ResponseStatus::Rs))
+                } else {
+                    let dh = st.flags & FLAG_DIAG_NEW != 0 && self.diag_consumed.is_none();
+                    let status = if dh { ResponseStatus::Dh } else { ResponseStatus::Dl };
+                    if st.in_len == 0 {
+                        staged(if dh { self.status(sa, status) } else { self.sc() })
+                    } else {
+                        let key = Prep {
+                            at: DX_AT,
+                            len: usize::from(st.dx_len),
+                            da: sa,
+                            fc: status as u8,
+                            dsap: None,
+                            status1: 0,
+                        };
+                        let n = self.patch_into_scratch(key);
+                        if n == 0 {
+                            return;
+                        }
+                        self.prep = Some(key);
+                        staged(n)
+                    }
+                }
+            }
+            (Some(sap::SLAVE_DIAG), Some(ssap)) => {
+                let status1 = if window { Status1::STATION_NOT_READY.bits() } else { 0 };
+                let key = Prep {
+                    at: DIAG_AT,
+                    len: usize::from(st.diag_len),
+                    da: sa,
+                    fc: ResponseStatus::Dl as u8,
+                    dsap: Some(ssap),
+                    status1,
+                };
+                let n = self.patch_into_scratch(key);
+                if n == 0 {
                     return;
                 }
-                let dh = st.flags & FLAG_DIAG_NEW != 0 && self.diag_consumed.is_none();
-                let status = if dh { ResponseStatus::Dh } else { ResponseStatus::Dl };
-                Prep { at: DX_AT, len: usize::from(st.dx_len), da: sa, fc: status as u8, dsap: None, status1: 0 }
+                self.prep = Some(key);
+                let consume = st.master() == Some(sa) && st.flags & FLAG_DIAG_NEW != 0;
+                LeanWhat::Staged { n, judge: false, not_ready: window, consume }
             }
-            (true, true) if b[s + 3] & 0x3F == sap::SLAVE_DIAG => {
-                let status1 = if window { Status1::STATION_NOT_READY.bits() } else { 0 };
-                let dsap = Some(b[s + 4] & 0x3F);
-                Prep { at: DIAG_AT, len: usize::from(st.diag_len), da: sa, fc: ResponseStatus::Dl as u8, dsap, status1 }
+            (Some(sap::SET_PRM), Some(_)) | (Some(sap::CHK_CFG), Some(_)) => {
+                LeanWhat::Staged { n: self.sc(), judge: true, not_ready: false, consume: false }
             }
-            (true, true) => {
-                let (dsap, ssap) = (b[s + 3] & 0x3F, b[s + 4] & 0x3F);
-                let first = (header < end).then(|| b[header]);
+            (Some(d @ (sap::GET_CFG | sap::RD_INP | sap::RD_OUTP)), Some(_)) => {
+                let t = telegram::DataTelegram {
+                    format: telegram::DataFormat::Sd2,
+                    da,
+                    sa,
+                    fc: FunctionCode(fc),
+                    dsap,
+                    ssap,
+                    pdu: &[],
+                };
+                staged(match d {
+                    sap::GET_CFG => self.get_cfg(&t),
+                    _ => self.read_back(&t),
+                })
+            }
+            (Some(dsap), Some(ssap)) if dsap != sap::SET_SLAVE_ADD => {
                 self.prepare_dpv1(sa, da, fc, dsap, ssap, first);
-                return;
+                if self.dprep.is_none() {
+                    return;
+                }
+                LeanWhat::Dpv1
             }
             _ => return,
         };
-        if self.patch_into_scratch(key) != 0 {
-            self.prep = Some(key);
-        }
+        self.lean = lean.map(|l| Lean { what, ..l });
     }
 }
 

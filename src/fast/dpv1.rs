@@ -304,17 +304,35 @@ impl FastPath<'_> {
                 (plan, flight, None)
             }
         };
-        let held = matches!(plan, Plan::Sc);
-        let Some(seq) = self.queue_as(at, len, false, held) else { return Dpv1::QueueFull };
-        if let Some((r, open)) = flight {
-            self.rel[usize::from(r)] = RelLine { seq, set: true, open };
-        }
+        let Some(()) = self.dpv1_commit(at, len, plan, flight) else { return Dpv1::QueueFull };
         let n = match built {
             Some(n) => n,
             None => self.build(now, plan, t),
         };
-        self.stats.dpv1 = self.stats.dpv1.wrapping_add(1);
         Dpv1::Answer(n)
+    }
+
+    /// [`dpv1`](Self::dpv1) with the decision prepared while the header arrived, for a
+    /// telegram that is the one it was made for ([`super::Lean`]): `None` when its timer has
+    /// passed (the general decision plans again).
+    pub(super) fn dpv1_prepared(&mut self, at: Instant, len: usize) -> Option<Dpv1> {
+        let p = self.dprep.filter(|p| at.as_micros() < p.until())?;
+        Some(match self.dpv1_commit(at, len, p.plan, p.flight) {
+            Some(()) => Dpv1::Answer(p.n),
+            None => Dpv1::QueueFull,
+        })
+    }
+
+    /// The DP-V1 decision `plan` committed: the telegram queued (held for the core when the
+    /// answer is SC), the relation it puts in flight noted. `None`: the queue is full.
+    fn dpv1_commit(&mut self, at: Instant, len: usize, plan: Plan, flight: Flight) -> Option<()> {
+        let held = matches!(plan, Plan::Sc);
+        let seq = self.queue_as(at, len, false, held)?;
+        if let Some((r, open)) = flight {
+            self.rel[usize::from(r)] = RelLine { seq, set: true, open };
+        }
+        self.stats.dpv1 = self.stats.dpv1.wrapping_add(1);
+        Some(())
     }
 
     /// The answer of `plan` to `t` at `now` (µs) into `bufs[w]`; its length.
