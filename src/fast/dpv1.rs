@@ -120,8 +120,8 @@ enum Plan {
     Status(ResponseStatus),
     /// SC; the core hands out nothing on this frame.
     Sc,
-    /// The staged response frame of relation `r`.
-    Ready(u8),
+    /// The staged response frame of relation `r`, its length (the view's at the plan's time).
+    Ready(u8, u16),
     /// The RM PDU naming connection `i`.
     Rm(u8),
     /// The Abort PDU of connection `i` (reason code).
@@ -246,7 +246,7 @@ impl FastPath<'_> {
             }
             let open = Some((0, Some((t.sa, c1::SAP))));
             let ready = poll && v.frame_len > 0 && !self.in_flight(0);
-            return Some((if ready { Plan::Ready(0) } else { Plan::Sc }, open));
+            return Some((if ready { Plan::Ready(0, v.frame_len) } else { Plan::Sc }, open));
         }
         if dsap == c2::RM_SAP {
             let initiate = t.pdu.first() == Some(&Function::Initiate.code());
@@ -287,7 +287,7 @@ impl FastPath<'_> {
         // Every frame from the master restarts the connection's timer: in flight.
         Some(match v.kind {
             K_ABORTING => (Plan::Abort(i, v.reason), Some((r, None))),
-            K_OPEN if poll && v.frame_len > 0 => (Plan::Ready(r), open),
+            K_OPEN if poll && v.frame_len > 0 => (Plan::Ready(r, v.frame_len), open),
             _ => (Plan::Sc, open),
         })
     }
@@ -307,7 +307,7 @@ impl FastPath<'_> {
         let Some(()) = self.dpv1_commit(at, len, plan, flight) else { return Dpv1::QueueFull };
         let n = match built {
             Some(n) => n,
-            None => self.build(now, plan, t),
+            None => self.build(plan, t),
         };
         Dpv1::Answer(n)
     }
@@ -335,16 +335,15 @@ impl FastPath<'_> {
         Some(())
     }
 
-    /// The answer of `plan` to `t` at `now` (µs) into `bufs[w]`; its length.
-    fn build(&mut self, now: u64, plan: Plan, t: &DataTelegram<'_>) -> u16 {
+    /// The answer of `plan` to `t` into `bufs[w]`; its length.
+    fn build(&mut self, plan: Plan, t: &DataTelegram<'_>) -> u16 {
         let own = self.st.address;
         match plan {
             Plan::Status(s) => self.status(t.sa, s),
             Plan::Sc => self.sc(),
-            Plan::Ready(r) => {
-                let r = usize::from(r);
-                let len = usize::from(self.staged_view(r, now, &mut { u64::MAX }).frame_len).min(MAX_FRAME_LEN);
-                self.staging.read(rel_at(r) + REL_HDR, &mut self.bufs[self.w][..len]);
+            Plan::Ready(r, len) => {
+                let len = usize::from(len).min(MAX_FRAME_LEN);
+                self.staging.read(rel_at(usize::from(r)) + REL_HDR, &mut self.bufs[self.w][..len]);
                 len as u16
             }
             Plan::Rm(i) => {
@@ -389,7 +388,7 @@ impl FastPath<'_> {
         };
         let mut until = u64::MAX;
         let Some((plan, flight)) = self.plan(0, &mut until, &t) else { return };
-        let n = self.build(0, plan, &t);
+        let n = self.build(plan, &t);
         let until = [until as u32, (until >> 32) as u32];
         self.dprep = Some(Decided { until, plan, flight, n, sa, dsap });
     }

@@ -350,6 +350,12 @@ impl Stream {
         let Some(&da) = bytes.get(da_at.wrapping_sub(pos)) else { return self.header_run(bytes, sink) };
         let n = if self.len != 0 {
             self.len as usize
+        } else if pos == 0 {
+            // The whole length part in this piece (the common case: no copy).
+            match crate::fdl::telegram::frame_len(&bytes[..da_at]) {
+                Ok(Some(n)) => n,
+                _ => return self.header_run(bytes, sink),
+            }
         } else {
             let mut h = [0u8; 4];
             h[..pos].copy_from_slice(&self.head[..pos]);
