@@ -30,12 +30,13 @@ pub const MAX_STATION_ADDRESS: u8 = crate::fdl::telegram::MAX_STATION_ADDRESS;
 /// issue 11's streaming receive it does not grow with the telegram's length: the checksum,
 /// the copy into the core's queue slot and the likely answer are done while the bytes arrive;
 /// the DP-V1 answers (RM PDU, ready frames, Abort PDUs, SC / RS / RR) are decided and built at
-/// the header too, `finish` only confirms them. Measured 651 (Slave_Diag; DP-V1 at most 607,
-/// Data_Exchange 601, FDL_Status 414; branch `tsdr`, before it 1152 for the MSAC_C2
-/// Initiate.req to the resource manager; 666 with `opt-level = 2` on main), with an allowance
-/// of ≈ 5 % for the run-to-run spread (`bash scripts/qemu.sh bench`). MaxTsdr_1.5M is 23 for
-/// any budget up to 720.
-pub const LINE_BUDGET_INSTRUCTIONS: u32 = 700;
+/// the header too, and since session 10 the whole decision with them (`fast::Lean`: every
+/// staged service but Set_Slave_Add), so `finish` checks the FCS and the end delimiter and
+/// commits it. Measured 447 (an MSAC_C1 poll → DS_Read.res; Data_Exchange ≤ 395, Slave_Diag
+/// ≤ 403, Set_Prm / Chk_Cfg ≤ 403, FDL_Status ≤ 437; 666 before the lean finish, 1152 before
+/// the DP-V1 answers were prepared), with an allowance of ≈ 5 % for the run-to-run spread
+/// (`bash scripts/qemu.sh bench`). MaxTsdr_1.5M is 17 for any budget from 465 to 507.
+pub const LINE_BUDGET_INSTRUCTIONS: u32 = 470;
 
 /// The streaming receive's cost per character, in instructions: `Framer::cut` and
 /// `TelegramSink::bytes` of one character of a long Data_Exchange after its header, measured by
@@ -53,11 +54,13 @@ pub const STREAM_CHAR_INSTRUCTIONS: u32 = 88;
 /// interrupt's entry to the first response byte: the remainder of 1 … 16 characters through
 /// `Stream::piece` into the sink, `FastPath::finish`, the answer staged; `qemu_bench --dma`
 /// fails when a run exceeds this). Replaces the earlier charge of 15 single characters'
-/// cost ([`STREAM_CHAR_INSTRUCTIONS`] each) for the remainder. Measured 1844 (an MSAC_C2
-/// poll, 11 bytes: a short request that arrives entirely after the last chunk, so its whole
-/// header — the sink's `begin`, the destination filter, the prepared answer — runs at IDLE;
-/// the same request with its header in an earlier chunk: ≈ 700), with an allowance of ≈ 5 %.
-pub const DMA_FINISH_INSTRUCTIONS: u32 = 1936;
+/// cost ([`STREAM_CHAR_INSTRUCTIONS`] each) for the remainder. Measured 1300 (an MSAC_C2
+/// poll, 11 bytes: a short request that arrives entirely after the last chunk, so the sink's
+/// `begin`, its header in one piece (`Stream::piece` hands a whole header over at once) and
+/// the general decision — nothing could be prepared — run at IDLE; the same request with its
+/// header in an earlier chunk: ≈ 400 with the lean finish; 1844 before session 10), with an
+/// allowance of ≈ 5 %.
+pub const DMA_FINISH_INSTRUCTIONS: u32 = 1365;
 
 /// The F411's IDLE handler's own work before and around the fast path in the DMA mode, which
 /// QEMU does not execute (no DMA, no IDLE flag): SR, the receive gate, TIM5, NDTR, the T_SYN
