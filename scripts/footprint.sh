@@ -26,10 +26,11 @@ RAM_LIMIT=$((32 * 1024))
 # symbols. Set ENFORCE_FLASH=yes once the flash figure is under 96 KiB.
 ENFORCE_FLASH=${ENFORCE_FLASH:-no}
 ENFORCE_RAM=${ENFORCE_RAM:-yes}
-# Until then a ratchet: the flash figure may not grow back above what session 9 reached
-# (124 604 B) plus 2 KiB of room for fixes. Lower it when the figure falls; never raise it
-# without saying why in the README's "Footprint".
-FLASH_RATCHET=${FLASH_RATCHET:-$((124604 + 2048))}
+# Until then a ratchet: the flash figure may not grow back above what session 10 reached
+# (128 320 B: session 9's 124 604 B plus the lean fast path, README "Footprint") plus 1 KiB of
+# room for fixes. Lower it when the figure falls; never raise it without saying why in the
+# README's "Footprint".
+FLASH_RATCHET=${FLASH_RATCHET:-$((128320 + 1024))}
 
 if [[ ! -f "$ELF" ]]; then
     echo "footprint: $ELF not found (build it with: cargo build --release)" >&2

@@ -731,7 +731,10 @@ mod max_tsdr_model {
     #[test]
     fn a_smaller_budget_never_raises_max_tsdr() {
         for rate in RATES {
-            assert!(modelled_tsdr(rate, 500) <= modelled_tsdr(rate, LINE_BUDGET_INSTRUCTIONS));
+            for smaller in [0, 100, LINE_BUDGET_INSTRUCTIONS / 2, LINE_BUDGET_INSTRUCTIONS - 1] {
+                assert!(modelled_tsdr(rate, smaller) <= modelled_tsdr(rate, LINE_BUDGET_INSTRUCTIONS));
+                assert!(modelled_tsdr(rate, smaller) <= modelled_tsdr(rate, DMA_FINISH_INSTRUCTIONS));
+            }
         }
     }
 }

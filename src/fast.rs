@@ -1213,7 +1213,9 @@ impl<'a> FastPath<'a> {
     }
 
     /// Get_Cfg's answer: the Real_Cfg of the staged module (the staged index is one of the
-    /// configuration's modules, 0 when the slave's Real_Cfg is none of them).
+    /// configuration's modules, 0 when the slave's Real_Cfg is none of them). Out of line: one
+    /// copy for `answer_srd` and `prepare` (a rare request).
+    #[inline(never)]
     fn get_cfg(&mut self, t: &telegram::DataTelegram<'_>) -> u16 {
         let cfg = self.config.modules.get(usize::from(self.st.module)).map_or(&[][..], |m| m.cfg);
         let hdr = Header::response_to(t, ResponseStatus::Dl);
@@ -1224,7 +1226,8 @@ impl<'a> FastPath<'a> {
     }
 
     /// Rd_Inp / Rd_Outp's answer (`t.dsap`): the staged inputs or outputs in data exchange
-    /// outside the not-ready window, else RS.
+    /// outside the not-ready window, else RS. Out of line, as [`Self::get_cfg`].
+    #[inline(never)]
     fn read_back(&mut self, t: &telegram::DataTelegram<'_>) -> u16 {
         let st = self.st;
         if after(self.judge_seq, st.done_seq) || st.state() != DpState::DataExch {

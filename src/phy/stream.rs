@@ -21,7 +21,9 @@
 /// times as the pieces come (the first piece starts with the start delimiter; the pieces
 /// together are exactly the telegram, by length), then either the driver's own "complete"
 /// call on the implementing type (its decision) or [`abort`](Self::abort). A `begin` while
-/// a telegram is in progress abandons that one as `abort` would.
+/// a telegram is in progress abandons that one as `abort` would. With a destination filter
+/// ([`Stream::set_filter`]) another station's telegram whose header came in one piece is
+/// never announced: the sink hears nothing of it (no `begin`, no `abort`).
 pub trait TelegramSink {
     /// A new telegram starts: forget any partial state.
     fn begin(&mut self);
@@ -113,6 +115,8 @@ pub struct Stream {
     da_at: u8,
     /// Skip telegrams whose DA is neither this station nor the broadcast.
     filter: Option<u8>,
+    /// The sink has had `begin` for the telegram in progress ([`Self::start_quiet`]).
+    begun: bool,
     /// The current run of bytes skipped while unsynced is counted.
     noted: bool,
     stats: RxStats,
@@ -139,6 +143,7 @@ impl Stream {
             len: 0,
             da_at: 0,
             filter: None,
+            begun: false,
             noted: false,
             stats: RxStats { frames: 0, corrupt: 0, truncated: 0, garbage: 0, unsynced: 0, tsyn: 0 },
         }
@@ -271,7 +276,7 @@ impl Stream {
                 State::Hunting => match bytes[used..].iter().position(|&b| is_start_delimiter(b)) {
                     Some(k) => {
                         used += k;
-                        self.begin_telegram(sink);
+                        self.start_quiet();
                         let (n, step) = self.header_fast(&bytes[used..], sink);
                         used += n;
                         if step != Step::Pending {
@@ -281,7 +286,7 @@ impl Stream {
                     None => return (bytes.len(), Step::Pending),
                 },
                 State::Ready if is_start_delimiter(bytes[used]) => {
-                    self.begin_telegram(sink);
+                    self.start_quiet();
                     let (n, step) = self.header_fast(&bytes[used..], sink);
                     used += n;
                     if step != Step::Pending {
@@ -323,11 +328,31 @@ impl Stream {
     /// header's first byte).
     #[inline(always)]
     fn begin_telegram<S: TelegramSink + ?Sized>(&mut self, sink: &mut S) {
+        self.start_quiet();
+        self.begun = true;
+        sink.begin();
+    }
+
+    /// A start delimiter at the front of a piece: a telegram begins, but the sink hears of
+    /// it only once its destination passed the filter ([`Self::header_fast`]) — another
+    /// station's telegram whose header is in one piece costs the sink nothing (issue 11, the
+    /// CPU share of foreign traffic).
+    #[inline(always)]
+    fn start_quiet(&mut self) {
         self.state = State::Telegram;
         self.pos = 0;
         self.len = 0;
         self.da_at = 0;
-        sink.begin();
+        self.begun = false;
+    }
+
+    /// The sink's `begin` for the telegram in progress, if it has not had it.
+    #[inline(always)]
+    fn ensure_begun<S: TelegramSink + ?Sized>(&mut self, sink: &mut S) {
+        if !self.begun {
+            self.begun = true;
+            sink.begin();
+        }
     }
 
     /// The next bytes of a telegram whose header is still open (`State::Telegram`, the length
@@ -344,17 +369,17 @@ impl Stream {
         let da_at: usize = match sd {
             Some(SD1) | Some(SD3) | Some(SD4) => 1,
             Some(SD2) => 4,
-            _ => return self.header_run(bytes, sink),
+            _ => return self.header_slow(bytes, sink),
         };
         // The header is open: `pos <= da_at`, and `head[..pos]` holds its bytes so far.
-        let Some(&da) = bytes.get(da_at.wrapping_sub(pos)) else { return self.header_run(bytes, sink) };
+        let Some(&da) = bytes.get(da_at.wrapping_sub(pos)) else { return self.header_slow(bytes, sink) };
         let n = if self.len != 0 {
             self.len as usize
         } else if pos == 0 {
             // The whole length part in this piece (the common case: no copy).
             match crate::fdl::telegram::frame_len(&bytes[..da_at]) {
                 Ok(Some(n)) => n,
-                _ => return self.header_run(bytes, sink),
+                _ => return self.header_slow(bytes, sink),
             }
         } else {
             let mut h = [0u8; 4];
@@ -362,7 +387,7 @@ impl Stream {
             h[pos..da_at].copy_from_slice(&bytes[..da_at - pos]);
             match crate::fdl::telegram::frame_len(&h[..da_at]) {
                 Ok(Some(n)) => n,
-                _ => return self.header_run(bytes, sink),
+                _ => return self.header_slow(bytes, sink),
             }
         };
         // (`head` is not needed further: it serves the length and a bad header's resync.)
@@ -372,13 +397,22 @@ impl Stream {
         if let Some(own) = self.filter {
             let da = da & 0x7F;
             if da != own && da != BROADCAST {
-                sink.abort();
+                if self.begun {
+                    sink.abort();
+                }
                 self.state = State::Skipping;
                 return (take, self.advance(take as u16));
             }
         }
+        self.ensure_begun(sink);
         sink.bytes(&bytes[..take]);
         (take, self.advance(take as u16))
+    }
+
+    /// [`Self::header_run`] once the sink has had its `begin`.
+    fn header_slow<S: TelegramSink + ?Sized>(&mut self, bytes: &[u8], sink: &mut S) -> (usize, Step) {
+        self.ensure_begun(sink);
+        self.header_run(bytes, sink)
     }
 
     /// The header bytes at the front of `bytes` (while the length or the destination is not
@@ -388,6 +422,8 @@ impl Stream {
     /// whole short request then costs the sink one call for its header (issue 11, the DMA
     /// rates). A foreign destination or a bad header aborts the sink as before (the bytes
     /// not yet handed over do not matter then). Returns the bytes used and the step.
+    // Out of line: the slow path (a header split across pieces, a bad header), one copy.
+    #[inline(never)]
     fn header_run<S: TelegramSink + ?Sized>(&mut self, bytes: &[u8], sink: &mut S) -> (usize, Step) {
         let mut k = 0;
         while k < bytes.len() && (self.len == 0 || self.pos <= self.da_at as u16) {

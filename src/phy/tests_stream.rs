@@ -159,12 +159,12 @@ fn a_whole_header_in_a_piece_is_one_sink_call() {
             let want = if split == 0 { 1 } else { 2 };
             assert_eq!(rec.calls, want, "{f:02x?} split at {split}");
         }
-        // Another station's: aborted at once, nothing handed over.
+        // Another station's: skipped at its DA, the sink never hears of it (no begin).
         let mut s = synced();
         s.set_filter(Some(9));
         let mut rec = Rec::default();
         assert_eq!(piece_all(&mut s, &mut rec, &f, &[f.len()], &mut 0), [Step::Skipped]);
-        assert_eq!((rec.calls, rec.aborts), (0, 1));
+        assert_eq!((rec.calls, rec.aborts, rec.cur.is_none()), (0, 0, true));
     }
 }
 
@@ -260,13 +260,20 @@ fn the_filter_skips_other_stations_without_reading_them() {
     assert_eq!(steps, vec![K, C, K, C, C, C, K]);
     assert_eq!(rec.done, vec![mine.clone(), ext.clone(), vec![SC], bc.clone()]);
     assert_eq!(rec.violations, 0);
-    // A skipped telegram hands the sink its header up to the DA at most, then aborts.
+    // A skipped telegram whose header is in one piece never reaches the sink (no begin, no
+    // abort); one whose header is split hands the sink its header up to the DA, then aborts.
     let mut rec = Rec::default();
     let mut s = synced();
     s.set_filter(Some(5));
     let (used, step) = s.piece(&other[..10], &mut rec);
     assert_eq!((used, step), (10, Step::Pending));
-    assert_eq!((rec.cur.clone(), rec.aborts), (None, 1));
+    assert_eq!((rec.cur.clone(), rec.aborts, rec.calls), (None, 0, 0));
+    let mut split = synced();
+    split.set_filter(Some(5));
+    let mut rec2 = Rec::default();
+    assert_eq!(split.piece(&other[..2], &mut rec2), (2, Step::Pending));
+    assert_eq!(split.piece(&other[2..10], &mut rec2), (8, Step::Pending));
+    assert_eq!((rec2.cur.clone(), rec2.aborts), (None, 1));
     assert_eq!(s.remaining(), Some(other.len() - 10));
     s.set_filter(None);
     assert_eq!(s.piece(&other[10..], &mut rec), (other.len() - 10, Step::Skipped));
