@@ -2056,7 +2056,7 @@ mod tests {
         assert_eq!(fast.min_tsdr(), node.min_tsdr());
         let mut m = ScriptedMaster::new(2, 8);
         let now = Instant::from_micros(100);
-        let prm = SetPrm { min_tsdr: 200, ..SetPrm::CARD };
+        let prm = SetPrm::CARD.min_tsdr(200);
         assert_eq!(fast.on_frame(now, &m.srd(Some(61), &prm.pdu())), Verdict::Answer(&[telegram::SC]));
         core.run(&mut node);
         assert_eq!(node.min_tsdr(), crate::time::BitTimes(200));

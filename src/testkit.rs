@@ -36,8 +36,9 @@ pub const LOCK_REQ: u8 = 0x80;
 pub const WD_ON: u8 = 0x08;
 
 /// The Set_Prm parameters of a test master (reference §3.2: Station_Status, WD_Fact_1,
-/// WD_Fact_2, min_TSDR, Ident_Number, Group_Ident, User_Prm_Data; the card's User_Prm_Data
-/// are [`card::USER_PRM_LEN`] octets, byte 0 is DPV1_Status_1).
+/// WD_Fact_2, min_TSDR, Ident_Number, Group_Ident, User_Prm_Data): any product's — its
+/// User_Prm_Data of any length up to [`MAX_USER_PRM_LEN`] ([`SetPrm::user`]); this card's
+/// ([`SetPrm::CARD`]) are [`card::USER_PRM_LEN`] octets, byte 0 is DPV1_Status_1.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SetPrm {
     /// Station_Status (Lock_Req, WD_On, ...).
@@ -52,8 +53,10 @@ pub struct SetPrm {
     pub ident: u16,
     /// Group_Ident.
     pub group: u8,
-    /// User_Prm_Data (DPV1_Status_1..3, then the card's own octets).
-    pub user: [u8; card::USER_PRM_LEN],
+    /// User_Prm_Data (DPV1_Status_1..3, then the product's own octets): the first
+    /// `user_len` octets.
+    user: [u8; MAX_USER_PRM_LEN],
+    user_len: u8,
 }
 
 impl SetPrm {
@@ -66,8 +69,14 @@ impl SetPrm {
         min_tsdr: 11,
         ident: card::IDENT_NUMBER,
         group: 0,
-        user: card::USER_PRM_DEFAULTS,
+        user: pad(card::USER_PRM_DEFAULTS),
+        user_len: card::USER_PRM_LEN as u8,
     };
+
+    /// As [`Self::CARD`] for another product: its ident number and User_Prm_Data.
+    pub const fn product<const N: usize>(ident: u16, user: [u8; N]) -> Self {
+        Self::CARD.ident(ident).user(user)
+    }
 
     /// With WD_On and the two watchdog factors.
     pub const fn watchdog(mut self, wd_fact_1: u8, wd_fact_2: u8) -> Self {
@@ -82,6 +91,26 @@ impl SetPrm {
         self.station_status &= !WD_ON;
         self.wd_fact_1 = 0;
         self.wd_fact_2 = 0;
+        self
+    }
+
+    /// With another Station_Status (the lock bits, WD_On, Sync_Req, Freeze_Req, Group), the
+    /// watchdog factors kept.
+    pub const fn station_status(mut self, status: u8) -> Self {
+        self.station_status = status;
+        self
+    }
+
+    /// With the two watchdog factors, Station_Status as it is (WD_On not touched).
+    pub const fn wd_factors(mut self, wd_fact_1: u8, wd_fact_2: u8) -> Self {
+        self.wd_fact_1 = wd_fact_1;
+        self.wd_fact_2 = wd_fact_2;
+        self
+    }
+
+    /// With another Group_Ident.
+    pub const fn group(mut self, group: u8) -> Self {
+        self.group = group;
         self
     }
 
@@ -100,31 +129,59 @@ impl SetPrm {
     /// With DPV1_Status_1 (User_Prm_Data byte 0; 0x80 = DPV1_Enable).
     pub const fn dpv1_status_1(mut self, status: u8) -> Self {
         self.user[0] = status;
+        if self.user_len == 0 {
+            self.user_len = 1;
+        }
         self
     }
 
-    /// With all of User_Prm_Data.
-    pub const fn user(mut self, user: [u8; card::USER_PRM_LEN]) -> Self {
-        self.user = user;
+    /// With all of User_Prm_Data: `N` octets, any length up to [`MAX_USER_PRM_LEN`] (a
+    /// longer one is a test script's mistake: a panic, at compile time in a `const`).
+    pub const fn user<const N: usize>(mut self, user: [u8; N]) -> Self {
+        assert!(N <= MAX_USER_PRM_LEN, "User_Prm_Data longer than a Set_Prm carries");
+        self.user = pad(user);
+        self.user_len = N as u8;
         self
+    }
+
+    /// With all of User_Prm_Data from a slice (cut at [`MAX_USER_PRM_LEN`]).
+    pub fn user_bytes(mut self, user: &[u8]) -> Self {
+        let n = user.len().min(MAX_USER_PRM_LEN);
+        self.user = [0; MAX_USER_PRM_LEN];
+        self.user[..n].copy_from_slice(&user[..n]);
+        self.user_len = n as u8;
+        self
+    }
+
+    /// The User_Prm_Data octets.
+    pub fn user_prm(&self) -> &[u8] {
+        &self.user[..usize::from(self.user_len)]
     }
 
     /// The Set_Prm PDU: the seven standard octets, then User_Prm_Data.
-    pub fn pdu(&self) -> [u8; 7 + card::USER_PRM_LEN] {
-        let mut p = [0u8; 7 + card::USER_PRM_LEN];
+    pub fn pdu(&self) -> Vec<u8, { 7 + MAX_USER_PRM_LEN }> {
         let id = self.ident.to_be_bytes();
-        p[..7].copy_from_slice(&[
-            self.station_status,
-            self.wd_fact_1,
-            self.wd_fact_2,
-            self.min_tsdr,
-            id[0],
-            id[1],
-            self.group,
-        ]);
-        p[7..].copy_from_slice(&self.user);
+        let mut p = Vec::new();
+        let head = [self.station_status, self.wd_fact_1, self.wd_fact_2, self.min_tsdr, id[0], id[1], self.group];
+        // Both fit: 7 + at most MAX_USER_PRM_LEN octets.
+        let _ = p.extend_from_slice(&head);
+        let _ = p.extend_from_slice(self.user_prm());
         p
     }
+}
+
+/// The longest User_Prm_Data of a Set_Prm (a 244-octet PDU less the seven standard octets).
+pub const MAX_USER_PRM_LEN: usize = crate::dp::prm::MAX_USER_PRM_LEN;
+
+/// `user` in a [`MAX_USER_PRM_LEN`] array, zeros after it.
+const fn pad<const N: usize>(user: [u8; N]) -> [u8; MAX_USER_PRM_LEN] {
+    let mut out = [0u8; MAX_USER_PRM_LEN];
+    let mut i = 0;
+    while i < N && i < MAX_USER_PRM_LEN {
+        out[i] = user[i];
+        i += 1;
+    }
+    out
 }
 
 /// A scripted master: builds SRD requests to one slave and keeps the frame count bit of each
@@ -377,6 +434,31 @@ mod tests {
         assert_eq!(SetPrm::CARD.pdu(), want);
         let p = SetPrm::CARD.no_watchdog().ident(0x1234).dpv1_status_1(0x80).pdu();
         assert_eq!(p[..8], [0x80, 0, 0, 11, 0x12, 0x34, 0, 0x80]);
+    }
+
+    /// Another product's Set_Prm: its ident and User_Prm_Data of its own length (none, six
+    /// octets, the longest a PDU carries), the standard octets as this card's.
+    #[test]
+    fn set_prm_of_another_product_has_its_own_user_prm_length() {
+        const OTHER: SetPrm = SetPrm::product(0x4711, [0x80, 0, 0, 1, 2, 3]);
+        assert_eq!(OTHER.pdu(), [0x88, 1, 100, 11, 0x47, 0x11, 0, 0x80, 0, 0, 1, 2, 3]);
+        assert_eq!(OTHER.user_prm(), [0x80, 0, 0, 1, 2, 3]);
+        let none = SetPrm::CARD.user([]);
+        assert_eq!(none.pdu().len(), 7);
+        // DPV1_Status_1 gives an empty User_Prm_Data its first octet.
+        assert_eq!(none.dpv1_status_1(0x80).user_prm(), [0x80]);
+        let long = SetPrm::CARD.user_bytes(&[7; 300]);
+        assert_eq!(long.pdu().len(), 244);
+        let s = SetPrm::CARD.station_status(0x40).wd_factors(3, 4).group(0x81).min_tsdr(20).pdu();
+        assert_eq!(s[..7], [0x40, 3, 4, 20, id_hi(), id_lo(), 0x81]);
+    }
+
+    fn id_hi() -> u8 {
+        card::IDENT_NUMBER.to_be_bytes()[0]
+    }
+
+    fn id_lo() -> u8 {
+        card::IDENT_NUMBER.to_be_bytes()[1]
     }
 
     #[test]

@@ -24,8 +24,6 @@
 #[macro_use]
 mod src;
 
-
-use pbcard::testkit::FakeDrive;
 use libfuzzer_sys::fuzz_target;
 use pbcard::card;
 use pbcard::dp::{DpSlave, DpState};
@@ -34,6 +32,7 @@ use pbcard::dpv1::pdu::{Function, Response, ERROR_BIT, ERROR_DECODE_DPV1};
 use pbcard::fdl::telegram::{self, Decoded, FunctionCode, Header, RequestFunction, Telegram, MAX_FRAME_LEN};
 use pbcard::node::Node;
 use pbcard::profile::records::CardRecords;
+use pbcard::testkit::FakeDrive;
 use pbcard::testkit::{self, ScriptedMaster, SetPrm};
 use pbcard::time::{BitTimes, Instant};
 use src::Src;
@@ -283,9 +282,7 @@ impl Bus {
 
     /// Set_Prm (with `dpv1_status_1` as User_Prm byte 0) and Chk_Cfg from `sa`.
     fn parameterise(&mut self, sa: u8, status: u8, dpv1_status_1: u8, module: usize) -> bool {
-        let prm = SetPrm { station_status: status, wd_fact_1: 10, wd_fact_2: 10, ..SetPrm::CARD }
-            .dpv1_status_1(dpv1_status_1)
-            .pdu();
+        let prm = SetPrm::CARD.station_status(status).wd_factors(10, 10).dpv1_status_1(dpv1_status_1).pdu();
         let sc = Some(vec![telegram::SC]);
         let a = self.req(sa, Some(61), Some(62), &prm);
         let b = self.req(sa, Some(62), Some(62), card::MODULES[module % card::MODULES.len()].cfg);

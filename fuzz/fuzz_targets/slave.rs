@@ -191,7 +191,7 @@ fuzz_target!(|data: &[u8]| {
         user[0] = 0x04; // WD_Base_1ms
     }
     let module = &card::MODULES[(src.u8() as usize) % card::MODULES.len()];
-    let p = SetPrm { station_status: status, wd_fact_1: 10, wd_fact_2: 10, group: 0x01, user, ..SetPrm::CARD }.pdu();
+    let p = SetPrm::CARD.station_status(status).wd_factors(10, 10).group(0x01).user(user).pdu();
     assert_eq!(bus.req(M1, Some(61), &p), Some(vec![telegram::SC]));
     assert_eq!(bus.req(M1, Some(62), module.cfg), Some(vec![telegram::SC]));
     assert_eq!(bus.slave.state(), DpState::DataExch);

@@ -102,10 +102,7 @@ fn pdu_of(frame: &[u8]) -> Option<Vec<u8>> {
 /// Set_Prm of the product: Lock_Req + WD_On, 1 s watchdog, min_TSDR 11, `ident`, no group,
 /// `user` (DPV1_Status_1..3 and the product's user parameters).
 fn set_prm(ident: u16, user: &[u8]) -> Vec<u8> {
-    let [hi, lo] = ident.to_be_bytes();
-    let mut p = vec![0x88, 1, 100, 11, hi, lo, 0];
-    p.extend_from_slice(user);
-    p
+    SetPrm::CARD.ident(ident).user_bytes(user).pdu().to_vec()
 }
 
 /// The product's User_Prm_Data with DPV1_Enable and `control_mode`.

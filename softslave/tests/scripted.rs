@@ -45,8 +45,8 @@ impl Line {
 }
 
 /// Set_Prm without the watchdog for `ident`.
-fn set_prm(ident: u16) -> [u8; 7 + card::USER_PRM_LEN] {
-    SetPrm::CARD.no_watchdog().ident(ident).pdu()
+fn set_prm(ident: u16) -> Vec<u8> {
+    SetPrm::CARD.no_watchdog().ident(ident).pdu().to_vec()
 }
 
 fn wait_for(log: &Mutex<Vec<String>>, needle: &str) {

@@ -3,6 +3,7 @@
 //! judged by the answer bytes.
 
 use super::*;
+use crate::testkit::SetPrm;
 
 /// A PROFIdrive parameter request (record 47) for one value: reference §5.1.
 fn read_request(reference: u8, pnu: u16, subindex: u16, elements: u8) -> Vec<u8> {
@@ -80,10 +81,7 @@ fn run_st1(b: &mut Bench) {
 /// A Set_Prm PDU with Station_Status `status`, min_TSDR `min_tsdr`, ident `ident` and the
 /// default User_Prm_Data.
 fn set_prm_pdu(status: u8, min_tsdr: u8, ident: u16) -> Vec<u8> {
-    let id = ident.to_be_bytes();
-    let mut p = vec![status, 1, 100, min_tsdr, id[0], id[1], 0];
-    p.extend_from_slice(&card::USER_PRM_DEFAULTS);
-    p
+    SetPrm::CARD.station_status(status).min_tsdr(min_tsdr).ident(ident).pdu().to_vec()
 }
 
 /// Item c: a Set_Prm from the locking master with Lock_Req = 0, Unlock_Req = 0 takes over
