@@ -351,9 +351,8 @@ mod tests {
     }
 
     fn prm(status: u8, user: &[u8]) -> Vec<u8> {
-        let mut v = vec![status, 1, 99, 11, (card::IDENT_NUMBER >> 8) as u8, card::IDENT_NUMBER as u8, 0x22];
-        v.extend_from_slice(user);
-        v
+        let p = crate::testkit::SetPrm::CARD.station_status(status).wd_factors(1, 99).group(0x22).user_bytes(user);
+        p.pdu().to_vec()
     }
 
     #[test]

@@ -70,10 +70,8 @@ impl Bus {
     }
 
     fn set_prm(&mut self, sa: u8, status: u8, user: &[u8]) -> Ans {
-        let id = card::IDENT_NUMBER.to_be_bytes();
-        let mut p = vec![status, 10, 10, 11, id[0], id[1], 0x01];
-        p.extend_from_slice(user);
-        self.req(sa, Some(61), &p)
+        let p = crate::testkit::SetPrm::CARD.station_status(status).wd_factors(10, 10).group(0x01).user_bytes(user);
+        self.req(sa, Some(61), &p.pdu())
     }
 
     fn bring_up(&mut self, status: u8) {
