@@ -224,6 +224,7 @@ impl Alarms {
         self.raise()
     }
 
+    #[inline(never)]
     fn raise(&mut self) -> bool {
         if !self.enabled || self.fault == self.reported {
             return false;

@@ -581,6 +581,7 @@ impl Profidrive {
     }
 
     /// The command of the current state.
+    #[inline(never)]
     fn build(&self) -> DriveCommand {
         if let Some(frozen) = self.frozen {
             let mut c = frozen;
