@@ -163,6 +163,7 @@ impl ParameterAccess for MailboxParams<'_> {
         self.ask(req).map(|_| ())
     }
 
+    #[inline(never)]
     fn read_description(&mut self, axis: u8, addr: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
         debug_assert_eq!(addr.attribute, Attribute::Description);
         let values = self.ask(MailboxRequest::read_description(axis, addr.pnu, addr.subindex))?;

@@ -533,6 +533,9 @@ impl SpiSlave {
 
     /// The pending-events bitmap: bit i = `BLOCKS[i]` changed since the host last read its
     /// `SEQ_HEAD`.
+    ///
+    /// Out of line: several tasks call it (footprint, issue 13 item 1).
+    #[inline(never)]
     pub fn events(&self, dpm: &Dpm) -> u16 {
         let img = dpm.as_bytes();
         let mut m = 0;
@@ -640,6 +643,9 @@ impl SpiSlave {
 
     /// An accepted READ of `a..a + n` clears the events of the blocks whose `SEQ_HEAD` it
     /// covers.
+    ///
+    /// Out of line: several tasks call it (footprint, issue 13 item 1).
+    #[inline(never)]
     fn note_read(&mut self, dpm: &Dpm, a: usize, n: usize) {
         for (i, b) in SPANS.iter().enumerate() {
             if EVENT_BLOCKS & (1 << i) != 0 && b.start >= a && b.start + 2 <= a + n {
