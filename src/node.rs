@@ -220,6 +220,7 @@ impl Node {
 
     /// Forget the I&M call of a relation that ended (MSAC_C1 closed with data exchange, an
     /// MSAC_C2 connection no longer open).
+    #[inline(never)]
     fn track_relations(&mut self) {
         if !C1::is_open(&self.slave) {
             self.im.end_relation(RELATION_C1);

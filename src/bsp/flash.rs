@@ -85,6 +85,7 @@ impl JournalFlash {
         self.flash.cr().write(|w| unsafe { w.bits(CR_LOCK) });
     }
 
+    #[inline(never)]
     fn wait(&mut self) -> Result<(), FlashError> {
         while self.flash.sr().read().bits() & SR_BSY != 0 {}
         let sr = self.flash.sr().read().bits();

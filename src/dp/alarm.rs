@@ -245,6 +245,7 @@ impl Alarms {
     }
 
     /// The alarm the next Slave_Diag carries: the oldest one not delivered yet.
+    #[inline(never)]
     pub fn to_deliver(&self) -> Option<&Alarm> {
         self.queue.iter().find(|a| !a.delivered)
     }

@@ -597,6 +597,7 @@ impl DpSlave {
         }
     }
 
+    #[inline(never)]
     fn retrigger(&mut self, now: Instant, sa: u8) {
         if self.master == Some(sa) {
             if let Some(t) = self.wd_time {

@@ -600,6 +600,7 @@ impl SpiSlave {
     }
 
     /// The reply header and CRC around `n` bytes of DATA already in place.
+    #[inline(never)]
     fn finish(&self, dpm: &Dpm, reply: &mut [u8; MAX_REPLY], head: (ResultCode, u8, u8, u16), n: usize) -> usize {
         let (result, cmd, tag, addr) = head;
         reply[0] = result as u8;

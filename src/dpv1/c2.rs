@@ -368,6 +368,7 @@ impl<const N: usize> C2<N> {
     }
 
     /// Whether a Read / Write / Data_Transport waits for [`process`](Self::process).
+    #[inline(never)]
     pub fn has_pending(&self) -> bool {
         self.conns.iter().any(|c| c.state == ConnectionState::Open && c.channel.pending().is_some())
     }
