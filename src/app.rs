@@ -123,6 +123,9 @@ impl Card {
     /// profile layer without a telegram, no parameterisation before the drive has written a
     /// valid CONFIG (issue 16, [`Link::set_startup_gate`]). The host blocks (INPUTS, DRIVE,
     /// CONFIG, MBX_RSP, DRIVE_STATE) are written only by the drive's control board.
+    ///
+    /// Out of line: builds a large value in place (inlined into the start, every store needs its own stack address; footprint, issue 13 item 1).
+    #[inline(never)]
     pub fn new() -> Self {
         let mut card = Self::with_image(Dpm::with_identity(&crate::card::IDENTITY));
         card.link.set_startup_gate(true);

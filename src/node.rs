@@ -171,6 +171,9 @@ impl Node {
     /// product `device` (its I&M0 values, [`ImDevice`]) whose MSAC_C2 Initiate.res carries
     /// `profile_ident_number` (the GSD's application profile, reference §4.5). The card's
     /// `Node::new(slave)` (in `card`, the product's configuration) passes its own.
+    ///
+    /// Out of line: builds a large value in place (inlined into the start, every store needs its own stack address; footprint, issue 13 item 1).
+    #[inline(never)]
     pub const fn with_device(slave: DpSlave, device: &'static ImDevice, profile_ident_number: u16) -> Self {
         Node {
             framer: Framer::new(),
@@ -217,6 +220,7 @@ impl Node {
 
     /// Forget the I&M call of a relation that ended (MSAC_C1 closed with data exchange, an
     /// MSAC_C2 connection no longer open).
+    #[inline(never)]
     fn track_relations(&mut self) {
         if !C1::is_open(&self.slave) {
             self.im.end_relation(RELATION_C1);

@@ -49,6 +49,7 @@ pub fn take_recovered_fault() -> bool {
 /// Issue 11 3e: the line to the safe state **before** anything that may take time or fail —
 /// logging included (RTT may block or wait for a probe; a fault inside the logger must not
 /// leave DE on): interrupts off, DE (PA8) low, transmit DMA and transmitter off.
+#[inline(never)]
 fn line_safe_first() {
     cortex_m::interrupt::disable();
     // SAFETY: interrupts are off and nothing but logging and the reset follows.

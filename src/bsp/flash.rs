@@ -85,6 +85,7 @@ impl JournalFlash {
         self.flash.cr().write(|w| unsafe { w.bits(CR_LOCK) });
     }
 
+    #[inline(never)]
     fn wait(&mut self) -> Result<(), FlashError> {
         while self.flash.sr().read().bits() & SR_BSY != 0 {}
         let sr = self.flash.sr().read().bits();
@@ -154,9 +155,12 @@ impl Flash for JournalFlash {
             buf.fill(0);
             return;
         };
-        for (i, b) in buf.iter_mut().enumerate() {
-            // SAFETY: memory-mapped flash inside the journal's sectors (checked above).
-            *b = unsafe { core::ptr::read_volatile((base + i as u32) as *const u8) };
-        }
+        // One copy (a volatile byte loop was unrolled for the slot size into every caller:
+        // footprint, issue 13 item 1). Plain reads are right for flash: memory without read
+        // side effects, and no Rust object lives there, so nothing lets the compiler keep a
+        // value across a program / erase (which end before they return, `wait`).
+        // SAFETY: memory-mapped flash inside the journal's sectors (checked above), `buf` a
+        // distinct RAM buffer of `buf.len()` bytes.
+        unsafe { core::ptr::copy_nonoverlapping(base as *const u8, buf.as_mut_ptr(), buf.len()) };
     }
 }

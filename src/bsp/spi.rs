@@ -159,6 +159,7 @@ impl SpiPort {
     }
 
     /// Stop both streams and reset SPI2 (drops the preloaded TX byte and any overrun).
+    #[inline(never)]
     fn stop(&mut self) {
         for s in [RX_STREAM, TX_STREAM] {
             let st = self.dma.st(s);
@@ -186,6 +187,7 @@ impl SpiPort {
 
     /// Program SPI2 and the streams for the next transaction (RM0383 §20.3.8 order: RXDMAEN,
     /// streams, TXDMAEN, SPE).
+    #[inline(never)]
     fn start(&mut self) {
         // Slave, mode 0, 8 bit, MSB first, hardware NSS (SSM = 0).
         self.spi.cr1().write(|w| {

@@ -223,6 +223,9 @@ impl DpSlave {
 
     /// A slave of the product `config` whose address and No_Add_Chg flag come from an
     /// address store.
+    ///
+    /// Out of line: builds a large value in place (inlined into the start, every store needs its own stack address; footprint, issue 13 item 1).
+    #[inline(never)]
     pub fn with_address_lock(config: &'static SlaveConfig, address: u8, no_add_chg: bool) -> Self {
         let mut s = DpSlave {
             config,
@@ -594,6 +597,7 @@ impl DpSlave {
         }
     }
 
+    #[inline(never)]
     fn retrigger(&mut self, now: Instant, sa: u8) {
         if self.master == Some(sa) {
             if let Some(t) = self.wd_time {

@@ -475,6 +475,34 @@ const _: () = {
     assert!(PD_CAPACITY <= u8::MAX as usize);
 };
 
+/// A block's place and writer: [`BLOCKS`] without the names and texts, for the card's walks
+/// over the map at run time (the SPI transport's write check, events and hand-over). Only
+/// the host tools and the C header need the texts; a walk over [`BLOCKS`] would link all of
+/// them into the firmware (footprint, issue 13 item 1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Span {
+    /// Absolute offset.
+    pub start: usize,
+    /// Length in bytes.
+    pub len: usize,
+    /// Who writes it.
+    pub writer: Writer,
+    /// Whether it is a sequenced block (`SEQ_HEAD` / `SEQ_TAIL`).
+    pub sequenced: bool,
+}
+
+/// [`BLOCKS`] as [`Span`]s, same order (index i = `BLOCKS[i]`).
+pub const SPANS: [Span; BLOCKS.len()] = {
+    let mut s = [Span { start: 0, len: 0, writer: Writer::Card, sequenced: false }; BLOCKS.len()];
+    let mut i = 0;
+    while i < BLOCKS.len() {
+        let b = &BLOCKS[i];
+        s[i] = Span { start: b.start, len: b.len, writer: b.writer, sequenced: b.sequenced };
+        i += 1;
+    }
+    s
+};
+
 /// Who writes a field.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Writer {

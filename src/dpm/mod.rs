@@ -511,6 +511,9 @@ impl CardSide<'_> {
     }
 
     /// Write the outputs block (the master's process data); returns its new sequence counter.
+    ///
+    /// Out of line: several tasks call it (footprint, issue 13 item 1).
+    #[inline(never)]
     pub fn write_outputs(&mut self, pd: &ProcessData) -> u16 {
         card_write(self.image, layout::outputs::START, pd::LEN_BLOCK, |b| pd.encode(b))
     }
@@ -521,6 +524,9 @@ impl CardSide<'_> {
     }
 
     /// Write the card block; returns its new sequence counter.
+    ///
+    /// Out of line: several tasks call it (footprint, issue 13 item 1).
+    #[inline(never)]
     pub fn write_card_report(&mut self, r: &CardReport) -> u16 {
         card_write(self.image, layout::card::START, layout::card::LEN, |b| r.encode(b))
     }

@@ -76,6 +76,9 @@ impl ParamCache {
 
     /// Poll the mailbox and keep the answer to the request in flight (only that one: an
     /// answer another cache claimed stays for it).
+    ///
+    /// Out of line: the step and the DP-V1 task both call it (footprint, issue 13 item 1).
+    #[inline(never)]
     pub fn collect(&mut self, now: Instant, link: &mut Link, dpm: &Dpm) {
         link.poll_parameter(now, dpm);
         let mine = self.inflight.map(|(id, _)| id);
@@ -111,6 +114,9 @@ pub struct MailboxParams<'a> {
 
 impl<'a> MailboxParams<'a> {
     /// The table at `now` (takes an answer that arrived meanwhile into `cache`).
+    ///
+    /// Out of line: the step and the DP-V1 task both call it (footprint, issue 13 item 1).
+    #[inline(never)]
     pub fn new(now: Instant, link: &'a mut Link, dpm: &'a mut Dpm, cache: &'a mut ParamCache) -> Self {
         cache.collect(now, link, dpm);
         MailboxParams { now, link, dpm, cache, pending: false }
@@ -144,6 +150,7 @@ impl ParameterAccess for MailboxParams<'_> {
         true
     }
 
+    #[inline(never)]
     fn read_value(&mut self, axis: u8, addr: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
         let values = self.ask(MailboxRequest::read(axis, addr.pnu, addr.subindex, addr.elements))?;
         put(&values, out)
@@ -156,6 +163,7 @@ impl ParameterAccess for MailboxParams<'_> {
         self.ask(req).map(|_| ())
     }
 
+    #[inline(never)]
     fn read_description(&mut self, axis: u8, addr: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
         debug_assert_eq!(addr.attribute, Attribute::Description);
         let values = self.ask(MailboxRequest::read_description(axis, addr.pnu, addr.subindex))?;

@@ -136,7 +136,7 @@
 //! but the echoing reply sends the request again (three retries).
 
 use super::host::{CyclicReceipt, Transport, TransportError};
-use super::layout::{self, Writer, BLOCKS};
+use super::layout::{self, Writer, BLOCKS, SPANS};
 use super::{Dpm, IMAGE_SIZE};
 pub use pipeline::{PipelineStats, ReplyPipeline};
 pub use wire::WireImage;
@@ -457,7 +457,7 @@ pub fn host_writable(start: usize, len: usize) -> bool {
     let end = start + len;
     let mut p = start;
     while p < end {
-        match BLOCKS.iter().find(|b| p >= b.start && p < b.start + b.len) {
+        match SPANS.iter().find(|b| p >= b.start && p < b.start + b.len) {
             Some(b) if b.writer == Writer::Host => p = b.start + b.len,
             _ => return false,
         }
@@ -533,10 +533,13 @@ impl SpiSlave {
 
     /// The pending-events bitmap: bit i = `BLOCKS[i]` changed since the host last read its
     /// `SEQ_HEAD`.
+    ///
+    /// Out of line: several tasks call it (footprint, issue 13 item 1).
+    #[inline(never)]
     pub fn events(&self, dpm: &Dpm) -> u16 {
         let img = dpm.as_bytes();
         let mut m = 0;
-        for (i, b) in BLOCKS.iter().enumerate() {
+        for (i, b) in SPANS.iter().enumerate() {
             if EVENT_BLOCKS & (1 << i) != 0 && get16(img, b.start) != self.host_seen[i] {
                 m |= 1 << i;
             }
@@ -597,6 +600,7 @@ impl SpiSlave {
     }
 
     /// The reply header and CRC around `n` bytes of DATA already in place.
+    #[inline(never)]
     fn finish(&self, dpm: &Dpm, reply: &mut [u8; MAX_REPLY], head: (ResultCode, u8, u8, u16), n: usize) -> usize {
         let (result, cmd, tag, addr) = head;
         reply[0] = result as u8;
@@ -614,7 +618,7 @@ impl SpiSlave {
     /// The CYCLIC reply DATA from the image as it is now; the blocks it carries (CARD,
     /// OUTPUTS, DRIVE_CMD: the command names its outputs) count as read for the events.
     fn cyclic_data(&mut self, dpm: &Dpm, req: (u8, u8), reply: &mut [u8; MAX_REPLY]) -> usize {
-        for b in [&layout::BLOCKS[CARD_BLOCK], &layout::BLOCKS[OUTPUTS_BLOCK], &layout::BLOCKS[DRIVE_CMD_BLOCK]] {
+        for b in [&SPANS[CARD_BLOCK], &SPANS[OUTPUTS_BLOCK], &SPANS[DRIVE_CMD_BLOCK]] {
             self.note_read(dpm, b.start, 2);
         }
         // An MBX_REQ fragment from offset 0 carries its SEQ_HEAD (sent only while the block
@@ -640,8 +644,11 @@ impl SpiSlave {
 
     /// An accepted READ of `a..a + n` clears the events of the blocks whose `SEQ_HEAD` it
     /// covers.
+    ///
+    /// Out of line: several tasks call it (footprint, issue 13 item 1).
+    #[inline(never)]
     fn note_read(&mut self, dpm: &Dpm, a: usize, n: usize) {
-        for (i, b) in BLOCKS.iter().enumerate() {
+        for (i, b) in SPANS.iter().enumerate() {
             if EVENT_BLOCKS & (1 << i) != 0 && b.start >= a && b.start + 2 <= a + n {
                 self.host_seen[i] = get16(dpm.as_bytes(), b.start);
             }

@@ -99,6 +99,9 @@ impl C1 {
 
     /// Open / close with the DP state. The node calls it after every DP request and every
     /// timer run, so a request in flight never survives a new parameterization.
+    ///
+    /// Out of line: called from the core task, the step and the DP-V1 task (footprint, issue 13 item 1).
+    #[inline(never)]
     pub fn track(&mut self, dp: &DpSlave) {
         let open = Self::is_open(dp);
         if self.open && !open {

@@ -368,6 +368,7 @@ impl<const N: usize> C2<N> {
     }
 
     /// Whether a Read / Write / Data_Transport waits for [`process`](Self::process).
+    #[inline(never)]
     pub fn has_pending(&self) -> bool {
         self.conns.iter().any(|c| c.state == ConnectionState::Open && c.channel.pending().is_some())
     }
@@ -416,6 +417,9 @@ impl<const N: usize> C2<N> {
     /// Supervise the timers: expired reservations close, an expired Send_Timeout aborts the
     /// connection (reason 3), an Abort the master never fetched closes the SAP. Also done
     /// lazily on every request, so calling this late only delays the bookkeeping.
+    ///
+    /// Out of line: the core task and the housekeeping step both call it (footprint, issue 13 item 1).
+    #[inline(never)]
     pub fn poll(&mut self, now: Instant) {
         for i in 0..N {
             self.expire(i, now);
@@ -434,6 +438,7 @@ impl<const N: usize> C2<N> {
         }
     }
 
+    #[inline(never)]
     fn expire(&mut self, i: usize, now: Instant) {
         let c = &mut self.conns[i];
         // At most two steps: Open → Aborting → Closed when nobody looked for a long time.

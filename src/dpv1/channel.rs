@@ -111,6 +111,9 @@ impl Channel {
     /// [`on_request`](Self::on_request), where `deliver` false means the line already
     /// answered this poll "not ready" (SC, [`crate::fast`]): a ready response stays for the
     /// next poll instead of being handed out on a frame nobody sees.
+    ///
+    /// Out of line: several tasks call it (footprint, issue 13 item 1).
+    #[inline(never)]
     pub fn on_request_as(
         &mut self,
         master: u8,

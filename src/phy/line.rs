@@ -212,6 +212,10 @@ pub struct BitClock {
 
 impl BitClock {
     /// Ticks of `bits` bit times at `rate`, rounded up (a wait is never shorter than asked).
+    /// Out of line: it divides (the rate switch's tables, [`super::timing::LineTicks::new`],
+    /// not per telegram), and inlined LLVM specialises the 64-bit division for every rate of
+    /// every caller (2 KiB of flash).
+    #[inline(never)]
     pub const fn ticks(self, rate: Baudrate, bits: u32) -> u32 {
         let bps = rate.bits_per_second() as u64;
         let t = (bits as u64 * self.hz as u64).div_ceil(bps);

@@ -47,7 +47,8 @@ pub struct LineTicks {
 
 impl LineTicks {
     /// The table for `rate` on `clock`. Divides: call it at the rate switch, not per
-    /// telegram.
+    /// telegram. Out of line (the board builds one table per rate at start: one copy).
+    #[inline(never)]
     pub const fn new(clock: BitClock, rate: Baudrate) -> Self {
         let bps = rate.bits_per_second() as u64;
         let q16 = ((clock.hz as u64) << 16).div_ceil(bps);

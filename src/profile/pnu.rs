@@ -11,7 +11,7 @@
 
 use super::param::Attribute;
 use super::param::{ErrorValue, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
-use super::table::{slots, ParamDef, Table, Type};
+use super::table::{self, slots, ParamDef, Table, Type};
 use super::telegram::{DataProfile, Layout, PZD_SIGNALS};
 use crate::profile::selection::{Family, Telegram};
 
@@ -134,8 +134,9 @@ const CARD_DEFS: &[ParamDef] = &[
     ParamDef::new(10108, "MELD_NAMUR", Type::U16).read_only(),
 ];
 
-/// [`CARD_DEFS`] as a table, for its descriptions.
-const CARD_DESCRIPTIONS: Table<{ slots(CARD_DEFS) }> = Table::new(CARD_DEFS);
+/// [`CARD_DEFS`] checked as a table's definitions at compile time (their descriptions are read
+/// without a table, [`table::read_factory_description`]: the values are in [`CardInfo`]).
+const _: Table<{ slots(CARD_DEFS) }> = Table::new(CARD_DEFS);
 
 /// Elements of PNU 947 (4 fault situations × 8 messages).
 pub const FAULT_BUFFER_LEN: usize = 32;
@@ -441,9 +442,8 @@ impl<D: ParameterAccess> ParameterAccess for CardTable<'_, D> {
         if addr.pnu == PNU_FAULT_NUMBERS || self.lookup(addr.pnu).is_some() {
             // The 46-byte description of the card's own PNUs (965 is an OctetString2, which
             // the description table does not model: 0x09 no description data).
-            let mut t = CARD_DESCRIPTIONS;
-            return if t.def(addr.pnu).is_some() {
-                t.read_description(axis, addr, out)
+            return if CARD_DEFS.iter().any(|d| d.pnu == addr.pnu) {
+                table::read_factory_description(CARD_DEFS, addr, out)
             } else {
                 Err(ErrorValue::NO_DESCRIPTION.into())
             };

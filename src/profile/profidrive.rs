@@ -290,11 +290,13 @@ fn div_round(num: i128, den: i128) -> i128 {
     if den == 0 {
         return 0;
     }
-    let (num, den) = if den < 0 { (-num, -den) } else { (num, den) };
-    if num >= 0 {
-        (num + den / 2) / den
+    // One division of the magnitudes (the 128-bit division is expanded inline: one copy).
+    let (n, d) = (num.unsigned_abs(), den.unsigned_abs());
+    let q = ((n + d / 2) / d) as i128;
+    if (num < 0) != (den < 0) {
+        -q
     } else {
-        -((-num + den / 2) / den)
+        q
     }
 }
 
@@ -579,6 +581,7 @@ impl Profidrive {
     }
 
     /// The command of the current state.
+    #[inline(never)]
     fn build(&self) -> DriveCommand {
         if let Some(frozen) = self.frozen {
             let mut c = frozen;

@@ -108,6 +108,9 @@ impl Telegram {
     /// The telegram a GSD module carries (`card::Module::reference`: 1 / 20 = Standard
     /// Telegram 1 / 20, 101..=106 = PPO 1..6, family tag × 1000 + number = a vendor
     /// telegram). `None` for a module this map does not know.
+    ///
+    /// Out of line: the step and the DP-V1 task both call it (footprint, issue 13 item 1).
+    #[inline(never)]
     pub const fn of_module(module: &Module) -> Option<Telegram> {
         let t = match module.reference {
             1 => Telegram::Standard(1),

@@ -520,27 +520,7 @@ impl<const N: usize> Table<N> {
     }
 
     fn describe(&self, d: &ParamDef, off: usize) -> [u8; DESCRIPTION_LEN] {
-        let mut b = [0u8; DESCRIPTION_LEN];
-        b[0..2].copy_from_slice(&d.identifier(self.changed(d, off)).to_be_bytes());
-        b[2..4].copy_from_slice(&d.elements.to_be_bytes());
-        let (factor, var, conv) = match d.scale {
-            Some(s) => (s.factor, s.variable_index, s.conversion_index as u8),
-            None => (1.0, 0, 0),
-        };
-        b[4..8].copy_from_slice(&factor.to_bits().to_be_bytes());
-        b[8..10].copy_from_slice(&[var, conv]);
-        // 10..14 reserved.
-        b[14..30].fill(b' ');
-        b[14..14 + d.name.len()].copy_from_slice(d.name.as_bytes());
-        // A limit as a 32-bit integer of the parameter's signedness (see the module doc).
-        b[30..34].copy_from_slice(&(d.min as u32).to_be_bytes());
-        b[34..38].copy_from_slice(&(d.max as u32).to_be_bytes());
-        // 38..40 reserved, 40..42 ID extension.
-        if let Some(n) = d.normalisation {
-            b[42..44].copy_from_slice(&n.reference_pnu.to_be_bytes());
-            b[44..46].copy_from_slice(&n.field().to_be_bytes());
-        }
-        b
+        describe(d, self.changed(d, off))
     }
 
     fn read_format(&self, ty: Type) -> Format {
@@ -549,6 +529,62 @@ impl<const N: usize> Table<N> {
             FormatStyle::Typed => ty.typed_format(),
         }
     }
+}
+
+/// The 46-byte description element of `d` (VACON §6.4.3.7, Table 49); `changed`: a value
+/// differs from its factory setting (identifier bit 12).
+fn describe(d: &ParamDef, changed: bool) -> [u8; DESCRIPTION_LEN] {
+    let mut b = [0u8; DESCRIPTION_LEN];
+    b[0..2].copy_from_slice(&d.identifier(changed).to_be_bytes());
+    b[2..4].copy_from_slice(&d.elements.to_be_bytes());
+    let (factor, var, conv) = match d.scale {
+        Some(s) => (s.factor, s.variable_index, s.conversion_index as u8),
+        None => (1.0, 0, 0),
+    };
+    b[4..8].copy_from_slice(&factor.to_bits().to_be_bytes());
+    b[8..10].copy_from_slice(&[var, conv]);
+    // 10..14 reserved.
+    b[14..30].fill(b' ');
+    b[14..14 + d.name.len()].copy_from_slice(d.name.as_bytes());
+    // A limit as a 32-bit integer of the parameter's signedness (see the module doc).
+    b[30..34].copy_from_slice(&(d.min as u32).to_be_bytes());
+    b[34..38].copy_from_slice(&(d.max as u32).to_be_bytes());
+    // 38..40 reserved, 40..42 ID extension.
+    if let Some(n) = d.normalisation {
+        b[42..44].copy_from_slice(&n.reference_pnu.to_be_bytes());
+        b[44..46].copy_from_slice(&n.field().to_be_bytes());
+    }
+    b
+}
+
+/// Attribute 0x20 of `d` (subindex = field, 0 the whole element) into `out`; `changed` is
+/// asked only for a valid request.
+fn read_description_of(
+    d: &ParamDef,
+    changed: impl FnOnce() -> bool,
+    addr: &ParamAddress,
+    out: &mut ValueWriter<'_>,
+) -> Result<(), ParamError> {
+    if addr.count() != 1 {
+        return Err(ErrorValue::IMPERMISSIBLE_ADDRESS.into());
+    }
+    let &(format, start, len) = FIELDS.get(addr.subindex as usize).ok_or(ErrorValue::INVALID_SUBINDEX)?;
+    let size = format.value_size().unwrap_or(1);
+    let b = describe(d, changed());
+    out.set_format(format);
+    b[start..start + len].chunks(size).try_for_each(|v| out.push_raw(v))
+}
+
+/// [`Table::read_description`] of a table over `defs` whose values are all at their factory
+/// setting, without the table: the descriptions of parameters whose values are kept elsewhere
+/// (the card's PNUs, [`super::pnu::CardTable`]) need no copy of a value array.
+pub fn read_factory_description(
+    defs: &[ParamDef],
+    addr: &ParamAddress,
+    out: &mut ValueWriter<'_>,
+) -> Result<(), ParamError> {
+    let d = defs.iter().find(|d| d.pnu == addr.pnu).ok_or(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER)?;
+    read_description_of(d, || false, addr, out)
 }
 
 impl<const N: usize> ParameterAccess for Table<N> {
@@ -605,14 +641,7 @@ impl<const N: usize> ParameterAccess for Table<N> {
         out: &mut ValueWriter<'_>,
     ) -> Result<(), ParamError> {
         let (d, off) = self.find(addr.pnu).ok_or(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER)?;
-        if addr.count() != 1 {
-            return Err(ErrorValue::IMPERMISSIBLE_ADDRESS.into());
-        }
-        let &(format, start, len) = FIELDS.get(addr.subindex as usize).ok_or(ErrorValue::INVALID_SUBINDEX)?;
-        let size = format.value_size().unwrap_or(1);
-        let b = self.describe(d, off);
-        out.set_format(format);
-        b[start..start + len].chunks(size).try_for_each(|v| out.push_raw(v))
+        read_description_of(d, || self.changed(d, off), addr, out)
     }
 
     fn read_text(&mut self, _axis: u8, addr: &ParamAddress, _out: &mut ValueWriter<'_>) -> Result<(), ParamError> {

@@ -156,6 +156,9 @@ pub struct Layout {
 
 impl Layout {
     /// The layout of `telegram`, `None` for an unknown one.
+    ///
+    /// Out of line: several tasks call it (footprint, issue 13 item 1).
+    #[inline(never)]
     pub const fn of(telegram: Telegram) -> Option<Layout> {
         if !telegram.is_known() {
             return None;
@@ -236,6 +239,9 @@ impl Layout {
 
     /// The control profile family for the drive's data profile (only WEG telegrams depend
     /// on it, WEG P0741).
+    ///
+    /// Out of line: several tasks call it (footprint, issue 13 item 1).
+    #[inline(never)]
     pub const fn profile(&self, data: DataProfile) -> ProfileFamily {
         match self.telegram {
             Telegram::Ppo(_) => ProfileFamily::Profidrive20,

@@ -211,6 +211,7 @@ struct Scan {
 }
 
 impl Scan {
+    #[inline(never)]
     fn find(&self, kind: u8) -> Option<Loc> {
         self.kinds.iter().flatten().find(|(k, _)| *k == kind).map(|&(_, l)| l)
     }

@@ -14,7 +14,7 @@
 //! setpoint latency already allow for (the card's step was not in them).
 
 use super::{SpiSlave, SpiStats, MAX_REPLY};
-use crate::dpm::layout::{Writer, BLOCKS};
+use crate::dpm::layout::{Writer, SPANS};
 use crate::dpm::Dpm;
 
 /// The frame task's image and protocol state (see the module docs).
@@ -73,7 +73,7 @@ impl WireImage {
     /// `card`, each block whole.
     pub fn hand_over(&mut self, card: &mut Dpm) {
         let (wire, app) = (self.dpm.as_bytes_mut(), card.as_bytes_mut());
-        for b in BLOCKS {
+        for b in &SPANS {
             let r = b.start..b.start + b.len;
             match b.writer {
                 Writer::Card => wire[r.clone()].copy_from_slice(&app[r]),

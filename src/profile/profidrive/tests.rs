@@ -612,3 +612,15 @@ fn losing_ready_without_a_fault_falls_back_to_s1() {
         assert!(c.flags.contains(CommandFlags::COAST));
     }
 }
+
+/// `div_round`: halves away from zero in every sign combination, 0 for a zero divisor.
+#[test]
+fn div_round_halves_away_from_zero() {
+    for (num, den, q) in
+        [(5, 2, 3), (-5, 2, -3), (5, -2, -3), (-5, -2, 3), (4, 3, 1), (-4, 3, -1), (7, 0, 0), (0, -3, 0)]
+    {
+        assert_eq!(div_round(num, den), q, "{num} / {den}");
+    }
+    let big = (u32::MAX as i128) * (u32::MAX as i128) * 3;
+    assert_eq!(div_round(big, -(u32::MAX as i128)), -3 * (u32::MAX as i128));
+}
