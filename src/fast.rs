@@ -2310,3 +2310,23 @@ mod tests {
         }
     }
 }
+
+#[cfg(test)]
+mod regressions {
+    use super::check::{self, Mode};
+    /// A fuzz find (`fast_path`, Lag schedule): MSAC_C1 DS_Read, then a Chk_Cfg the core
+    /// has not judged when the split's DP-V1 task runs; the poll's answer must equal the card
+    /// alone's (`check::run`: the task does not overtake an unjudged Set_Prm / Chk_Cfg).
+    #[test]
+    fn dpv1_task_after_an_unjudged_chk_cfg() {
+        let d: &[u8] = &[
+            18, 0, 72, 18, 0, 72, 0, 72, 249, 72, 72, 72, 72, 72, 72, 72, 72, 93, 72, 125, 72, 249, 72, 72, 72, 72, 72,
+            8, 72, 72, 249, 72, 72, 72, 91, 72, 72, 93, 72, 72, 249, 72, 72, 72, 72, 72, 8, 72, 72, 249, 72, 72, 72,
+            72, 72, 249, 72, 72, 72, 72, 72, 72, 72, 78, 78, 78, 78, 48, 2, 199, 0, 0, 1, 2, 72, 93, 72, 72, 249, 72,
+            72, 72, 72, 72, 5, 0, 0, 0, 224, 224, 126, 224, 224, 224, 8, 72, 72, 249, 72, 72, 72, 91, 72, 72, 72, 72,
+            90, 72, 200, 0, 15,
+        ];
+        let r = check::run(d, Mode::Lag, 2000);
+        assert!(r.is_ok(), "{r:02x?}");
+    }
+}

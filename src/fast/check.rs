@@ -631,7 +631,14 @@ pub fn run_in_pieces(data: &[u8], mode: Mode, max_ops: usize, cuts: &[u8]) -> Re
             Action::Process { split_behind } => {
                 let t = Instant::from_micros(now);
                 alone.process_acyclic(t, &mut rec_alone.with(&mut pa_alone));
-                if mode == Mode::Sync || !split_behind {
+                // The split's DP-V1 task may overtake its core only for the DP-V1 requests
+                // themselves (their polls are answered "not ready" meanwhile, checked below), not
+                // for a queued Set_Prm / Chk_Cfg: with it unjudged the task would work on a
+                // state the card alone never had (it judged the Set_Prm / Chk_Cfg first), and
+                // either order is the slave's to choose — the firmware's core task runs above
+                // the DP-V1 task, so this order needs a Set_Prm / Chk_Cfg arriving while the
+                // task holds the node; the comparison cannot follow it.
+                if mode == Mode::Sync || !split_behind || fast.in_window() {
                     core.run(&mut split);
                 }
                 split.process_acyclic(t, &mut rec_split.with(&mut pa_split));
