@@ -1402,7 +1402,14 @@ impl FastPath<'_> {
         let fc = b[s + 2];
         let srd = fc & 0xC0 == 0x40 && matches!(fc & 0x0F, 0x0C | 0x0D);
         let (da, sa) = (da_raw & 0x7F, sa_raw & 0x7F);
-        if !srd || header > end || da != self.rx.own || sa == da || sa == telegram::BROADCAST {
+        if !srd
+            || header > end
+            || da != self.rx.own
+            || da == telegram::BROADCAST
+            || sa == da
+            || sa == telegram::BROADCAST
+        {
+            // (A broadcast is never answered, even by a station that had address 127.)
             return;
         }
         let st = self.st;

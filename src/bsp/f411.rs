@@ -590,7 +590,7 @@ impl DmaLine {
         }
         self.walker.restart();
         self.chars = 0;
-        self.pending = None;
+        self.drop_pending();
         self.gate.restart();
         self.enabled = None;
         self.apply_gate();
@@ -600,6 +600,18 @@ impl DmaLine {
         self.stream.reset(&mut Tee { fast: self.fast.as_mut(), asm: &mut self.asm });
         // Every telegram to the sink until the rate is locked again (`decide`).
         self.stream.set_filter(None);
+    }
+
+    /// A telegram the stream completed but that is not decided after all (a character error
+    /// or an overrun before its IDLE, a restart): the sinks forget it. The stream has
+    /// finished with it (it hands no `abort` for a complete telegram), so without this the
+    /// fast path would stay in the station's telegram — its staging not refreshed, its
+    /// address and window as of then — until the next telegram to the station.
+    #[inline(always)]
+    fn drop_pending(&mut self) {
+        if self.pending.take().is_some() {
+            Tee { fast: self.fast.as_mut(), asm: &mut self.asm }.abort();
+        }
     }
 
     /// Drop whatever the ring holds and wait for T_SYN again: the full restart of
@@ -846,7 +858,7 @@ impl DmaLine {
             self.count_errors(sr);
             self.walk_ring(None);
             // A completion at the ring's end may be the corrupt character itself.
-            self.pending = None;
+            self.drop_pending();
             self.stream.error(&mut Tee { fast: self.fast.as_mut(), asm: &mut self.asm });
         }
         if irq.segment_end {
@@ -895,7 +907,7 @@ impl DmaLine {
         let walk = self.walker.walk(flags & DMA_S2_HT != 0, flags & DMA_S2_TC != 0, write);
         if walk.overrun {
             add(RING_OVERRUN, 1);
-            self.pending = None;
+            self.drop_pending();
             self.stream.error(&mut Tee { fast: self.fast.as_mut(), asm: &mut self.asm });
             return;
         }

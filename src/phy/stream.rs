@@ -64,7 +64,10 @@ pub enum Step {
     /// decision now — the end of a request found by length, not by an idle gap.
     Complete,
     /// The last byte of a telegram skipped by the destination filter
-    /// ([`Stream::set_filter`]): the sink got [`TelegramSink::abort`] at its DA; no decision.
+    /// ([`Stream::set_filter`]): no decision. The sink got [`TelegramSink::abort`] at its DA
+    /// if it had heard of the telegram (its `begin` comes only once the DA passed the filter
+    /// when the header arrives in one piece, [`Stream::piece`]; a per-character port's sink
+    /// has its `begin` at the start delimiter).
     Skipped,
     /// Bytes that are no telegram (an unknown start delimiter, an SD2 header with bad LE,
     /// LEr or repeated SD): the telegram in progress was aborted (counted as garbage; for the
@@ -100,8 +103,12 @@ enum State {
 /// and end delimiter are the sink's to check (they are not needed for the length).
 ///
 /// With a destination filter ([`Stream::set_filter`]) a telegram for another station is
-/// aborted at its DA and its remaining bytes are only counted, never read (a DMA driver moves
-/// its ring position without touching them).
+/// dropped at its DA and its remaining bytes are only counted, never read (a DMA driver moves
+/// its ring position without touching them). The sink's [`TelegramSink::begin`] comes at the
+/// start delimiter when the header arrives byte by byte, but only once the DA passed the
+/// filter when the header is in one piece ([`Stream::piece`]): another station's telegram
+/// then costs the sink nothing, not even a `begin` / `abort` pair; the sink hears `abort`
+/// only for a telegram it had a `begin` for.
 #[derive(Debug, Clone)]
 pub struct Stream {
     state: State,
@@ -356,8 +363,9 @@ impl Stream {
     }
 
     /// The next bytes of a telegram whose header is still open (`State::Telegram`, the length
-    /// or the DA not in yet; at its start right after [`Self::begin_telegram`], the start
-    /// delimiter at `bytes[0]`): when they complete the header — the length (SD2: LE, LEr and
+    /// or the DA not in yet; at its start right after [`Self::start_quiet`] — the sink has
+    /// had no `begin` yet —, the start delimiter at `bytes[0]`): when they complete the
+    /// header — the length (SD2: LE, LEr and
     /// the repeated SD, checked) and the DA —, the length and the destination filter are taken
     /// at once, and the telegram's bytes in `bytes` go to the sink as **one** slice. A DMA
     /// piece that holds a whole short request then costs one length check and one sink call
