@@ -612,7 +612,8 @@ struct Prep {
 /// that could be an FCB retry of the last one (its PDU decides), and never for a telegram
 /// whose header arrived with its last byte (a DMA piece that holds the whole request: the
 /// general decision is as fast then). The property `any_chunking_equals_on_frame` compares
-/// it with the general decision of [`FastPath::on_frame`] in every chunking.
+/// it with the general decision of [`FastPath::on_frame`] in every chunking, and
+/// `lean_dpv1_equals_on_frame` (`tests_lean`) across the MSAC_C2 connections' timers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Lean {
     sa: u8,
@@ -2337,3 +2338,6 @@ mod regressions {
         assert!(r.is_ok(), "{r:02x?}");
     }
 }
+
+#[cfg(test)]
+mod tests_lean;
