@@ -40,9 +40,11 @@
 
 pub mod app;
 pub mod card;
-pub mod dp;
+pub use pbcard_dp::dp;
+#[cfg(test)]
+mod dp_tests;
 pub mod dpm;
-pub mod dpv1;
+pub use pbcard_dp::dpv1;
 pub mod drive;
 pub mod fast;
 pub use pbcard_fdl::fdl;

@@ -1059,6 +1059,3 @@ impl FdlApplication for DpSlave {
         }
     }
 }
-
-#[cfg(test)]
-mod tests;
