@@ -386,7 +386,7 @@ impl<const N: usize> C2<N> {
     }
 
     /// [`on_request`](Self::on_request); `deliver` false: the line already answered this
-    /// frame with SC ([`crate::fast`]), so no response frame is handed out on it — a ready
+    /// frame with SC (`pbcard::fast`), so no response frame is handed out on it — a ready
     /// response or a slave-side Abort PDU stays for the master's next frame on the SAP.
     pub fn on_request_as(&mut self, now: Instant, own: u8, req: &DataTelegram<'_>, deliver: bool) -> C2Answer {
         if req.da == telegram::BROADCAST {

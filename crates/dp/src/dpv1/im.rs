@@ -33,7 +33,7 @@
 //! hh:mm") and 38 reserved bytes; I&M3 DESCRIPTOR (54); I&M4 SIGNATURE (54). I&M1–3 are blanks (0x20) and
 //! I&M4 zeros until written (as the ABB adapters ship them). They are kept in RAM here
 //! ([`Im::data`]); [`Im::take_changed`] hands a written set to the platform, which stores it in
-//! its power-cut-safe journal ([`crate::store::Journal`], the same one as the station address:
+//! its power-cut-safe journal (`pbcard::store::Journal`, the same one as the station address:
 //! F411 flash, the soft slave's `--state` file; QEMU keeps them in RAM) and gives it back at
 //! boot ([`Im::set_data`]).
 //!
