@@ -13,14 +13,17 @@
 //!
 //! * [`fdl`] — PROFIBUS layer 2 (FDL): frame formats SD1/SD2/SD3/SD4/SC, the checksum, the
 //!   byte-stream framer, and the station that answers FDL_Status, handles FCB/FCV retries and
-//!   dispatches SAPs (IEC 61158-4-3 / EN 50170 vol. 2, reference §2).
+//!   dispatches SAPs (IEC 61158-4-3 / EN 50170 vol. 2, reference §2). The crate `pbcard-fdl`
+//!   (`crates/fdl`), with [`time`].
 //! * [`dp`] — the DP-V0 slave: state machine, Set_Prm, Chk_Cfg/Get_Cfg, diagnosis,
-//!   Data_Exchange, Global_Control, Set_Slave_Add, watchdog and master lock (reference §3).
+//!   Data_Exchange, Global_Control, Set_Slave_Add, watchdog and master lock (reference §3). The
+//!   crate `pbcard-dp` (`crates/dp`), with [`dpv1`]; its tests with this card's configuration
+//!   are here (`src/dp_tests/`).
 //! * [`card`] — what this particular card is: ident number, modules, user parameters, limits.
 //!   The GSD file in `gsd/` is tested against these constants.
 //! * [`dpv1`] — DP-V1 acyclic services: the PDU codec for MSAC_C1/C2 (Read, Write,
 //!   Data_Transport, Alarm_Ack, Initiate, Abort, Idle, RM), error codes, the 240-byte limit
-//!   (reference §4).
+//!   (reference §4). The crate `pbcard-dp` (`crates/dp`), with [`dp`].
 //! * [`profile`] — drive profiles on top of DP-V1 records: PROFIdrive base-mode parameter access
 //!   (record 47) and WEG's simple parameter access (record 48) (reference §5.1).
 //! * [`fast`] — the ASIC-style split: the line's fast path answers from staged frames, the
@@ -31,7 +34,7 @@
 //! * [`drive`] — a simulated drive behind the DPM (PROFIdrive STW1/ZSW1 state machine, ramp).
 //! * [`app`] — node + DPM + simulated drive in one step, for QEMU, the soft slave and tests.
 //! * [`led`] — the PS / BS / FS LED patterns (OPTE3/E5 §4.3) from the card's state.
-//! * [`time`] — instants, durations and bit times.
+//! * [`time`] — instants, durations and bit times (the crate `pbcard-fdl`, with [`fdl`]).
 //! * [`phy`] — USART divisors per rate and the autobaud search / Baud_Control supervision (reference §1.2, §1.6).
 //! * [`store`] — the station address and No_Add_Chg as a power-loss-safe journal in two flash sectors.
 #![cfg_attr(not(test), no_std)]
@@ -40,9 +43,11 @@
 
 pub mod app;
 pub mod card;
-pub mod dp;
+pub use pbcard_dp::dp;
+#[cfg(test)]
+mod dp_tests;
 pub mod dpm;
-pub mod dpv1;
+pub use pbcard_dp::dpv1;
 pub mod drive;
 pub mod fast;
 pub use pbcard_fdl::fdl;

@@ -55,14 +55,14 @@ fn is_dpv1_sap(sap: u8) -> bool {
     sap == C1_SAP || sap == RM_SAP || CONN_SAPS.contains(&sap)
 }
 
-/// Known bug (reported, src/dpv1/c1.rs): `C1::on_request` does not look at the function code
+/// Known bug (reported, crates/dp/src/dpv1/c1.rs): `C1::on_request` does not look at the function code
 /// or the destination address, so an SDN — even a broadcast — on SAP 51 from the locking
 /// master with SSAP 51 is taken as a request (replacing the pending one; an empty one consumes
 /// a ready response, which is then lost). While this is `true`, the target models that
 /// behaviour instead of failing on it; set it to `false` once C1 ignores SDN and broadcasts.
 const KNOWN_BUG_C1_TAKES_SDN: bool = false;
 
-/// Known bug (reported, src/dpv1/c1.rs): `C1` notices that it closed only when it is called
+/// Known bug (reported, crates/dp/src/dpv1/c1.rs): `C1` notices that it closed only when it is called
 /// (`on_request`, `process`). When the slave leaves data exchange and is parameterised again
 /// (possibly by another master) before the next MSAC_C1 frame, the request in flight
 /// survives: it is executed in the new session and its response — addressed to the old

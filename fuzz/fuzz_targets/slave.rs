@@ -1,5 +1,5 @@
 //! A whole `DpSlave` behind an FDL `Station`, brought to data exchange with a valid
-//! Set_Prm / Chk_Cfg (as in src/dp/tests.rs), then driven by a sequence of operations derived
+//! Set_Prm / Chk_Cfg (as in src/dp_tests/slave.rs), then driven by a sequence of operations derived
 //! from the fuzz input: requests with fuzz-chosen SAPs, function codes, FCB/FCV, source and
 //! destination addresses and PDUs; templates of the DP services with fuzzed fields; raw
 //! frames; FCB retries; time steps (watchdog); application actions (set_inputs, set_ext_diag,
@@ -182,7 +182,7 @@ fuzz_target!(|data: &[u8]| {
         last: None,
     };
 
-    // Bring-up as in src/dp/tests.rs: Set_Prm (Lock, optional Sync/Freeze, WD 1 s or 100 ms)
+    // Bring-up as in src/dp_tests/slave.rs: Set_Prm (Lock, optional Sync/Freeze, WD 1 s or 100 ms)
     // and Chk_Cfg for a fuzz-chosen module.
     let b0 = src.u8();
     let status = [0x88, 0xB8, 0x80, 0xB0, 0x98, 0xA8][(b0 % 6) as usize];

@@ -147,7 +147,7 @@ fn services_match_card() {
         Some(i64::from(card::IDENT_MAINTENANCE_SUPP)),
         "Ident_Maintenance_supp (I&M0-4 at slot 0 index 255)"
     );
-    // Alarms (src/dp/alarm.rs): the diagnostic alarm only, Alarm_Ack on SAP 51 only.
+    // Alarms (crates/dp/src/dp/alarm.rs): the diagnostic alarm only, Alarm_Ack on SAP 51 only.
     assert_eq!(
         scan.number("Diagnostic_Alarm_supp"),
         Some(i64::from(card::DIAGNOSTIC_ALARM_SUPP)),

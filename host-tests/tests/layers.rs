@@ -2,26 +2,30 @@
 //! DP-V1 → profile → DPM → card (ARCHITECTURE.md), so a lower layer never names a higher one
 //! outside its tests.
 //!
-//! The check walks the library's module tree from `src/lib.rs` with `syn` (following `mod`
-//! declarations, skipping every item under `#[cfg(test)]` or `#[cfg(any(test, …))]`, which is
-//! test support), collects every `crate::…` path (in `use` trees and in expressions and types,
-//! `super::` chains resolved) and maps each to the top-level module it names. Each module has a
-//! rank in [`LAYERS`]; an edge from a module to a higher-ranked one is a violation.
+//! The check walks the library's module tree from the crate roots in [`ROOTS`] with `syn`
+//! (following `mod` declarations, skipping every item under `#[cfg(test)]` or
+//! `#[cfg(any(test, …))]`, which is test support), collects every `crate::…` path (in `use`
+//! trees and in expressions and types, `super::` chains resolved) and maps each to the
+//! top-level module it names. Each module has a rank in [`LAYERS`]; an edge from a module to a
+//! higher-ranked one is a violation.
 //!
 //! The violations that exist today are listed in [`KNOWN_DEBT`]: the check fails on any edge
 //! that is not in the list (a new upward import) **and** on a listed edge that has gone (so the
 //! list only shrinks). Run: `cargo test -p host-tests --target x86_64-unknown-linux-gnu --test layers`.
 //!
-//! `time` and `fdl` are the crate `pbcard-fdl` (`crates/fdl`), re-exported by `src/lib.rs`:
-//! Cargo keeps them from naming anything above; their ranks here still place the paths the
-//! modules above use (`crate::fdl::…`, `crate::time::…`).
+//! `time` and `fdl` are the crate `pbcard-fdl` (`crates/fdl`), `dp` and `dpv1` the crate
+//! `pbcard-dp` (`crates/dp`, on `pbcard-fdl`), all re-exported by `src/lib.rs` (a `pub use`,
+//! not a `mod`, so the walk starts again at each crate's root): Cargo keeps each crate from
+//! naming anything above it; their ranks here still place the paths the modules above use
+//! (`crate::fdl::…`, `crate::dp::…`), and the walk of their own files checks what Cargo
+//! cannot, the direction inside a crate (`dp` never names `dpv1`, `time` never `fdl`).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 use syn::visit::Visit;
 
-/// Top-level modules of `src/lib.rs`, lowest layer first, with their rank (equal ranks may
+/// Top-level modules of the crate roots ([`ROOTS`]), lowest layer first, with their rank (equal ranks may
 /// name each other). `node` and `store` sit on DP-V1 (the node composes FDL, DP and DP-V1 and
 /// defines the record-handler seam; the store persists DP/DP-V1 records); `fast` wraps the
 /// node; `profile` implements the record handlers; `dpm` carries the profile to the drive;
@@ -52,6 +56,12 @@ const LAYERS: &[(&str, u8)] = &[
 /// application's `node::DataRecords`, `phy::line` without `node::Node`). Remove an entry when
 /// its edge goes.
 const KNOWN_DEBT: &[(&str, &str)] = &[];
+
+/// The crate roots the walk starts from (relative to the workspace root): the library and the
+/// crates of the stack below it, whose top-level modules it re-exports under the same names
+/// (`pbcard-fdl`: `time`, `fdl`; `pbcard-dp`: `dp`, `dpv1`; their roots bring the layer below
+/// in as `crate::fdl` / `crate::time`, so a path is ranked the same in every crate).
+const ROOTS: &[&str] = &["src/lib.rs", "crates/fdl/src/lib.rs", "crates/dp/src/lib.rs"];
 
 fn rank(m: &str) -> Option<u8> {
     LAYERS.iter().find(|(n, _)| *n == m).map(|(_, r)| *r)
@@ -209,11 +219,24 @@ fn walk(file: &Path, module: Vec<String>, out: &mut Vec<(Vec<String>, PathBuf, s
     out.push((module, file.to_path_buf(), ast));
 }
 
+/// The workspace root.
+fn workspace() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// Every non-test file module of every crate in [`ROOTS`], with its module path.
+fn files() -> Vec<(Vec<String>, PathBuf, syn::File)> {
+    let mut files = Vec::new();
+    for r in ROOTS {
+        walk(&workspace().join(r), Vec::new(), &mut files);
+    }
+    files
+}
+
 /// Every edge (from, to) between top-level modules outside tests, with the files that make it.
 fn edges() -> BTreeMap<(String, String), BTreeSet<String>> {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    let mut files = Vec::new();
-    walk(&root.join("src/lib.rs"), Vec::new(), &mut files);
+    let root = workspace();
+    let files = files();
     let mut edges: BTreeMap<(String, String), BTreeSet<String>> = BTreeMap::new();
     for (module, file, ast) in &files {
         let Some(top) = module.first() else { continue };
@@ -229,14 +252,42 @@ fn edges() -> BTreeMap<(String, String), BTreeSet<String>> {
     edges
 }
 
+/// Every top-level module of every crate root has a layer (test-only modules, such as the
+/// library's `dp_tests`, are not walked and need none).
 #[test]
 fn every_top_level_module_has_a_layer() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../src/lib.rs");
-    let ast = syn::parse_file(&std::fs::read_to_string(root).unwrap()).unwrap();
-    for item in &ast.items {
-        if let syn::Item::Mod(m) = item {
-            assert!(rank(&m.ident.to_string()).is_some(), "module {} has no layer in LAYERS", m.ident);
+    for r in ROOTS {
+        let ast = syn::parse_file(&std::fs::read_to_string(workspace().join(r)).unwrap()).unwrap();
+        for item in &ast.items {
+            if let syn::Item::Mod(m) = item {
+                if !test_only(&m.attrs) {
+                    assert!(rank(&m.ident.to_string()).is_some(), "{r}: module {} has no layer in LAYERS", m.ident);
+                }
+            }
         }
+    }
+}
+
+/// The walk reaches every layer's files, the crates' below the library included: each
+/// non-test module of [`LAYERS`] is walked from exactly one root.
+#[test]
+fn the_walk_covers_every_layer() {
+    let files = files();
+    for (m, _) in LAYERS.iter().filter(|(m, _)| *m != "testkit") {
+        let walked: BTreeSet<_> = files
+            .iter()
+            .filter(|(module, _, _)| module.len() == 1 && module[0] == *m)
+            .map(|(_, file, _)| file.display().to_string())
+            .collect();
+        assert_eq!(walked.len(), 1, "module {m} is walked from {} files: {walked:?}", walked.len());
+    }
+    for f in [
+        "crates/dp/src/dp/mod.rs",
+        "crates/dp/src/dp/cfg.rs",
+        "crates/dp/src/dpv1/c2.rs",
+        "crates/fdl/src/fdl/station.rs",
+    ] {
+        assert!(files.iter().any(|(_, file, _)| file.ends_with(f)), "{f} is not walked");
     }
 }
 

@@ -33,7 +33,7 @@
 //! hh:mm") and 38 reserved bytes; I&M3 DESCRIPTOR (54); I&M4 SIGNATURE (54). I&M1–3 are blanks (0x20) and
 //! I&M4 zeros until written (as the ABB adapters ship them). They are kept in RAM here
 //! ([`Im::data`]); [`Im::take_changed`] hands a written set to the platform, which stores it in
-//! its power-cut-safe journal ([`crate::store::Journal`], the same one as the station address:
+//! its power-cut-safe journal (`pbcard::store::Journal`, the same one as the station address:
 //! F411 flash, the soft slave's `--state` file; QEMU keeps them in RAM) and gives it back at
 //! boot ([`Im::set_data`]).
 //!
@@ -424,8 +424,8 @@ impl<R: RecordHandler> RecordHandler for WithIm<'_, R> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::card;
     use crate::dpv1::records::NoRecords;
+    use crate::test_card;
     use std::vec::Vec;
 
     fn call(fi: u16, data: &[u8]) -> Vec<u8> {
@@ -438,9 +438,9 @@ mod tests {
     #[test]
     fn im0_layout() {
         let ident = DeviceIdent { serial_number: *b"SN-0001         ", hardware_revision: 3 };
-        let r = im0(&card::IM, &ident);
+        let r = im0(&test_card::IM, &ident);
         assert_eq!(&r[..10], &[0; 10], "manufacturer-specific header");
-        assert_eq!(&r[10..12], &card::IM_MANUFACTURER_ID.to_be_bytes());
+        assert_eq!(&r[10..12], &test_card::IM_MANUFACTURER_ID.to_be_bytes());
         assert_eq!(&r[12..19], b"ODC-PB1");
         assert!(r[19..32].iter().all(|&b| b == b' '), "ORDER_ID blank-padded");
         assert_eq!(&r[32..48], b"SN-0001         ");
@@ -455,14 +455,14 @@ mod tests {
 
     #[test]
     fn call_then_read_per_relation() {
-        let mut im = Im::new(&card::IM);
+        let mut im = Im::new(&test_card::IM);
         let mut out = [0u8; 240];
         assert_eq!(im.read(0, &mut out), Err(ImError::NoCall));
         im.write(0, &[0x08, 0x00, 0xFD, 0xE8]).unwrap();
         let n = im.read(0, &mut out).unwrap();
         assert_eq!(n, 68);
         assert_eq!(&out[..4], &[0x08, 0x00, 0xFD, 0xE8]);
-        assert_eq!(&out[4..68], &im0(&card::IM, &card::IM.unknown_ident()));
+        assert_eq!(&out[4..68], &im0(&test_card::IM, &test_card::IM.unknown_ident()));
         // Read again: the selection stays.
         assert_eq!(im.read(0, &mut out), Ok(68));
         // Another relation has made no call.
@@ -475,7 +475,7 @@ mod tests {
 
     #[test]
     fn write_im1_to_im4() {
-        let mut im = Im::new(&card::IM);
+        let mut im = Im::new(&test_card::IM);
         let mut out = [0u8; 68];
         for fi in 65001..=65004u16 {
             let mut rec = [0xEEu8; RECORD_LEN];
@@ -494,7 +494,7 @@ mod tests {
         im.write(0, &call(65001, &[&[0u8; 10][..], &stored.records[0]].concat())).unwrap();
         assert_eq!(im.take_changed(), None);
         // Defaults: I&M1 blanks, I&M4 zeros.
-        let mut fresh = Im::new(&card::IM);
+        let mut fresh = Im::new(&test_card::IM);
         fresh.write(0, &call(65001, &[])).unwrap();
         fresh.read(0, &mut out).unwrap();
         assert!(out[14..68].iter().all(|&b| b == b' '));
@@ -505,7 +505,7 @@ mod tests {
 
     #[test]
     fn errors_are_the_guidelines() {
-        let mut im = Im::new(&card::IM);
+        let mut im = Im::new(&test_card::IM);
         let mut out = [0u8; 240];
         let e = |r: Result<(), ImError>| r.map_err(ImError::error_code1);
         assert_eq!(e(im.write(1, &call(65000, &[]))), Err(ErrorCode1::INVALID_SLOT));
@@ -528,7 +528,7 @@ mod tests {
 
     #[test]
     fn other_indices_go_to_the_inner_handler() {
-        let mut im = Im::new(&card::IM);
+        let mut im = Im::new(&test_card::IM);
         let mut inner = NoRecords;
         let mut h = im.with(&mut inner);
         let now = Instant::from_millis(0);
@@ -543,7 +543,7 @@ mod tests {
         /// returns the selected FI_Index.
         #[test]
         fn any_call(bytes in proptest::collection::vec(proptest::num::u8::ANY, 0..80), slot in 0u8..3) {
-            let mut im = Im::new(&card::IM);
+            let mut im = Im::new(&test_card::IM);
             let mut out = [0u8; 240];
             match im.write(slot, &bytes) {
                 Ok(()) => {

@@ -1,10 +1,11 @@
 //! Scripted tests of the DP slave behind the FDL station: the services and failure cases a
 //! peer master (profirust) never sends, byte for byte.
 
-use super::*;
 use crate::card;
+use crate::dp::*;
 use crate::fdl::station::Station;
-use crate::fdl::telegram::{decode, Decoded, Telegram};
+use crate::fdl::telegram::{self, decode, Decoded, FunctionCode, Header, Telegram};
+use crate::time::{BitTimes, Duration, Instant};
 
 const ME: u8 = 8;
 const M1: u8 = 2;

@@ -4,7 +4,7 @@
 //! it runs the state machine Wait_Prm → Wait_Cfg → Data_Exch, evaluates Set_Prm and
 //! Chk_Cfg, keeps the diagnosis, the cyclic images, the master lock and the DP watchdog.
 //!
-//! One room per service: [`prm`] (Set_Prm), [`cfg`] (Chk_Cfg / Get_Cfg), [`diag`]
+//! One room per service: [`prm`] (Set_Prm), [`cfg`](mod@cfg) (Chk_Cfg / Get_Cfg), [`diag`]
 //! (Slave_Diag), [`global_control`] (Global_Control), [`slave_add`] (Set_Slave_Add). The
 //! state machine and the staging of responses live here.
 //!
@@ -406,7 +406,7 @@ impl DpSlave {
     }
 
     /// The staged Data_Exchange answer as it stands (header DA / FC as last patched; the
-    /// response path patches them): what [`crate::fast::CoreLink`] publishes for the line.
+    /// response path patches them): what `pbcard::fast::CoreLink` publishes for the line.
     pub fn staged_dx_frame(&self) -> &[u8] {
         let id = self.dx_cur as usize;
         &self.bufs[id][..self.lens[id] as usize]
@@ -414,7 +414,7 @@ impl DpSlave {
 
     /// The staged Slave_Diag answer, rebuilt first when the diagnosis changed since it was
     /// staged (the same frame the next Slave_Diag would send): what
-    /// [`crate::fast::CoreLink`] publishes for the line.
+    /// `pbcard::fast::CoreLink` publishes for the line.
     pub fn staged_diag_frame(&mut self) -> &[u8] {
         if self.diag_dirty {
             self.restage_diag();
@@ -1059,6 +1059,3 @@ impl FdlApplication for DpSlave {
         }
     }
 }
-
-#[cfg(test)]
-mod tests;

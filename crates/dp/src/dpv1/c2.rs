@@ -386,7 +386,7 @@ impl<const N: usize> C2<N> {
     }
 
     /// [`on_request`](Self::on_request); `deliver` false: the line already answered this
-    /// frame with SC ([`crate::fast`]), so no response frame is handed out on it — a ready
+    /// frame with SC (`pbcard::fast`), so no response frame is handed out on it — a ready
     /// response or a slave-side Abort PDU stays for the master's next frame on the SAP.
     pub fn on_request_as(&mut self, now: Instant, own: u8, req: &DataTelegram<'_>, deliver: bool) -> C2Answer {
         if req.da == telegram::BROADCAST {
@@ -723,7 +723,7 @@ mod tests {
     impl Bus {
         fn new() -> Self {
             Bus {
-                c2: C2::new(crate::card::PROFILE_IDENT_NUMBER),
+                c2: C2::new(crate::test_card::PROFILE_IDENT_NUMBER),
                 mem: Mem::default(),
                 now: Instant::from_millis(1_000),
             }
@@ -796,10 +796,10 @@ mod tests {
 
     #[test]
     fn sap_ownership() {
-        let c2 = C2::<2>::new(crate::card::PROFILE_IDENT_NUMBER);
+        let c2 = C2::<2>::new(crate::test_card::PROFILE_IDENT_NUMBER);
         assert!(c2.owns_sap(49) && c2.owns_sap(48) && c2.owns_sap(47));
         assert!(!c2.owns_sap(46) && !c2.owns_sap(50) && !c2.owns_sap(51) && !c2.owns_sap(0));
-        assert!(C2::<49>::new(crate::card::PROFILE_IDENT_NUMBER).owns_sap(0));
+        assert!(C2::<49>::new(crate::test_card::PROFILE_IDENT_NUMBER).owns_sap(0));
         assert_eq!(Reply::from(C2Answer::NotReady), Reply::ShortAck);
     }
 

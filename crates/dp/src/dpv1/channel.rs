@@ -4,7 +4,7 @@
 //! master sends the request PDU (SRD with data), the slave acknowledges it with SC and works
 //! on it outside the interrupt path; the master then polls (SRD without data) and receives SC
 //! until the response PDU is ready, then the response. The [`Channel`] keeps the request,
-//! builds the complete response *frame* once ([`Channel::process`]) and hands it out on the
+//! builds the complete response *frame* once ([`Channel::respond`]) and hands it out on the
 //! next poll, so the decision path never copies a PDU. An FCB retry of a poll gets the same
 //! frame again from the FDL station.
 
@@ -109,7 +109,7 @@ impl Channel {
     }
 
     /// [`on_request`](Self::on_request), where `deliver` false means the line already
-    /// answered this poll "not ready" (SC, [`crate::fast`]): a ready response stays for the
+    /// answered this poll "not ready" (SC, `pbcard::fast`): a ready response stays for the
     /// next poll instead of being handed out on a frame nobody sees.
     ///
     /// Out of line: several tasks call it (footprint, issue 13 item 1).

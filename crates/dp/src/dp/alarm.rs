@@ -334,7 +334,7 @@ mod tests {
 
     /// The card's limit.
     fn validate_ext_diag(blocks: &[u8]) -> Result<(), crate::dp::diag::DiagError> {
-        crate::dp::diag::validate_ext_diag(blocks, crate::card::MAX_EXT_DIAG_LEN)
+        crate::dp::diag::validate_ext_diag(blocks, crate::test_card::MAX_EXT_DIAG_LEN)
     }
 
     fn ack(a: &Alarm) -> Ack {

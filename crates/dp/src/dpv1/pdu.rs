@@ -124,7 +124,7 @@ impl ErrorCode1 {
     /// 0xA9 application: feature not supported.
     pub const FEATURE_NOT_SUPPORTED: Self = Self(0xA9);
     /// 0xB0 access: invalid index (VACON: "parameter requests are not supported" for a wrong
-    /// index; note that the WEG manuals call 0xB0 "invalid slot", see [`crate::profile::weg48`]).
+    /// index; note that the WEG manuals call 0xB0 "invalid slot", see `pbcard::profile::weg48`).
     pub const INVALID_INDEX: Self = Self(0xB0);
     /// 0xB1 access: write length error.
     pub const WRITE_LENGTH_ERROR: Self = Self(0xB1);

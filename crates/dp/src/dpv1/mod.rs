@@ -7,7 +7,7 @@
 //!
 //! The connection state machines (C1 started with Data_Exch, C2 Initiate/Idle/Abort with
 //! Send_Timeout monitoring) and the slot/index routing to data records such as PROFIdrive's
-//! record 47 ([`crate::profile`]) build on this codec.
+//! record 47 (`pbcard::profile`) build on this codec.
 
 pub mod c1;
 pub mod c2;

@@ -131,11 +131,11 @@ impl StandardDiag {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::card;
+    use crate::test_card;
 
     /// The card's limit.
     fn validate_ext_diag(blocks: &[u8]) -> Result<(), DiagError> {
-        super::validate_ext_diag(blocks, card::MAX_EXT_DIAG_LEN)
+        super::validate_ext_diag(blocks, test_card::MAX_EXT_DIAG_LEN)
     }
 
     #[test]
@@ -157,9 +157,9 @@ mod tests {
             status2: Status2::PRM_REQ,
             status3: 0,
             master_add: 0xFF,
-            ident_number: card::IDENT_NUMBER,
+            ident_number: test_card::IDENT_NUMBER,
         };
-        let id = card::IDENT_NUMBER.to_be_bytes();
+        let id = test_card::IDENT_NUMBER.to_be_bytes();
         assert_eq!(d.encode(), [0x02, 0x05, 0x00, 0xFF, id[0], id[1]]);
     }
 

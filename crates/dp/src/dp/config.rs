@@ -22,7 +22,7 @@ pub const MAX_OUTPUT_LEN: usize = 244;
 
 /// A product's DP slave configuration: the GSD's values that [`super::DpSlave`] checks the
 /// master's telegrams against. `Copy` and made of `&'static` tables, so a product declares it
-/// as a `const` (this card: `crate::card::SLAVE`) and the composition passes a reference to
+/// as a `const` (this card: `pbcard::card::SLAVE`) and the composition passes a reference to
 /// [`super::DpSlave::new`].
 #[derive(Clone, Copy)]
 pub struct SlaveConfig {
