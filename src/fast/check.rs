@@ -336,6 +336,16 @@ fn conn_of(alone: &Node, m: u8) -> Option<(u8, u8)> {
 
 /// An MSAC_C2 Initiate.req PDU (S and D address blocks of type 0).
 fn initiate(send_timeout: u16, s_len: u8, api: u8) -> Vec<u8, 64> {
+    let mut v = initiate_pdu(send_timeout, api);
+    if let Some(b) = v.get_mut(13) {
+        *b = s_len;
+    }
+    v
+}
+
+/// An MSAC_C2 Initiate.req PDU with `send_timeout` and the destination API `api`, as
+/// `InitiateRequest::emit` builds it (also the lean-path tests' `tests_lean`).
+pub(super) fn initiate_pdu(send_timeout: u16, api: u8) -> Vec<u8, 64> {
     let req = InitiateRequest {
         send_timeout,
         features_supported: [1, 0],
@@ -346,9 +356,6 @@ fn initiate(send_timeout: u16, s_len: u8, api: u8) -> Vec<u8, 64> {
     };
     let mut out = [0u8; 64];
     let n = req.emit(&mut out).unwrap_or(0);
-    if n > 13 {
-        out[13] = s_len;
-    }
     let mut v = Vec::new();
     let _ = v.extend_from_slice(&out[..n]);
     v

@@ -25,7 +25,7 @@ use crate::card;
 use crate::dp::DpSlave;
 use crate::dpv1::c1;
 use crate::dpv1::c2::{self, ConnectionState};
-use crate::dpv1::pdu::{AddressBlock, Function, InitiateRequest};
+use crate::dpv1::pdu::Function;
 use crate::drive::params::{DriveTable, SIM_DRIVE_TABLE};
 use crate::fdl::telegram::{self, Decoded, FunctionCode, Header, Telegram};
 use crate::node::Node;
@@ -58,20 +58,10 @@ fn pdu_of(a: &[u8]) -> Option<Vec<u8>> {
     }
 }
 
-/// An MSAC_C2 Initiate.req PDU (Send_Timeout in 10 ms, address blocks of type 0), as
-/// `check`'s.
+/// An MSAC_C2 Initiate.req PDU (Send_Timeout in 10 ms, address blocks of type 0): `check`'s
+/// [`initiate_pdu`](super::check::initiate_pdu) with API 0.
 fn initiate(send_timeout: u16) -> Vec<u8> {
-    let req = InitiateRequest {
-        send_timeout,
-        features_supported: [1, 0],
-        profile_features_supported: [0, 0],
-        profile_ident_number: 0,
-        source: AddressBlock { kind: 0, bytes: &[0, 0] },
-        destination: AddressBlock { kind: 0, bytes: &[0, 0] },
-    };
-    let mut out = [0u8; 64];
-    let n = req.emit(&mut out).unwrap_or(0);
-    out[..n].to_vec()
+    super::check::initiate_pdu(send_timeout, 0).to_vec()
 }
 
 /// The connection SAP and master SAP node `n` holds for master `m`.

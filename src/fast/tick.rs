@@ -29,7 +29,7 @@ use crate::time::Instant;
 /// `app::Card`, the bench `app::Application`, a product's own drive interface).
 pub trait CardApp {
     /// The DP-V1 data records the application serves behind I&M, for one
-    /// [`Node::process_acyclic`] ([`crate::node::NoRecords`] for none).
+    /// [`Node::process_acyclic`] ([`crate::dpv1::records::NoRecords`] for none).
     type Records<'a>: DataRecords
     where
         Self: 'a;
