@@ -17,6 +17,8 @@ cargo clippy -p pbcard -p pbcard-dp -p pbcard-fdl --lib --target "$HOST" -- -D w
 cargo clippy -p pbcard -p pbcard-dp -p pbcard-fdl --lib -- -D warnings
 cargo clippy -p pbcard -p pbcard-dp -p pbcard-fdl --lib --tests --target "$HOST" -- -D warnings
 cargo clippy -p host-tests --all-targets --target "$HOST" -- -D warnings
+echo "== rustdoc of the protocol crates: no broken or private intra-doc links, -D warnings"
+RUSTDOCFLAGS="-D warnings" cargo doc -q -p pbcard -p pbcard-dp -p pbcard-fdl --no-deps --target "$HOST"
 
 echo "== firmware: release build for the STM32F411 (thumbv7em-none-eabihf), the card alone: no simulation linked, footprint"
 cargo build --release

@@ -75,13 +75,13 @@
 //! set — never a stale "ready for data exchange" — and Data_Exchange, Rd_Inp, Rd_Outp with
 //! RS (not ready yet; no outputs taken by the line). Outside the window the line's answer is
 //! the core's answer byte for byte when the core has caught up; `split_answers_equal_the_core`
-//! (tests) and the `fast_path` fuzz target check it ([`check`]).
+//! (tests) and the `fast_path` fuzz target check it (`fast::check`, built for tests and the `test-support` feature).
 //!
 //! A Slave_Diag of the locking master that the line answered while new diagnosis was staged
 //! also marks the staged DH as consumed until the core has worked on that read, so a
 //! following Data_Exchange answers DL as the core alone would.
 //!
-//! **Streaming receive** (issue 11, [`TelegramSink`](crate::phy::stream::TelegramSink)): the
+//! **Streaming receive** (issue 11, [`crate::phy::stream::TelegramSink`]): the
 //! physical layer hands a telegram's bytes to the fast path while they arrive (`begin`,
 //! `bytes` in pieces of any size, `abort`) and asks for the decision with
 //! [`FastPath::finish`] right after the last one. What grows with the telegram's length — the
@@ -117,7 +117,7 @@ use crate::time::Instant;
 /// A triple buffer of `W` words (one writer, one reader), built from atomics only.
 ///
 /// Slot ownership: the writer owns one slot (its back buffer), the reader one (its front
-/// buffer), and the `middle` word names the third, with bit [`FRESH`] when the writer
+/// buffer), and the `middle` word names the third, with bit `FRESH` when the writer
 /// published into it since the reader last took it. Publishing and taking are one
 /// `swap` each, so the reader always holds a slot the writer completed and will not touch.
 pub struct TripleBuffer<const W: usize> {

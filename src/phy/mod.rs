@@ -1,7 +1,7 @@
 //! The physical layer's decisions, without the hardware: which USART divisor produces each
 //! PROFIBUS rate ([`divisor`]), which rate to listen at — the ASIC-style automatic baud-rate
 //! search and supervision ([`autobaud`], reference §1.6) — and how a DMA receiver with a bit
-//! timer cuts telegrams, keeps T_SYN, min_TSDR and max_TSDR ([`line`], reference §1.3–1.4).
+//! timer cuts telegrams, keeps T_SYN, min_TSDR and max_TSDR ([`line`](mod@line), reference §1.3–1.4).
 //!
 //! The board support code owns the USART; it asks [`autobaud::Autobaud`] for the rate,
 //! programs it with [`divisor::divisor_for`], feeds what it received through

@@ -16,10 +16,10 @@ use super::telegram::{DataProfile, Layout, PZD_SIGNALS};
 use crate::profile::selection::{Family, Telegram};
 
 /// PNU 915: PZD assignment of the setpoint telegram — the signal number of each output PZD
-/// (OPTE3/E5 Table 108 UINT[18], coding §6.3.9 Table 37; see [`super::telegram`]).
+/// (OPTE3/E5 Table 108 UINT\[18\], coding §6.3.9 Table 37; see [`super::telegram`]).
 pub const PNU_PZD_SETPOINTS: u16 = 915;
 /// PNU 916: PZD assignment of the actual value telegram — the signal number of each input
-/// PZD (OPTE3/E5 Table 108 UINT[18]).
+/// PZD (OPTE3/E5 Table 108 UINT\[18\]).
 pub const PNU_PZD_ACTUALS: u16 = 916;
 /// PNU 918: station address (read-only here; set by Set_Slave_Add or the drive).
 pub const PNU_STATION_ADDRESS: u16 = 918;
@@ -40,7 +40,7 @@ pub const PNU_FAULT_SCALING: u16 = 950;
 pub const PNU_BAUD_RATE: u16 = 963;
 /// PNU 964: device identification (six elements).
 pub const PNU_DEVICE_ID: u16 = 964;
-/// PNU 965: profile identification number, BYTE[2]: profile 3 (PROFIdrive), version 41 (4.1)
+/// PNU 965: profile identification number, BYTE\[2\]: profile 3 (PROFIdrive), version 41 (4.1)
 /// (OPTE3/E5 §6.4.5; CFW-11 P0965).
 pub const PNU_PROFILE_ID: u16 = 965;
 /// PNU 975: drive object identification, eight elements (PROFIdrive; [`CardInfo::DO_ID`]).
@@ -60,7 +60,7 @@ pub const PNU_PARAMETER_LIST_LAST: u16 = 989;
 /// answer carries (`dpm::MBX_CAPACITY` = 128 bytes), so the drive's part of one list PNU is
 /// one mailbox request.
 pub const LIST_LEN: usize = 64;
-/// PNU 965's value: profile 3 (PROFIdrive), version 41 (4.1) — OPTE3/E5 Table 108 "BYTE[2]
+/// PNU 965's value: profile 3 (PROFIdrive), version 41 (4.1) — OPTE3/E5 Table 108 "BYTE\[2\]
 /// Byte 1 = 3 (PROFIdrive), Byte 2 = 41 (Version 4.1)", CFW-11 P0965 = (3, 41).
 pub const PROFILE_ID: [u8; 2] = [3, 41];
 
@@ -419,7 +419,7 @@ impl<D: ParameterAccess> ParameterAccess for CardTable<'_, D> {
                 // one value, `42 01 03 29` — CFW-11 P0965 is likewise one 16-bit word, profile
                 // in the high byte.
                 (&[hi, lo], 0, 1) => out.push_u16(u16::from_be_bytes([hi, lo])),
-                // VACON's view of the same value, BYTE[2] (OPTE3/E5 Table 108): octets by
+                // VACON's view of the same value, BYTE\[2\] (OPTE3/E5 Table 108): octets by
                 // element, `0A 02 03 29` for elements 0..2.
                 _ => {
                     out.set_format(super::param::Format::OCTET_STRING);

@@ -23,7 +23,7 @@
 //! drives the motor — and the INVT profile scales it; a drive mapping something else there
 //! still receives the raw word as the profile's setpoint.
 //!
-//! PNU 915 / 916 (OPTE3/E5 Table 108: UINT[18], "selection switch for DO IO data in setpoint /
+//! PNU 915 / 916 (OPTE3/E5 Table 108: UINT\[18\], "selection switch for DO IO data in setpoint /
 //! actual value telegram") list the signal number of each PZD (PKW excluded; 0 = unused) in
 //! the coding of OPTE3/E5 §6.3.9 Table 37: 1 STW1, 2 ZSW1, 5 NSOLL_A, 6 NIST_A, 51
 //! IAIST_GLATT, 52 ITIST_GLATT, 54 PIST_GLATT, 57 NIST_A_GLATT, 58 MELD_NAMUR, 100..107 /
@@ -34,7 +34,7 @@
 
 use crate::profile::selection::{Family, Telegram};
 
-/// Elements of PNU 915 / 916 (OPTE3/E5 Table 108: UINT[18]) — also the most PZD words of any
+/// Elements of PNU 915 / 916 (OPTE3/E5 Table 108: UINT\[18\]) — also the most PZD words of any
 /// telegram (VACON 139).
 pub const PZD_SIGNALS: usize = 18;
 

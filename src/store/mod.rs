@@ -109,7 +109,7 @@ pub const MAX_KINDS: usize = 4;
 /// check value of `"123456789"` = 0x29B1), the `crc` crate's byte-wise table (512 bytes).
 static CRC: crc::Crc<u16, crc::Table<1>> = crc::Crc::<u16, crc::Table<1>>::new(&crc::CRC_16_IBM_3740);
 
-/// The CRC-16 of a slot ([`CRC`]).
+/// The CRC-16 of a slot (CRC-16/CCITT-FALSE, the `crc` crate's `CRC_16_IBM_3740`).
 #[inline(never)]
 pub fn crc16(data: &[u8]) -> u16 {
     CRC.checksum(data)

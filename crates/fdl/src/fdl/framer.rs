@@ -1,7 +1,7 @@
 //! Byte stream → telegrams (reference §1.4).
 //!
 //! PROFIBUS telegrams delimit themselves by length, and no gap is allowed inside one. The
-//! [`Framer`] collects bytes, asks [`telegram::decode`](super::telegram::decode) whether a
+//! [`Framer`] collects bytes, asks [`telegram::decode`] whether a
 //! frame is complete, and hands complete frames to the caller. It resynchronises two ways:
 //!
 //! * **Gaps** — the receiver tells it about idle line ([`Framer::idle`]). A partial frame
@@ -13,7 +13,7 @@
 //! **Cutting only** ([`Framer::cut`], issue 11): for a receiver that hands the bytes to a
 //! `TelegramSink` (`pbcard::phy::stream`, the layer above) as they arrive, the framer only finds
 //! where a telegram starts and ends — from the header's length
-//! ([`telegram::frame_len`](super::telegram::frame_len)), without decoding, so its work per
+//! ([`telegram::frame_len`]), without decoding, so its work per
 //! byte, the last one included, does not grow with the telegram; the checksum and the rest
 //! are the sink's. After a bad header it hunts for the next start delimiter.
 
