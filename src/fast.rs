@@ -75,7 +75,8 @@
 //! set — never a stale "ready for data exchange" — and Data_Exchange, Rd_Inp, Rd_Outp with
 //! RS (not ready yet; no outputs taken by the line). Outside the window the line's answer is
 //! the core's answer byte for byte when the core has caught up; `split_answers_equal_the_core`
-//! (tests) and the `fast_path` fuzz target check it (`fast::check`, built for tests and the `test-support` feature).
+//! (tests) and the `fast_path` fuzz target check it (`fast::check`, built for tests and the
+//! `test-support` feature).
 //!
 //! A Slave_Diag of the locking master that the line answered while new diagnosis was staged
 //! also marks the staged DH as consumed until the core has worked on that read, so a

@@ -419,7 +419,7 @@ impl<D: ParameterAccess> ParameterAccess for CardTable<'_, D> {
                 // one value, `42 01 03 29` — CFW-11 P0965 is likewise one 16-bit word, profile
                 // in the high byte.
                 (&[hi, lo], 0, 1) => out.push_u16(u16::from_be_bytes([hi, lo])),
-                // VACON's view of the same value, BYTE\[2\] (OPTE3/E5 Table 108): octets by
+                // VACON's view of the same value, BYTE[2] (OPTE3/E5 Table 108): octets by
                 // element, `0A 02 03 29` for elements 0..2.
                 _ => {
                     out.set_format(super::param::Format::OCTET_STRING);
