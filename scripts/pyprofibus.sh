@@ -5,6 +5,9 @@
 #   bash scripts/pyprofibus.sh            # both
 #   bash scripts/pyprofibus.sh softslave  # or: gsd (the GSD as pyprofibus reads it), multi (two stations in one soft slave), qemu
 set -euo pipefail
+# The QEMU firmware logs at "info" (the tests and the demo read those logs); the F411 default
+# is "warn" (.cargo/config.toml).
+export DEFMT_LOG=${DEFMT_LOG:-info}
 cd "$(dirname "$0")/.."
 HOST=$(bash scripts/host-triple)
 TARGET_DIR=${CARGO_TARGET_DIR:-target}

@@ -14,6 +14,9 @@
 # The board is a cargo feature of the one RTIC application: `--no-default-features --features
 # qemu` (or `bench`, which adds the TIM2 instrumentation). The default build stays the F411.
 set -euo pipefail
+# The QEMU firmware logs at "info" (the tests and the demo read those logs); the F411 default
+# is "warn" (.cargo/config.toml).
+export DEFMT_LOG=${DEFMT_LOG:-info}
 cd "$(dirname "$0")/.."
 HOST=$(bash scripts/host-triple)
 TARGET_DIR=${CARGO_TARGET_DIR:-target}

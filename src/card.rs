@@ -66,12 +66,12 @@ pub const DMA_FINISH_INSTRUCTIONS: u32 = 1365;
 /// QEMU does not execute (no DMA, no IDLE flag): SR, the receive gate, TIM5, NDTR, the T_SYN
 /// compare armed, the ring walk (`DmaLine::walk_ring`, `RingWalker::walk`) and the line's own
 /// copy of the remainder for the rate control (`Tee`, ≈ 2 a byte): ≈ 130 + 2 × [`DMA_CHUNK`],
-/// **estimated** from `src/bsp/f411.rs` (README "Board budget"), not measured.
+/// **estimated** from `crates/bsp/src/f411.rs` (README "Board budget"), not measured.
 pub const F411_IDLE_ENTRY_INSTRUCTIONS: u32 = 130 + 2 * DMA_CHUNK;
 
 /// The F411's half/full-transfer interrupt's own work around `Stream::piece` (the DMA flags
 /// read and cleared, NDTR, `RingWalker::walk`, the statistics, the `Tee` copy of 16 bytes):
-/// ≈ 75, **estimated** from `src/bsp/f411.rs`, not measured; with the measured piece it gives
+/// ≈ 75, **estimated** from `crates/bsp/src/f411.rs`, not measured; with the measured piece it gives
 /// the chunk cost of [`foreign_load_per_mille`].
 pub const F411_CHUNK_ENTRY_INSTRUCTIONS: u32 = 75;
 
@@ -85,7 +85,7 @@ pub const fn budget_instructions(rate: Baudrate) -> u32 {
     }
 }
 
-/// Core clock of the F411 build (HCLK = 96 MHz, `src/bsp/f411.rs`), cycles per second.
+/// Core clock of the F411 build (HCLK = 96 MHz, `crates/bsp/src/f411.rs`), cycles per second.
 pub const CPU_HZ: u32 = 96_000_000;
 /// Cortex-M4F exception entry (ARM DDI 0439 §3.3: 12 cycles, lazy FPU stacking); the RTIC
 /// dispatch and everything after it are in the measured instructions.

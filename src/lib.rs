@@ -1,7 +1,7 @@
 //! # pbcard — the protocol core of a PROFIBUS DP-V1 slave option card for AC drives
 //!
 //! This library is the card's *sans-IO* protocol stack. It never touches a register or reads a
-//! clock: bytes, gaps and time are handed in by the board support code (`src/bsp`, the QEMU
+//! clock: bytes, gaps and time are handed in by the board support code (`crates/bsp`, the QEMU
 //! build, the soft slave or the host tests), and responses come back as byte slices that the
 //! caller puts on the wire.
 //!

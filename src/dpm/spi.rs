@@ -3,7 +3,7 @@
 //! ARCHITECTURE §5). The card side is [`SpiSlave`]; the host side is [`SpiHostCodec`] (frame
 //! encoder / reply decoder) and [`SpiHost`] (read / write over any full-duplex [`SpiBus`]);
 //! [`Loopback`] is an in-process card that the QEMU build, the soft slave and the tests can
-//! put behind [`SpiHost`]. The board driver (`src/bsp/spi.rs`, STM32F411 SPI2 + DMA1) only
+//! put behind [`SpiHost`]. The board driver (`crates/bsp/src/spi.rs`, STM32F411 SPI2 + DMA1) only
 //! moves bytes; every decision is made here.
 //!
 //! # Byte-level specification (protocol version 2)
@@ -33,7 +33,7 @@
 //! frame, the reply it expects); the master pads its request with `0x00`, the card pads its
 //! reply with `0x00`. Between NSS rising and the next NSS falling the master leaves the card
 //! [`T_READY_US`] µs (a design target, not measured on hardware: the board's frame task
-//! runs above the application step; see `src/bsp/spi.rs`). Each reply echoes the request's
+//! runs above the application step; see `crates/bsp/src/spi.rs`). Each reply echoes the request's
 //! TAG, CMD and ADDR, and its DATA length is the one asked (a WRITE's reply carries the
 //! request's CRC), so a reply is never taken for another request, a stale one of a
 //! restarted host included. READ and WRITE are idempotent: a master that got no reply
@@ -824,7 +824,7 @@ pub trait SpiBus {
 /// reply pipeline ([`ReplyPipeline`]) and the IRQ line to the host. The protocol is
 /// [`WireImage::handle`]'s; the port only moves the bytes (`docs/SPI.md`).
 ///
-/// No method waits for the bus. On the F411 (`bsp/spi.rs`) [`on_nss_rise`](SlavePort::on_nss_rise)
+/// No method waits for the bus. On the F411 (`crates/bsp/src/spi.rs`) [`on_nss_rise`](SlavePort::on_nss_rise)
 /// runs in the NSS interrupt (priority 12), the frame task (11) takes a reply buffer, arms the
 /// reply and gives the frame back, and [`set_irq`](SlavePort::set_irq) runs there and in the
 /// 1 ms IRQ task. A platform whose transport is in process (QEMU, the soft slave:
@@ -1197,7 +1197,7 @@ impl SpiHost<Loopback> {
 }
 
 /// An in-process card behind an [`SpiBus`]: the image, an [`SpiSlave`], and the board's
-/// reply pipeline ([`ReplyPipeline`], the same state machine `src/bsp/spi.rs` runs): the reply
+/// reply pipeline ([`ReplyPipeline`], the same state machine `crates/bsp/src/spi.rs` runs): the reply
 /// to transaction *k* goes out in *k + 1* or never. Fault injection models the board's two
 /// ways of missing it: [`set_late`](Self::set_late) (the frame task finished after the next
 /// NSS fall) and [`set_busy`](Self::set_busy) (the frame task still held the receive buffer).

@@ -18,7 +18,7 @@
 //! The soft slave, the simulated-bus card of the host tests and the porting example call
 //! [`single_threaded`](super::single_threaded) and [`tick`]; the RTIC firmware runs the same
 //! steps at their own priorities (line interrupt 16, core task 15, DP-V1 task 8, application
-//! task 1 — `src/main.rs`), which is why [`tick`] is three calls and not one object.
+//! task 1 — `firmware/src/main.rs`), which is why [`tick`] is three calls and not one object.
 
 use super::CoreLink;
 use crate::dp::Events;

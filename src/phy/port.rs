@@ -1,6 +1,6 @@
 //! The board contract of the PROFIBUS line (issue 13 item 3): the small traits every platform
-//! implements for its RS485 port — the STM32F411's DMA line (`bsp/f411.rs` `DmaLine`), QEMU's
-//! per-character USART (`bsp/qemu.rs` `QemuUsart1`) and the soft slave's serial port
+//! implements for its RS485 port — the STM32F411's DMA line (`crates/bsp/src/f411.rs` `DmaLine`), QEMU's
+//! per-character USART (`crates/bsp/src/qemu.rs` `QemuUsart1`) and the soft slave's serial port
 //! (`softslave/src/serial.rs` `Port`). They describe what the platforms do, not a new line:
 //!
 //! | trait | what it is | who calls it |

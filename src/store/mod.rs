@@ -7,7 +7,7 @@
 //! bits). A record type implements [`Record`] (a kind byte, a fixed payload length, encode and
 //! decode); the card has two: [`StationAddress`] and [`ImData`](crate::dpv1::im::ImData)
 //! (`store/im.rs`). The board maps the trait's sectors 0 and 1 to two real sectors (STM32F411:
-//! sectors 1 and 2, 16 KiB each = 64 slots each, `bsp/flash.rs`).
+//! sectors 1 and 2, 16 KiB each = 64 slots each, `crates/bsp/src/flash.rs`).
 //!
 //! * **Save** appends a record of one kind with the next sequence number (one counter for all
 //!   kinds) to the first empty slot of the *active* sector, the one holding the newest record.
@@ -57,7 +57,7 @@ pub mod im;
 
 /// A flash device with two erasable sectors (NOR semantics) — the board contract of the
 /// store (issue 13 item 3; README "Hardware"): the F411's sectors 1 and 2
-/// (`bsp/flash.rs` `JournalFlash`), the soft slave's state file (`softslave/src/state.rs`
+/// (`crates/bsp/src/flash.rs` `JournalFlash`), the soft slave's state file (`softslave/src/state.rs`
 /// `FileFlash`); QEMU has no store (RAM only).
 ///
 /// The one method of the contract that **blocks**: an erase or program returns when the

@@ -1,5 +1,5 @@
 //! The card's reply pipeline (docs/SPI.md "Pipelining"), one state machine for the board
-//! driver (`src/bsp/spi.rs`, buffers `&'static mut`) and the in-process [`super::Loopback`]
+//! driver (`crates/bsp/src/spi.rs`, buffers `&'static mut`) and the in-process [`super::Loopback`]
 //! (buffer indices), so that both clock a reply out in the same transaction.
 //!
 //! The rule: the reply to the request of transaction *k* is **armed** (the TX DMA points at

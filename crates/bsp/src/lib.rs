@@ -1,5 +1,5 @@
-//! Board support: the hardware edge of the firmware, the only place with registers and
-//! `unsafe` (ARCHITECTURE §3). The RTIC app in `main.rs` talks to the board only through the
+//! Board support (`pbcard-bsp`): the hardware edge of the firmware, the only crate with
+//! registers and `unsafe` (ARCHITECTURE §3). The RTIC app (`pbcard-firmware`, `firmware/src/main.rs`) talks to the board only through the
 //! board contract's traits of the library (README "Hardware"), so that the later boards — and
 //! the soft slave's serial port — implement the same shape: the line `pbcard::phy::port`
 //! ([`LineRate`], [`DriverEnable`], [`BitTimer`], [`Transmitter`], [`CharReceiver`]), the
@@ -19,7 +19,14 @@
 //! line differs (per byte on QEMU, per telegram on the F411), so `main.rs` has one line
 //! block per board and shares everything above the line (node, application, DP-V1 task).
 //!
-//! Only `main.rs` declares this module: it is never compiled for the host.
+//! On the host the crate is empty (the workspace's `cargo test` builds every member): the
+//! hardware crates are target-gated.
+
+#![cfg_attr(target_os = "none", no_std)]
+#![cfg(target_os = "none")]
+
+#[cfg(all(feature = "board-f411", feature = "qemu"))]
+compile_error!("features `board-f411` and `qemu` are exclusive: the firmware chooses one board");
 
 pub mod clock;
 pub mod divisor;
@@ -43,6 +50,15 @@ pub use f411 as board;
 pub use qemu as board;
 
 use pbcard::time::Instant;
+
+/// What runs behind the node: the bench with the simulated drive (QEMU, and the F411 with
+/// `sim-drive`: [`pbcard::app::Application`]).
+#[cfg(any(feature = "qemu", feature = "sim-drive"))]
+pub type CardApp = pbcard::app::Application;
+/// What runs behind the node: the card alone (the F411 with a drive: [`pbcard::app::Card`];
+/// no simulated drive is linked).
+#[cfg(not(any(feature = "qemu", feature = "sim-drive")))]
+pub type CardApp = pbcard::app::Card;
 
 /// A monotonic clock in microseconds that does not wrap in the product's lifetime.
 pub trait Clock {

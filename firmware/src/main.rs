@@ -13,8 +13,8 @@
 //!
 //! | priority | task | does |
 //! |---|---|---|
-//! | 16 (highest) | F411: `usart1` (USART1: IDLE, PE/FE/NF/ORE, TC; pended by `core_step` for a deferred answer), `tim5` (TIM5 compares: T_SYN proof, delayed response start; the command mailbox: flash silence / restart, rate switch) | the DMA line (`bsp/f411.rs`) with the fast path (`pbcard::fast::FastPath`): every telegram cut at IDLE through `FastPath::on_frame`, its answer by `respond` (min_TSDR from the staging, min/max_TSDR by TIM5), a deferred one when the core has it; each telegram classified for the rate control (`phy::rate_link`: the line's gate, counts, switches); release DE on TC; never touches the `Node` |
-//! | 16 | QEMU: `usart1` (USART1 interrupt per character) | the per-byte line with the same fast path (`bsp/qemu.rs` `on_usart_fast`) → response after the quiet window |
+//! | 16 (highest) | F411: `usart1` (USART1: IDLE, PE/FE/NF/ORE, TC; pended by `core_step` for a deferred answer), `tim5` (TIM5 compares: T_SYN proof, delayed response start; the command mailbox: flash silence / restart, rate switch) | the DMA line (`crates/bsp/src/f411.rs`) with the fast path (`pbcard::fast::FastPath`): every telegram cut at IDLE through `FastPath::on_frame`, its answer by `respond` (min_TSDR from the staging, min/max_TSDR by TIM5), a deferred one when the core has it; each telegram classified for the rate control (`phy::rate_link`: the line's gate, counts, switches); release DE on TC; never touches the `Node` |
+//! | 16 | QEMU: `usart1` (USART1 interrupt per character) | the per-byte line with the same fast path (`crates/bsp/src/qemu.rs` `on_usart_fast`) → response after the quiet window |
 //! | 15 | both: `core_step` (bound to the unused I2C1_EV interrupt, pended by `usart1` and by every task that changed the node) | `CoreLink`: republish the staging, `Node::on_frame` for every queued telegram, the staging after each; a deferred (DP-V1) answer back to the line (pends USART1); after a Data_Exchange spawns `app_step`, after a DP-V1 request `acyclic` |
 //! | 11 | F411: `spi_frame` (software task, spawned by `spi_nss` at 12 on NSS rising) | one DPM SPI transaction against its own image (`dpm::spi::WireImage`), the reply armed for the next one |
 //! | 8 | `acyclic` (software task) | `Node::process_acyclic`: DP-V1 records at slot 0, PROFIdrive parameter access (the application's `Application::records`: card PNUs, then the drive's through the DPM parameter mailbox, `Application::parameters`; a job waiting for the drive is retried on the next spawn) |
@@ -32,8 +32,8 @@
 //!
 //! | feature | board | build |
 //! |---|---|---|
-//! | `board-f411` (default) | STM32F411 reference board (`bsp/f411.rs`): DMA line with the fast path, autobaud, address journal in flash, LEDs, IWDG, own panic path; logs over RTT | `cargo build --release` |
-//! | `qemu` | QEMU netduinoplus2 = STM32F405 (`bsp/qemu.rs`), per-byte line at a fixed rate, defmt over semihosting | `cargo build --release --no-default-features --features qemu` |
+//! | `board-f411` (default) | STM32F411 reference board (`crates/bsp/src/f411.rs`): DMA line with the fast path, autobaud, address journal in flash, LEDs, IWDG, own panic path; logs over RTT | `cargo build --release` |
+//! | `qemu` | QEMU netduinoplus2 = STM32F405 (`crates/bsp/src/qemu.rs`), per-byte line at a fixed rate, defmt over semihosting | `cargo build --release --no-default-features --features qemu` |
 //! | `bench` (+ `qemu`) | the same, logging TIM2 instruction counts per response and under the Node lock | `... --features bench` |
 //!
 //! On the host this file compiles to an empty `main` (the bin target is firmware only).
@@ -44,7 +44,7 @@
 fn main() {}
 
 #[cfg(target_os = "none")]
-mod bsp;
+use pbcard_bsp as bsp;
 
 #[cfg(all(target_os = "none", feature = "board-f411", feature = "qemu"))]
 compile_error!(
@@ -58,14 +58,10 @@ use defmt_rtt as _;
 #[cfg(all(target_os = "none", feature = "qemu"))]
 use defmt_semihosting as _;
 
-/// What runs behind the node: the bench with the simulated drive (QEMU, and the F411 with
-/// `sim-drive`: [`pbcard::app::Application`]).
-#[cfg(all(target_os = "none", any(feature = "qemu", feature = "sim-drive")))]
-type CardApp = pbcard::app::Application;
-/// What runs behind the node: the card alone (the F411 with a drive: [`pbcard::app::Card`];
-/// no simulated drive is linked).
-#[cfg(all(target_os = "none", not(any(feature = "qemu", feature = "sim-drive"))))]
-type CardApp = pbcard::app::Card;
+/// What runs behind the node (`pbcard_bsp::CardApp`: the card alone, or the bench with the
+/// simulated drive on QEMU and on the F411 with `sim-drive`).
+#[cfg(target_os = "none")]
+use bsp::CardApp;
 
 /// The PROFIBUS line rate of the QEMU board (also shown as P0963 / PNU 963); the F411
 /// searches it (autobaud).
@@ -842,7 +838,7 @@ mod app {
 
     // ---------------------------------------------------------------------------------------
     // DPM SPI transport (issue 7 item 4; board-f411 only). The drive's control board is SPI
-    // master; `bsp/spi.rs` moves the bytes, `pbcard::dpm::spi::SpiSlave` decides. NSS rising
+    // master; `crates/bsp/src/spi.rs` moves the bytes, `pbcard::dpm::spi::SpiSlave` decides. NSS rising
     // (EXTI15_10, short, priority 12 — below USART1) re-arms the DMA and hands the received
     // frame to `spi_frame` (priority 11, above the step and the DP-V1 task), which applies it
     // to its own image (`WireImage`) and stages the reply for the next transaction.

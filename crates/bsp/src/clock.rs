@@ -13,7 +13,7 @@
 //! (issue 11 item 3c): the line interrupts read the clock without it
 //! ([`SysTickClock::line_now`], for the fast path's telegram times).
 //!
-//! On the F411 the line times itself with TIM5 (`bsp/f411.rs`); this clock serves the protocol timers;
+//! On the F411 the line times itself with TIM5 (`crates/bsp/src/f411.rs`); this clock serves the protocol timers;
 //! under QEMU the SysTick runs at 168 MHz whatever RCC says: pass that as `sysclk_hz`.
 
 use core::cell::Cell;
