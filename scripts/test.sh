@@ -21,15 +21,18 @@ echo "== rustdoc of the protocol crates: no broken or private intra-doc links, -
 RUSTDOCFLAGS="-D warnings" cargo doc -q -p pbcard -p pbcard-dp -p pbcard-fdl --no-deps --target "$HOST"
 
 echo "== firmware: release build for the STM32F411 (thumbv7em-none-eabihf), the card alone: no simulation linked, footprint"
-cargo build --release
+# The shipped log level (.cargo/config.toml), whatever the caller's shell exports: the
+# footprint's limits and ratchet are for it.
+DEFMT_LOG=warn cargo build --release
 bash scripts/footprint.sh
 
 echo "== firmware: QEMU netduinoplus2 builds (features qemu, bench, bench-dma) and clippy of the firmware builds, -D warnings"
 bash scripts/qemu.sh build
 arm-none-eabi-size "${CARGO_TARGET_DIR:-target}/qemu/pbcard-qemu.elf"
-cargo clippy --bins -- -D warnings
-cargo clippy --bins --no-default-features --features bench -- -D warnings
-cargo clippy --bins --no-default-features --features bench-dma -- -D warnings
+DEFMT_LOG=warn cargo clippy --bins -- -D warnings
+# The QEMU builds as scripts/qemu.sh builds them (DEFMT_LOG=info: the bench counts are info logs).
+DEFMT_LOG=info cargo clippy --bins --no-default-features --features bench -- -D warnings
+DEFMT_LOG=info cargo clippy --bins --no-default-features --features bench-dma -- -D warnings
 
 echo "== unit tests beside the code (protocol library on the host: pbcard and the crates of its stack, pbcard-dp and pbcard-fdl)"
 cargo test -p pbcard -p pbcard-dp -p pbcard-fdl --lib --target "$HOST"

@@ -32,8 +32,8 @@ pub const MAX_STATION_ADDRESS: u8 = crate::fdl::telegram::MAX_STATION_ADDRESS;
 /// the DP-V1 answers (RM PDU, ready frames, Abort PDUs, SC / RS / RR) are decided and built at
 /// the header too, and since session 10 the whole decision with them (`fast::Lean`: every
 /// staged service but Set_Slave_Add), so `finish` checks the FCS and the end delimiter and
-/// commits it. Measured 447 (an MSAC_C1 poll → DS_Read.res; Data_Exchange ≤ 395, Slave_Diag
-/// ≤ 403, Set_Prm / Chk_Cfg ≤ 403, FDL_Status ≤ 437; 666 before the lean finish, 1152 before
+/// commits it. Measured 427 in session 13 (an MSAC_C1 poll → DS_Read.res; Data_Exchange ≤ 380,
+/// Slave_Diag ≤ 388, Set_Prm / Chk_Cfg ≤ 384, FDL_Status ≤ 420; 445 – 447 in session 12; 666 before the lean finish, 1152 before
 /// the DP-V1 answers were prepared), with an allowance of ≈ 5 % for the run-to-run spread
 /// (`bash scripts/qemu.sh bench`). MaxTsdr_1.5M is 17 for any budget from 465 to 507.
 pub const LINE_BUDGET_INSTRUCTIONS: u32 = 470;
@@ -54,7 +54,7 @@ pub const STREAM_CHAR_INSTRUCTIONS: u32 = 88;
 /// interrupt's entry to the first response byte: the remainder of 1 … 16 characters through
 /// `Stream::piece` into the sink, `FastPath::finish`, the answer staged; `qemu_bench --dma`
 /// fails when a run exceeds this). Replaces the earlier charge of 15 single characters'
-/// cost ([`STREAM_CHAR_INSTRUCTIONS`] each) for the remainder. Measured 1300 (an MSAC_C2
+/// cost ([`STREAM_CHAR_INSTRUCTIONS`] each) for the remainder. Measured 1312 in session 13, 1290 – 1300 before (an MSAC_C2
 /// poll, 11 bytes: a short request that arrives entirely after the last chunk, so the sink's
 /// `begin`, its header in one piece (`Stream::piece` hands a whole header over at once) and
 /// the general decision — nothing could be prepared — run at IDLE; the same request with its

@@ -33,8 +33,8 @@
 //! | feature | board | build |
 //! |---|---|---|
 //! | `board-f411` (default) | STM32F411 reference board (`crates/bsp/src/f411.rs`): DMA line with the fast path, autobaud, address journal in flash, LEDs, IWDG, own panic path; logs over RTT | `cargo build --release` |
-//! | `qemu` | QEMU netduinoplus2 = STM32F405 (`crates/bsp/src/qemu.rs`), per-byte line at a fixed rate, defmt over semihosting | `cargo build --release --no-default-features --features qemu` |
-//! | `bench` (+ `qemu`) | the same, logging TIM2 instruction counts per response and under the Node lock | `... --features bench` |
+//! | `qemu` | QEMU netduinoplus2 = STM32F405 (`crates/bsp/src/qemu.rs`), per-byte line at a fixed rate, defmt over semihosting | `DEFMT_LOG=info cargo build --release --no-default-features --features qemu` (`bash scripts/qemu.sh build`; the F411's default level `warn` would drop the QEMU tests' info logs) |
+//! | `bench` (+ `qemu`) | the same, logging TIM2 instruction counts per response and under the Node lock | `DEFMT_LOG=info ... --features bench` (the counts are info logs) |
 //!
 //! On the host this file compiles to an empty `main` (the bin target is firmware only).
 #![cfg_attr(target_os = "none", no_std)]

@@ -50,7 +50,10 @@ fn main() {
     let module = &card::MODULES[0];
     let elf = qemu::firmware_elf(Build::Qemu);
     println!("pbcard QEMU demo");
-    println!("  firmware: {} (RTIC app, board module crates/bsp/src/qemu.rs, simulated drive behind the DPM)", elf.display());
+    println!(
+        "  firmware: {} (RTIC app, board module crates/bsp/src/qemu.rs, simulated drive behind the DPM)",
+        elf.display()
+    );
     println!("  machine:  qemu-system-arm -M netduinoplus2 (STM32F405), USART1 on a Unix socket");
     println!(
         "  master:   profirust DP master #{} on the host; slave #{SLAVE}, module \"{}\" (Chk_Cfg {})\n",
