@@ -136,13 +136,15 @@ impl<const W: usize> Default for TripleBuffer<W> {
 }
 
 impl<const W: usize> TripleBuffer<W> {
-    /// All slots zero; the writer starts on slot 0, the reader on slot 2.
+    /// All slots zero; the middle is slot 0, the writer starts on slot 1, the reader on
+    /// slot 2. Every word of a new buffer is zero, so a `static` of it (or of a
+    /// [`Shared`]) is in `.bss`: no flash image, no start-up copy (issue 13 item 1).
     pub const fn new() -> Self {
-        TripleBuffer { slots: [const { [const { AtomicU32::new(0) }; W] }; 3], middle: AtomicU32::new(1) }
+        TripleBuffer { slots: [const { [const { AtomicU32::new(0) }; W] }; 3], middle: AtomicU32::new(0) }
     }
 
     fn halves(&self) -> (TripleWriter<'_, W>, TripleReader<'_, W>) {
-        (TripleWriter { tb: self, back: 0 }, TripleReader { tb: self, front: 2 })
+        (TripleWriter { tb: self, back: 1 }, TripleReader { tb: self, front: 2 })
     }
 }
 

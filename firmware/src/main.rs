@@ -124,7 +124,6 @@ mod app {
     use crate::LINE_RATE;
     #[cfg(feature = "board-f411")]
     use pbcard::phy::autobaud::Autobaud;
-    #[cfg(feature = "board-f411")]
     use pbcard::phy::rate_link::RateLink;
 
     /// What the log reports after a step, read while the node was locked.
@@ -415,22 +414,33 @@ mod app {
         supervisor: board::Supervisor,
     }
 
-    #[init]
+    /// The split's queues and triple buffers (`pbcard::fast::Shared`) and, on the F411, the
+    /// autobaud's rate link are `init`'s local resources: statics with a `const` initialiser,
+    /// all zero, so they are in `.bss` and no start-up code builds or copies them (a
+    /// `cortex_m::singleton!` built the 7 KiB value on the stack and copied it, issue 13
+    /// item 1). `init` runs once, so each is handed out once, for the life of the firmware.
+    #[init(local = [
+        split: pbcard::fast::Shared = pbcard::fast::Shared::new(),
+        rate_link: RateLink = RateLink::new(),
+    ])]
     fn init(cx: init::Context) -> (Shared, Local) {
-        init_board(cx.device, cx.core.SYST)
+        init_board(cx.device, cx.core.SYST, cx.local.split, cx.local.rate_link)
     }
 
     #[cfg(feature = "qemu")]
-    fn init_board(device: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYST) -> (Shared, Local) {
+    fn init_board(
+        device: stm32f4xx_hal::pac::Peripherals,
+        syst: cortex_m::peripheral::SYST,
+        split: &'static mut pbcard::fast::Shared,
+        rate_link: &'static mut RateLink,
+    ) -> (Shared, Local) {
         let board::Board { mut line, clock } = board::init(device, syst, LINE_RATE);
         defmt::info!("pbcard: station {=u8}, {=str}", STATION_ADDRESS, board::NAME);
         log_drive();
         let mut node = Node::new(DpSlave::new(&pbcard::card::SLAVE, STATION_ADDRESS));
         node.set_baudrate(Some(LINE_RATE));
-        // The split's queues and triple buffers, once, for the life of the firmware.
-        let Some(split) = cortex_m::singleton!(: pbcard::fast::Shared = pbcard::fast::Shared::new()) else {
-            defmt::panic!("fast path initialised twice");
-        };
+        // The split's queues and triple buffers (`init`'s local), for the life of the firmware.
+        let _ = rate_link; // fixed rate on QEMU: no autobaud
         let (fast, core_link) = split.split(&mut node);
         // The line half goes to the line interrupt, which alone uses `line` on QEMU.
         line.attach(fast);
@@ -449,7 +459,12 @@ mod app {
     }
 
     #[cfg(feature = "board-f411")]
-    fn init_board(device: stm32f4xx_hal::pac::Peripherals, syst: cortex_m::peripheral::SYST) -> (Shared, Local) {
+    fn init_board(
+        device: stm32f4xx_hal::pac::Peripherals,
+        syst: cortex_m::peripheral::SYST,
+        split: &'static mut pbcard::fast::Shared,
+        rate_link: &'static mut RateLink,
+    ) -> (Shared, Local) {
         use pbcard::store::Flash as _;
         let recovered = crate::bsp::fault::take_recovered_fault();
         // Autobaud from power-up: listen at the first search rate (12 Mbit/s).
@@ -495,16 +510,10 @@ mod app {
         if recovered {
             drive.app.report_recovered_fault();
         }
-        // The split's queues and triple buffers, once, for the life of the firmware (as QEMU).
-        let Some(split) = cortex_m::singleton!(: pbcard::fast::Shared = pbcard::fast::Shared::new()) else {
-            defmt::panic!("fast path initialised twice");
-        };
+        // The split's queues and triple buffers (`init`'s local), for the life of the firmware.
         let (fast, core_link) = split.split(&mut node);
         // The Baud_Search starts now (the SysTick clock starts at 0 in `board::init`); the
         // line classifies and gates, housekeeping searches and switches (`phy::rate_link`).
-        let Some(rate_link) = cortex_m::singleton!(: RateLink = RateLink::new()) else {
-            defmt::panic!("rate link initialised twice");
-        };
         let (rate_tap, baud) = rate_link.split(Autobaud::new(b.clock.now()));
         let mut line = b.line;
         // The line halves go to the line interrupts, which alone use `line`.
