@@ -22,16 +22,17 @@ ELF=${1:-${CARGO_TARGET_DIR:-target}/thumbv7em-none-eabihf/release/pbcard}
 FLASH_LIMIT=$((96 * 1024))
 RAM_LIMIT=$((32 * 1024))
 # Enforced only where the card-only build has got under the limit (issue 13 item 1): RAM is
-# (31 KiB), flash is not yet (98.0 KiB, session 14) — it is printed with the biggest
+# (31 KiB), flash is not yet (98.1 KiB, session 14) — it is printed with the biggest
 # symbols. Set ENFORCE_FLASH=yes once the flash figure is under 96 KiB.
 ENFORCE_FLASH=${ENFORCE_FLASH:-no}
 ENFORCE_RAM=${ENFORCE_RAM:-yes}
 # Until then a ratchet: the flash figure may not grow back above what session 13 reached
-# (100 376 B: session 14, the split's buffers in .bss and the dependencies at "z"; session 13:
+# (100 480 B: session 14, the split's buffers in .bss, the dependencies at "z", the line side
+# as the crate pbcard-link; session 13:
 # 101 200 B, the firmware / bsp packages with the link at "z"; session 10: 112 716 B)
 # plus 1 KiB of room for fixes. Lower it when the figure falls; never raise it without saying
 # why in the README's "Footprint".
-FLASH_RATCHET=${FLASH_RATCHET:-$((100376 + 1024))}
+FLASH_RATCHET=${FLASH_RATCHET:-$((100480 + 1024))}
 
 if [[ ! -f "$ELF" ]]; then
     echo "footprint: $ELF not found (build it with: cargo build --release)" >&2

@@ -613,7 +613,7 @@ pub(crate) mod tests {
             });
             app.set_baudrate(Some(Baudrate::B1500k));
             Bench {
-                node: Node::new(DpSlave::new(&crate::card::SLAVE, SLAVE)),
+                node: crate::card::node(DpSlave::new(&crate::card::SLAVE, SLAVE)),
                 app,
                 now: Instant::from_millis(0),
                 fcb: false,
@@ -969,7 +969,7 @@ pub(crate) mod tests {
         b.app.set_baudrate(Some(Baudrate::B1500k));
         let mut card = Card::new();
         card.set_baudrate(Some(Baudrate::B1500k));
-        let mut node = Node::new(DpSlave::new(&card::SLAVE, SLAVE));
+        let mut node = crate::card::node(DpSlave::new(&card::SLAVE, SLAVE));
         let mut fcb = false;
         let mut now = Instant::from_millis(0);
         // One request to both nodes, a step of `ms` on both; the responses must agree.
@@ -1434,7 +1434,7 @@ pub(crate) mod tests {
     #[test]
     fn identification_and_maintenance_through_the_card() {
         use crate::dpv1::im::ImData;
-        use crate::store::tests::SimFlash;
+        use crate::store::sim::SimFlash;
         use crate::store::{Journal, StationAddress, SLOT_SIZE};
         let mut journal = Journal::new(SimFlash::<{ 4 * SLOT_SIZE }>::new());
         journal.save(&StationAddress { address: 61, no_add_chg: false }).unwrap();

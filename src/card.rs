@@ -565,7 +565,7 @@ mod bench_tests {
             assert_eq!(module_for_cfg(m.cfg), Some(&m));
             assert_eq!(Telegram::of_module(&m), None);
 
-            let mut node = Node::new(DpSlave::new(&super::SLAVE, SLAVE));
+            let mut node = super::node(DpSlave::new(&super::SLAVE, SLAVE));
             let mut app = Application::new(DriveConfig::DEFAULT);
             let mut now = Instant::from_millis(0);
             let mut fcb = false;
@@ -638,13 +638,12 @@ const _: () = assert!(C2_MAX_COUNT_CHANNELS < crate::dpv1::im::RELATIONS);
 // The node keeps exactly the connections the GSD states.
 const _: () = assert!(C2_MAX_COUNT_CHANNELS == crate::node::C2_CHANNELS);
 
-impl crate::node::Node {
-    /// This card's node over `slave` (see [`dp::DpSlave::with_address_lock`] for a stored
-    /// address): its I&M0 values ([`IM`]) and PROFIdrive as the MSAC_C2 Profile_Ident_Number
-    /// ([`PROFILE_IDENT_NUMBER`]), [`Node::with_device`](crate::node::Node::with_device).
-    pub const fn new(slave: dp::DpSlave) -> Self {
-        Self::with_device(slave, &IM, PROFILE_IDENT_NUMBER)
-    }
+/// This card's node over `slave` (see [`dp::DpSlave::with_address_lock`] for a stored
+/// address): its I&M0 values ([`IM`]) and PROFIdrive as the MSAC_C2 Profile_Ident_Number
+/// ([`PROFILE_IDENT_NUMBER`]), [`Node::with_device`](crate::node::Node::with_device). A free
+/// function, not `Node::new`: the node is the crate `pbcard-link`'s, below the product.
+pub const fn node(slave: dp::DpSlave) -> crate::node::Node {
+    crate::node::Node::with_device(slave, &IM, PROFILE_IDENT_NUMBER)
 }
 /// GSD `Ident_Maintenance_supp`: I&M0–I&M4 at slot 0 / index 255 over MSAC_C1 and MSAC_C2.
 pub const IDENT_MAINTENANCE_SUPP: bool = true;

@@ -27,7 +27,9 @@
 //! * [`profile`] — drive profiles on top of DP-V1 records: PROFIdrive base-mode parameter access
 //!   (record 47) and WEG's simple parameter access (record 48) (reference §5.1).
 //! * [`fast`] — the ASIC-style split: the line's fast path answers from staged frames, the
-//!   core ([`node::Node`]) works behind it in a lower task (issue 11).
+//!   core ([`node::Node`]) works behind it in a lower task (issue 11). The crate `pbcard-link`
+//!   (`crates/link`), with [`node`], [`phy`], [`store`] and [`led`]; its tests with this card's
+//!   configuration are here (`src/link_tests/`).
 //! * [`node`] — framer + station + slave as one object that every platform drives.
 //! * [`dpm`] — the dual-port memory image shared with the drive's control board (layout,
 //!   sequenced tear-free blocks, P0740 / P0963 status) and the card-side [`dpm::Link`].
@@ -49,13 +51,22 @@ mod dp_tests;
 pub mod dpm;
 pub use pbcard_dp::dpv1;
 pub mod drive;
-pub mod fast;
+/// The ASIC-style split (issue 11): the crate `pbcard-link`'s [`pbcard_link::fast`], and
+/// with the feature `test-support` the differential check of the split against the core alone
+/// with this card (`fast::check`, here because it runs the card's configuration and records).
+pub mod fast {
+    pub use pbcard_link::fast::*;
+    #[cfg(any(test, feature = "test-support"))]
+    pub mod check;
+}
 pub use pbcard_fdl::fdl;
-pub mod led;
-pub mod node;
-pub mod phy;
+pub use pbcard_link::led;
+#[cfg(test)]
+mod link_tests;
+pub use pbcard_link::node;
+pub use pbcard_link::phy;
 pub mod profile;
-pub mod store;
+pub use pbcard_link::store;
 #[cfg(any(test, feature = "test-support"))]
 pub mod testkit;
 pub use pbcard_fdl::time;

@@ -336,7 +336,7 @@ impl NodeRig {
     /// A node at `slave`, a master at `master`, time 0, 500 µs between requests.
     pub fn new(master: u8, slave: u8) -> Self {
         NodeRig {
-            node: Node::new(crate::dp::DpSlave::new(&crate::card::SLAVE, slave)),
+            node: crate::card::node(crate::dp::DpSlave::new(&crate::card::SLAVE, slave)),
             master: ScriptedMaster::new(master, slave),
             now: Instant::from_millis(0),
             step: crate::time::Duration::from_micros(500),
@@ -383,7 +383,7 @@ impl CardRig {
     /// `app` over a node at `slave` (this card's `card::SLAVE`), a master at `master`, time 0.
     pub fn new(app: crate::app::Application, master: u8, slave: u8) -> Self {
         CardRig {
-            node: Node::new(crate::dp::DpSlave::new(&crate::card::SLAVE, slave)),
+            node: crate::card::node(crate::dp::DpSlave::new(&crate::card::SLAVE, slave)),
             app,
             master: ScriptedMaster::new(master, slave),
             now: Instant::from_millis(0),

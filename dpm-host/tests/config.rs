@@ -158,7 +158,7 @@ over_both! {
 fn station_address_locked_by_no_add_chg(via) {
     use pbcard::dp::DpSlave;
     let mut card = Card::via(via);
-    card.node = pbcard::node::Node::new(DpSlave::with_address_lock(&pbcard::card::SLAVE, common::SLAVE, true));
+    card.node = pbcard::card::node(DpSlave::with_address_lock(&pbcard::card::SLAVE, common::SLAVE, true));
     let mut host = Host::open(card.transport(), Options::DEFAULT).unwrap();
     let cfg = HostConfig { station_address: 9, telegram: Telegram::Ppo(2), ..HostConfig::DEFAULT };
     host.write_config(&cfg).unwrap();

@@ -437,7 +437,7 @@ mod app {
         let board::Board { mut line, clock } = board::init(device, syst, LINE_RATE);
         defmt::info!("pbcard: station {=u8}, {=str}", STATION_ADDRESS, board::NAME);
         log_drive();
-        let mut node = Node::new(DpSlave::new(&pbcard::card::SLAVE, STATION_ADDRESS));
+        let mut node = pbcard::card::node(DpSlave::new(&pbcard::card::SLAVE, STATION_ADDRESS));
         node.set_baudrate(Some(LINE_RATE));
         // The split's queues and triple buffers (`init`'s local), for the life of the firmware.
         let _ = rate_link; // fixed rate on QEMU: no autobaud
@@ -499,7 +499,7 @@ mod app {
         }
         #[cfg(not(feature = "sim-drive"))]
         defmt::info!("drive: the control board behind the DPM SPI port (SPI2 slave, card only)");
-        let mut node = Node::new(DpSlave::with_address_lock(&pbcard::card::SLAVE, address, no_add_chg));
+        let mut node = pbcard::card::node(DpSlave::with_address_lock(&pbcard::card::SLAVE, address, no_add_chg));
         node.set_baudrate(None);
         // I&M1-4 as stored, before the line starts.
         if let Some(d) = im {

@@ -472,7 +472,7 @@ fn any_sap(src: &mut Src, b: u8) -> Option<u8> {
 fuzz_target!(|data: &[u8]| {
     let mut src = Src::new(data);
     let mut bus = Bus {
-        node: Node::new(DpSlave::new(&pbcard::card::SLAVE, ME)),
+        node: pbcard::card::node(DpSlave::new(&pbcard::card::SLAVE, ME)),
         records: CardRecords::new(&pbcard::card::RECORDS),
         table: FakeDrive::new(),
         master: ScriptedMaster::new(M1, ME),

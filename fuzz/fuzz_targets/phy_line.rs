@@ -25,7 +25,7 @@ mod src;
 use libfuzzer_sys::fuzz_target;
 use pbcard::dp::DpSlave;
 use pbcard::fdl::telegram::{self, Decoded, FunctionCode, Header, Telegram};
-use pbcard::node::{answer, Node};
+use pbcard::node::answer;
 use pbcard::phy::line::{expected_len, Expect, RateControl, Receiver, RxStats, SegmentEnd};
 use pbcard::testkit;
 use pbcard::time::{Baudrate, Instant};
@@ -71,7 +71,7 @@ fn moved(a: RxStats, b: RxStats) -> u32 {
 fuzz_target!(|data: &[u8]| {
     let mut src = Src::new(data);
     let mut rx = Receiver::new();
-    let mut node = Node::new(DpSlave::new(&pbcard::card::SLAVE, ME));
+    let mut node = pbcard::card::node(DpSlave::new(&pbcard::card::SLAVE, ME));
     let mut now_us = 0u64;
     while !src.is_empty() {
         let c = src.u8();

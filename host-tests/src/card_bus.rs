@@ -45,7 +45,7 @@ impl CardEndpoint {
     /// The card at the end of `line` (station address `address`) with the simulated drive
     /// `drive`.
     pub fn new(line: SimLine, address: u8, drive: DriveConfig) -> Self {
-        let mut node = Node::new(DpSlave::new(&card::SLAVE, address));
+        let mut node = pbcard::card::node(DpSlave::new(&card::SLAVE, address));
         let app = Application::new(drive);
         // One split per card for the life of the test.
         let shared: &'static mut Shared = Box::leak(Box::new(Shared::new()));

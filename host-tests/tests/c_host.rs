@@ -60,7 +60,7 @@ struct Bench {
 impl Bench {
     fn new() -> Self {
         Bench {
-            node: Node::new(DpSlave::new(&pbcard::card::SLAVE, SLAVE)),
+            node: pbcard::card::node(DpSlave::new(&pbcard::card::SLAVE, SLAVE)),
             drive: CDrive::new(card(0x1111), SCK_HZ, 0),
             master: ScriptedMaster::new(MASTER, SLAVE),
             now: Instant::from_millis(0),
@@ -273,7 +273,7 @@ fn the_c_host_drives_the_card_end_to_end() {
     // The card restarts (a new BOOT_ID, a fresh image and DP slave): the C host sees it,
     // opens again and rewrites CONFIG, so the start-up gate opens again.
     b.drive.bus_mut().app = card(0x2222).app;
-    b.node = Node::new(DpSlave::new(&pbcard::card::SLAVE, SLAVE));
+    b.node = pbcard::card::node(DpSlave::new(&pbcard::card::SLAVE, SLAVE));
     b.run(10);
     let (restarts, opens, _, _) = b.drive.counts();
     assert_eq!((restarts, opens), (1, 2), "one restart seen, opened again");

@@ -138,7 +138,7 @@ impl Bus {
         let sphy = phy.duplicate("slave#3");
         let mut app = Application::new(DriveConfig::DEFAULT);
         app.set_baudrate(Some(rate));
-        let mut node = Node::new(DpSlave::new(&pbcard::card::SLAVE, ME));
+        let mut node = pbcard::card::node(DpSlave::new(&pbcard::card::SLAVE, ME));
         node.set_baudrate(Some(rate));
         let slave = Slave {
             phy: sphy,

@@ -14,7 +14,8 @@
 //! list only shrinks). Run: `cargo test -p host-tests --target x86_64-unknown-linux-gnu --test layers`.
 //!
 //! `time` and `fdl` are the crate `pbcard-fdl` (`crates/fdl`), `dp` and `dpv1` the crate
-//! `pbcard-dp` (`crates/dp`, on `pbcard-fdl`), all re-exported by `src/lib.rs` (a `pub use`,
+//! `pbcard-dp` (`crates/dp`, on `pbcard-fdl`), `phy`, `led`, `node`, `store` and `fast` the crate
+//! `pbcard-link` (`crates/link`, on both), all re-exported by `src/lib.rs` (a `pub use`,
 //! not a `mod`, so the walk starts again at each crate's root): Cargo keeps each crate from
 //! naming anything above it; their ranks here still place the paths the modules above use
 //! (`crate::fdl::…`, `crate::dp::…`), and the walk of their own files checks what Cargo
@@ -59,9 +60,10 @@ const KNOWN_DEBT: &[(&str, &str)] = &[];
 
 /// The crate roots the walk starts from (relative to the workspace root): the library and the
 /// crates of the stack below it, whose top-level modules it re-exports under the same names
-/// (`pbcard-fdl`: `time`, `fdl`; `pbcard-dp`: `dp`, `dpv1`; their roots bring the layer below
+/// (`pbcard-fdl`: `time`, `fdl`; `pbcard-dp`: `dp`, `dpv1`; `pbcard-link`: `phy`, `led`, `node`,
+/// `store`, `fast` — `pbcard` adds its test-support `fast::check`; their roots bring the layers below
 /// in as `crate::fdl` / `crate::time`, so a path is ranked the same in every crate).
-const ROOTS: &[&str] = &["src/lib.rs", "crates/fdl/src/lib.rs", "crates/dp/src/lib.rs"];
+const ROOTS: &[&str] = &["src/lib.rs", "crates/fdl/src/lib.rs", "crates/dp/src/lib.rs", "crates/link/src/lib.rs"];
 
 fn rank(m: &str) -> Option<u8> {
     LAYERS.iter().find(|(n, _)| *n == m).map(|(_, r)| *r)
@@ -286,6 +288,9 @@ fn the_walk_covers_every_layer() {
         "crates/dp/src/dp/cfg.rs",
         "crates/dp/src/dpv1/c2.rs",
         "crates/fdl/src/fdl/station.rs",
+        "crates/link/src/fast.rs",
+        "crates/link/src/phy/stream.rs",
+        "crates/link/src/store/mod.rs",
     ] {
         assert!(files.iter().any(|(_, file, _)| file.ends_with(f)), "{f} is not walked");
     }

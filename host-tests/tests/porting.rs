@@ -37,7 +37,7 @@ struct Product {
 
 impl Product {
     fn new() -> Self {
-        let mut node = Node::new(DpSlave::new(&OTHER, ME));
+        let mut node = pbcard::card::node(DpSlave::new(&OTHER, ME));
         *node.im_mut() = Im::new(&OTHER_IM);
         let shared: &'static mut Shared = Box::leak(Box::new(Shared::new()));
         let (fast, core) = shared.split(&mut node);

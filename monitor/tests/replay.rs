@@ -45,7 +45,7 @@ impl Bus {
         let mut app = Application::new(DriveConfig::DEFAULT);
         app.set_baudrate(Some(RATE));
         Bus {
-            node: Node::new(DpSlave::new(&pbcard::card::SLAVE, SLAVE)),
+            node: pbcard::card::node(DpSlave::new(&pbcard::card::SLAVE, SLAVE)),
             app,
             master: ScriptedMaster::new(MASTER, SLAVE),
             t_us: 1_000_000,

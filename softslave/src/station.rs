@@ -253,7 +253,7 @@ pub struct Station {
 impl Station {
     /// Build the card of `config` (the drive's initial parameters set).
     pub fn new(config: &StationConfig) -> Result<Station, ConfigError> {
-        let mut node = Node::new(DpSlave::new(&pbcard::card::SLAVE, config.address));
+        let mut node = pbcard::card::node(DpSlave::new(&pbcard::card::SLAVE, config.address));
         node.slave_mut().require_module(config.module);
         let mut app = Application::new(DriveConfig {
             ramp_time: pbcard::time::Duration::from_micros(config.ramp.as_micros() as u64),

@@ -322,7 +322,7 @@ struct Bench {
 impl Bench {
     fn new() -> Self {
         Bench {
-            node: Node::new(DpSlave::new(&crate::card::SLAVE, SLAVE)),
+            node: crate::card::node(DpSlave::new(&crate::card::SLAVE, SLAVE)),
             dpm: Dpm::new(),
             link: Link::new(crate::card::MODULES),
             now: Instant::from_millis(0),

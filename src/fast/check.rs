@@ -39,7 +39,7 @@
 
 use heapless::Vec;
 
-use super::{dpv1::C2_CONNECTIONS, CoreLink, FastPath, Shared, Verdict};
+use super::{CoreLink, FastPath, Shared, Verdict, C2_CONNECTIONS};
 use crate::dp::{DpSlave, SlaveConfig};
 use crate::dpv1::c1;
 use crate::dpv1::c2::{self, ConnectionState};
@@ -344,8 +344,8 @@ fn initiate(send_timeout: u16, s_len: u8, api: u8) -> Vec<u8, 64> {
 }
 
 /// An MSAC_C2 Initiate.req PDU with `send_timeout` and the destination API `api`, as
-/// `InitiateRequest::emit` builds it (also the lean-path tests' `tests_lean`).
-pub(super) fn initiate_pdu(send_timeout: u16, api: u8) -> Vec<u8, 64> {
+/// `InitiateRequest::emit` builds it (also the lean-path tests, `link_tests::fast_lean`).
+pub(crate) fn initiate_pdu(send_timeout: u16, api: u8) -> Vec<u8, 64> {
     let req = InitiateRequest {
         send_timeout,
         features_supported: [1, 0],
@@ -586,8 +586,8 @@ pub fn run(data: &[u8], mode: Mode, max_ops: usize) -> Result<Coverage, Mismatch
 pub fn run_in_pieces(data: &[u8], mode: Mode, max_ops: usize, cuts: &[u8]) -> Result<Coverage, Mismatch> {
     let mut pieces = Pieces { cuts, next: 0 };
     let mut src = Src(data);
-    let mut alone = Node::new(DpSlave::new(CARD, ME));
-    let mut split = Node::new(DpSlave::new(CARD, ME));
+    let mut alone = crate::card::node(DpSlave::new(CARD, ME));
+    let mut split = crate::card::node(DpSlave::new(CARD, ME));
     let mut shared = Shared::new();
     let (mut fast, mut core) = shared.split(&mut split);
     let mut rig = Rig { fcb: [false; 128], next: None, last: None, initiate: None };

@@ -163,7 +163,7 @@ impl Card {
     /// The card with its image behind `via`.
     pub fn via(via: Via) -> Self {
         Card {
-            node: Node::new(DpSlave::new(&pbcard::card::SLAVE, SLAVE)),
+            node: pbcard::card::node(DpSlave::new(&pbcard::card::SLAVE, SLAVE)),
             dpm: Image::new(via, Dpm::new()),
             link: Link::new(pbcard::card::MODULES),
             now: Instant::from_millis(0),

@@ -101,7 +101,8 @@ fn publish(link: &mut Link, node: &mut Node, dpm: &mut Dpm, now: Instant) {
 #[test]
 fn a_new_boot_id_makes_the_host_reopen_rewrite_config_and_resync_events() {
     let t = Instant::from_millis(0);
-    let (mut link, mut node) = (Link::new(crate::card::MODULES), Node::new(DpSlave::new(&crate::card::SLAVE, SLAVE)));
+    let (mut link, mut node) =
+        (Link::new(crate::card::MODULES), crate::card::node(DpSlave::new(&crate::card::SLAVE, SLAVE)));
     link.set_boot_id(0x1234);
     link.set_startup_gate(true);
     let mut host = Host::open(SpiHost::new(Loopback::new(Dpm::new())), Options::DEFAULT).unwrap();
@@ -120,7 +121,8 @@ fn a_new_boot_id_makes_the_host_reopen_rewrite_config_and_resync_events() {
 
     // The card restarts: a fresh image, a fresh protocol state, another boot id, the gate
     // closed again, the address from its store (here the default).
-    let (mut link, mut node) = (Link::new(crate::card::MODULES), Node::new(DpSlave::new(&crate::card::SLAVE, SLAVE)));
+    let (mut link, mut node) =
+        (Link::new(crate::card::MODULES), crate::card::node(DpSlave::new(&crate::card::SLAVE, SLAVE)));
     link.set_boot_id(0x1235);
     link.set_startup_gate(true);
     *host.transport_mut().dpm_mut() = Dpm::new();

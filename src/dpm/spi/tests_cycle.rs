@@ -336,7 +336,7 @@ fn a_host_restart_at_every_transaction_boundary_recovers_without_a_stale_reply()
     let cfg = HostConfig { station_address: 9, ..HostConfig::DEFAULT };
     for k in 0..16u32 {
         let (mut link, mut node) =
-            (Link::new(crate::card::MODULES), Node::new(DpSlave::new(&crate::card::SLAVE, SLAVE)));
+            (Link::new(crate::card::MODULES), crate::card::node(DpSlave::new(&crate::card::SLAVE, SLAVE)));
         link.set_startup_gate(true);
         let bus = Cut { card: Loopback::new(Dpm::new()), left: None };
         let mut host = Host::open(SpiHost::new(bus), Options::DEFAULT).unwrap();
@@ -423,7 +423,8 @@ proptest! {
 fn a_cycle_drive_serves_the_mailbox_through_fragments_only() {
     use crate::dpm::host::Answer;
     use crate::dpm::{Mailbox, MailboxRequest, ParamValues};
-    let (mut link, mut node) = (Link::new(crate::card::MODULES), Node::new(DpSlave::new(&crate::card::SLAVE, SLAVE)));
+    let (mut link, mut node) =
+        (Link::new(crate::card::MODULES), crate::card::node(DpSlave::new(&crate::card::SLAVE, SLAVE)));
     let bus = Cut { card: Loopback::new(Dpm::new()), left: None };
     let mut host = Host::open(SpiHost::new(bus), Options::DEFAULT).unwrap();
     host.set_irq_mask(crate::dpm::spi::EVENT_BLOCKS & !(1 << 8));
@@ -489,7 +490,8 @@ fn lossy_job(
 ) {
     use crate::dpm::host::Answer;
     use crate::dpm::{Mailbox, MailboxRequest};
-    let (mut link, mut node) = (Link::new(crate::card::MODULES), Node::new(DpSlave::new(&crate::card::SLAVE, SLAVE)));
+    let (mut link, mut node) =
+        (Link::new(crate::card::MODULES), crate::card::node(DpSlave::new(&crate::card::SLAVE, SLAVE)));
     let bus = Cut { card: Loopback::new(Dpm::new()), left: None };
     let opts = Options { cyclic_bytes, ..Options::DEFAULT };
     let mut host = Host::open(SpiHost::new(bus), opts).unwrap();

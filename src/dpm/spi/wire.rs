@@ -90,7 +90,6 @@ mod tests {
     use crate::dpm::host::{Host, Options};
     use crate::dpm::spi::{SpiBus, SpiHost, MAX_REPLY};
     use crate::dpm::{layout, Link};
-    use crate::node::Node;
     use crate::time::Instant;
 
     /// The wire image with the board's pipeline depth 1, simply (every reply in time).
@@ -114,7 +113,7 @@ mod tests {
     fn the_host_and_the_card_meet_through_the_hand_over() {
         let mut card = Dpm::new();
         let mut link = Link::new(crate::card::MODULES);
-        let mut node = Node::new(crate::dp::DpSlave::new(&crate::card::SLAVE, 5));
+        let mut node = crate::card::node(crate::dp::DpSlave::new(&crate::card::SLAVE, 5));
         let ev = node.poll(Instant::from_millis(0));
         link.publish(&mut node, ev, &mut card);
         let mut wire = WireImage::new();

@@ -170,7 +170,7 @@ impl Node {
     /// A node over `slave` (see [`DpSlave::with_address_lock`] for a stored address) for the
     /// product `device` (its I&M0 values, [`ImDevice`]) whose MSAC_C2 Initiate.res carries
     /// `profile_ident_number` (the GSD's application profile, reference §4.5). The card's
-    /// `Node::new(slave)` (in `card`, the product's configuration) passes its own.
+    /// `pbcard::card::node(slave)` (the product's configuration) passes its own.
     ///
     /// Out of line: builds a large value in place (inlined into the start, every store needs its own stack address; footprint, issue 13 item 1).
     #[inline(never)]

@@ -63,7 +63,7 @@ use crate::time::Instant;
 
 /// The MSAC_C2 connections of the node (`N` of its [`C2<N>`](c2::C2), [`Node::c2`]): read off
 /// the node's type, so the line stages as many as the core runs without naming the product.
-pub(super) const C2_CONNECTIONS: usize = connections(Node::c2);
+pub const C2_CONNECTIONS: usize = connections(Node::c2);
 
 const fn connections<const N: usize>(_: for<'a> fn(&'a Node) -> &'a c2::C2<N>) -> usize {
     N

@@ -17,7 +17,7 @@
 //!   F411), and the three instants the board programs its compares with:
 //!   [`BitClock::response_not_before`] (min_TSDR after the request's last stop bit),
 //!   [`BitClock::tsyn_check_at`] (when a quiet line proves T_SYN) and
-//!   [`BitClock::response_latest`] (max_TSDR of the GSD, [`crate::card::max_tsdr`]).
+//!   [`BitClock::response_latest`] (max_TSDR of the GSD, `pbcard::card::max_tsdr`).
 //! * [`tx_plan`] — start the pre-staged response now, at a timer compare, or not at all.
 //! * [`classify`] — what a telegram means for the baud-rate search and supervision
 //!   ([`super::autobaud::Autobaud::on_frame`]).
@@ -93,7 +93,7 @@ pub struct RxStats {
 
 impl RxStats {
     /// Telegrams lost on the line, for `STATUS.CORRUPT_FRAMES` (DPM layout, docs/DPM.md;
-    /// [`crate::dpm::Link::set_line_errors`]): segments with a character error (parity,
+    /// `pbcard::dpm::Link::set_line_errors`): segments with a character error (parity,
     /// framing, noise, overrun), telegrams cut off by an idle line, and bytes that could not
     /// start a telegram (wrapping sum). Segments dropped only while waiting for T_SYN are not
     /// counted: the loss that made the receiver wait is. Telegrams with a wrong checksum are
@@ -360,7 +360,7 @@ impl RateControl for Autobaud {
 mod tests {
     use super::*;
     use crate::fdl::telegram::{emit, FunctionCode, Header, MAX_FRAME_LEN, SC, SD1, SD2, SD3, SD4};
-    use crate::node::{answer, Node};
+    use crate::node::answer;
     use proptest::prelude::*;
     use std::vec::Vec;
 
@@ -631,7 +631,7 @@ mod tests {
         use crate::dp::DpSlave;
         use crate::phy::autobaud::Supervision;
         let t0 = Instant::from_millis(0);
-        let mut node = Node::new(DpSlave::new(&crate::card::SLAVE, 5));
+        let mut node = crate::test_card::node(DpSlave::new(&crate::test_card::SLAVE, 5));
         let mut ab = Autobaud::new(t0);
         let fdl_status = sd1(5, 0x49);
         // Traffic for others, a token, SC, a broadcast: never an answer.
@@ -675,7 +675,7 @@ mod tests {
     #[test]
     fn nothing_is_sent_without_a_rate() {
         use crate::dp::DpSlave;
-        let mut node = Node::new(DpSlave::new(&crate::card::SLAVE, 5));
+        let mut node = crate::test_card::node(DpSlave::new(&crate::test_card::SLAVE, 5));
         assert!(answer(&mut node, &mut NeverLocked, Instant::from_millis(0), &sd1(5, 0x49)).is_none());
         assert_eq!(node.station().stats().fdl_status, 1, "the station saw the request");
     }
@@ -690,7 +690,7 @@ mod tests {
             let mut now = Instant::from_millis(0);
             let mut ab = Autobaud::new(now);
             let mut rx = Receiver::new();
-            let mut node = Node::new(DpSlave::new(&crate::card::SLAVE, 5));
+            let mut node = crate::test_card::node(DpSlave::new(&crate::test_card::SLAVE, 5));
             let req = sd1(5, 0x49);
             let mut answered = false;
             // A full scan lasts 1.533 s: every rate is reached within it.

@@ -4,7 +4,7 @@
 
 use super::line::{expected_len, Expect, Receiver, RxStats, SegmentEnd};
 use crate::fdl::telegram::{FunctionCode, Header, SC, SD4};
-use crate::testkit;
+use crate::test_card as testkit;
 use proptest::prelude::*;
 use std::vec::Vec;
 

@@ -229,7 +229,7 @@ mod tests {
         use crate::time::BitTimes;
         let tel = |da: u8, n: usize| {
             let hdr = Header { da, sa: 2, fc: FunctionCode(0x7D), dsap: None, ssap: None };
-            crate::testkit::frame(&hdr, &std::vec![0x68u8; n]).to_vec()
+            crate::test_card::frame(&hdr, &std::vec![0x68u8; n]).to_vec()
         };
         let bus = [tel(5, 244), tel(9, 100), std::vec![0xDC, 9, 2], tel(5, 0), tel(127, 3), tel(8, 37), tel(5, 20)];
         for latency in [0usize, 3, 12] {

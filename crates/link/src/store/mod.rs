@@ -448,5 +448,7 @@ impl<F: Flash> AddressStore for Journal<F> {
     }
 }
 
+#[cfg(any(test, feature = "test-support"))]
+pub mod sim;
 #[cfg(test)]
-pub(crate) mod tests;
+mod tests;

@@ -19,14 +19,13 @@ use std::vec::Vec;
 use proptest::prelude::*;
 use proptest::test_runner::TestCaseError;
 
-use super::dpv1::C2_CONNECTIONS;
-use super::{CoreLink, FastPath, Shared, Verdict};
 use crate::card;
 use crate::dp::DpSlave;
 use crate::dpv1::c1;
 use crate::dpv1::c2::{self, ConnectionState};
 use crate::dpv1::pdu::Function;
 use crate::drive::params::{DriveTable, SIM_DRIVE_TABLE};
+use crate::fast::{CoreLink, FastPath, Shared, Verdict, C2_CONNECTIONS};
 use crate::fdl::telegram::{self, Decoded, FunctionCode, Header, Telegram};
 use crate::node::Node;
 use crate::phy::stream::TelegramSink;
@@ -61,7 +60,7 @@ fn pdu_of(a: &[u8]) -> Option<Vec<u8>> {
 /// An MSAC_C2 Initiate.req PDU (Send_Timeout in 10 ms, address blocks of type 0): `check`'s
 /// [`initiate_pdu`](super::check::initiate_pdu) with API 0.
 fn initiate(send_timeout: u16) -> Vec<u8> {
-    super::check::initiate_pdu(send_timeout, 0).to_vec()
+    crate::fast::check::initiate_pdu(send_timeout, 0).to_vec()
 }
 
 /// The connection SAP and master SAP node `n` holds for master `m`.
@@ -175,7 +174,7 @@ impl Duo<'_> {
                 from = c;
             }
         }
-        if self.fb.dprep.is_some() && self.fb.lean.is_some() {
+        if self.fb.test_dpv1_prepared() && self.fb.test_lean_prepared() {
             self.cov.lean_dpv1 += 1;
             let dsap = header_end(f).and_then(|(h, _)| h.checked_sub(2)).and_then(|i| f.get(i)).map(|d| d & 0x3F);
             let conns = c2::HIGHEST_SAP + 1 - C2_CONNECTIONS as u8..=c2::HIGHEST_SAP;
@@ -214,15 +213,14 @@ impl Duo<'_> {
     /// answer compared; then the deferred answers. The last deferred answer.
     fn run(&mut self) -> Result<Option<Vec<u8>>, TestCaseError> {
         loop {
-            let key = |q: &super::Queued| (q.seq, q.at, q.deferred, q.held, q.len);
-            let (qa, qb) = (self.ca.from_line.peek().map(key), self.cb.from_line.peek().map(key));
+            let (qa, qb) = (self.ca.test_peek(), self.cb.test_peek());
             prop_assert_eq!(qa, qb);
             let (a, b) = (self.ca.step(&mut self.na), self.cb.step(&mut self.nb));
             prop_assert_eq!(a, b);
             let Some(a) = a else { break };
             if let Some((_, _, _, _, len)) = qa {
                 let len = usize::from(len);
-                prop_assert_eq!(&self.ca.frame[..len], &self.cb.frame[..len]);
+                prop_assert_eq!(self.ca.test_frame(len), self.cb.test_frame(len));
             }
             let n = a.answer_len.unwrap_or(0);
             prop_assert_eq!(self.ca.answer(n), self.cb.answer(n));
@@ -480,8 +478,8 @@ fn lean_case(
     ops: &[(u8, u8, u16, u8, u8)],
     cuts: &[u8],
 ) -> Result<Coverage, TestCaseError> {
-    let mut na = Node::new(DpSlave::new(&card::SLAVE, ME));
-    let mut nb = Node::new(DpSlave::new(&card::SLAVE, ME));
+    let mut na = crate::card::node(DpSlave::new(&card::SLAVE, ME));
+    let mut nb = crate::card::node(DpSlave::new(&card::SLAVE, ME));
     let mut sa = Shared::new();
     let mut sb = Shared::new();
     let (fa, ca) = sa.split(&mut na);

@@ -7,7 +7,7 @@ use super::{Resync, Step, Stream, TelegramSink};
 use crate::fdl::framer::{Framer, Push};
 use crate::fdl::telegram::{decode, Decoded, FunctionCode, Header, BROADCAST, SC, SD1, SD2, SD3, SD4};
 use crate::phy::line::Receiver;
-use crate::testkit;
+use crate::test_card as testkit;
 use crate::time::BitTimes;
 use proptest::prelude::*;
 use std::vec::Vec;
