@@ -27,12 +27,12 @@ RAM_LIMIT=$((32 * 1024))
 ENFORCE_FLASH=${ENFORCE_FLASH:-no}
 ENFORCE_RAM=${ENFORCE_RAM:-yes}
 # Until then a ratchet: the flash figure may not grow back above what session 13 reached
-# (100 480 B: session 14, the split's buffers in .bss, the dependencies at "z", the line side
+# (100 492 B: session 14, the split's buffers in .bss, the dependencies at "z", the line side
 # as the crate pbcard-link; session 13:
 # 101 200 B, the firmware / bsp packages with the link at "z"; session 10: 112 716 B)
 # plus 1 KiB of room for fixes. Lower it when the figure falls; never raise it without saying
 # why in the README's "Footprint".
-FLASH_RATCHET=${FLASH_RATCHET:-$((100480 + 1024))}
+FLASH_RATCHET=${FLASH_RATCHET:-$((100492 + 1024))}
 
 if [[ ! -f "$ELF" ]]; then
     echo "footprint: $ELF not found (build it with: cargo build --release)" >&2

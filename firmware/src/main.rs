@@ -414,8 +414,9 @@ mod app {
         supervisor: board::Supervisor,
     }
 
-    /// The split's queues and triple buffers (`pbcard::fast::Shared`) and, on the F411, the
-    /// autobaud's rate link are `init`'s local resources: statics with a `const` initialiser,
+    /// The split's queues and triple buffers (`pbcard::fast::Shared`) and the autobaud's rate
+    /// link (the F411's; QEMU runs at a fixed rate and leaves its 20 B unused) are `init`'s
+    /// local resources: statics with a `const` initialiser,
     /// all zero, so they are in `.bss` and no start-up code builds or copies them (a
     /// `cortex_m::singleton!` built the 7 KiB value on the stack and copied it, issue 13
     /// item 1). `init` runs once, so each is handed out once, for the life of the firmware.

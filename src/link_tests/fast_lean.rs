@@ -58,7 +58,7 @@ fn pdu_of(a: &[u8]) -> Option<Vec<u8>> {
 }
 
 /// An MSAC_C2 Initiate.req PDU (Send_Timeout in 10 ms, address blocks of type 0): `check`'s
-/// [`initiate_pdu`](super::check::initiate_pdu) with API 0.
+/// [`initiate_pdu`](crate::fast::check::initiate_pdu) with API 0.
 fn initiate(send_timeout: u16) -> Vec<u8> {
     crate::fast::check::initiate_pdu(send_timeout, 0).to_vec()
 }

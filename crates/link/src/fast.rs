@@ -65,7 +65,7 @@
 //! *in flight*; the line answers further polls on it SC although the core alone (having run
 //! the request at once) might already hand out the response — likewise a poll answered SC
 //! because the core's newer staging (after `Node::process_acyclic`) was not published yet.
-//! The response goes out on a later poll (`split_answers_equal_the_core` in `check`'s lag mode:
+//! The response goes out on a later poll (`split_answers_equal_the_core` in `pbcard::fast::check`'s lag mode:
 //! the next poll must deliver exactly the core alone's response). Timers are foreseen from
 //! the staged deadlines; a core more than a Send_Timeout (≥ 1 s) behind the line is not.
 
@@ -75,8 +75,8 @@
 //! set — never a stale "ready for data exchange" — and Data_Exchange, Rd_Inp, Rd_Outp with
 //! RS (not ready yet; no outputs taken by the line). Outside the window the line's answer is
 //! the core's answer byte for byte when the core has caught up; `split_answers_equal_the_core`
-//! (tests) and the `fast_path` fuzz target check it (`fast::check`, built for tests and the
-//! `test-support` feature).
+//! (`pbcard`'s `link_tests`) and the `fast_path` fuzz target check it (`pbcard::fast::check`, built
+//! for pbcard's tests and its `test-support` feature).
 //!
 //! A Slave_Diag of the locking master that the line answered while new diagnosis was staged
 //! also marks the staged DH as consumed until the core has worked on that read, so a
@@ -143,8 +143,12 @@ impl<const W: usize> TripleBuffer<W> {
         TripleBuffer { slots: [const { [const { AtomicU32::new(0) }; W] }; 3], middle: AtomicU32::new(0) }
     }
 
-    fn halves(&self) -> (TripleWriter<'_, W>, TripleReader<'_, W>) {
-        (TripleWriter { tb: self, back: 1 }, TripleReader { tb: self, front: 2 })
+    /// The writing and the reading half, from the start layout (the middle slot 0, nothing
+    /// fresh) whatever an earlier pair left, so the three indices are distinct.
+    fn halves(&mut self) -> (TripleWriter<'_, W>, TripleReader<'_, W>) {
+        *self.middle.get_mut() = 0;
+        let tb = &*self;
+        (TripleWriter { tb, back: 1 }, TripleReader { tb, front: 2 })
     }
 }
 
@@ -616,7 +620,7 @@ struct Prep {
 /// whose header arrived with its last byte (a DMA piece that holds the whole request: the
 /// general decision is as fast then). The property `any_chunking_equals_on_frame` compares
 /// it with the general decision of [`FastPath::on_frame`] in every chunking, and
-/// `lean_dpv1_equals_on_frame` (`tests_lean`) across the MSAC_C2 connections' timers.
+/// `lean_dpv1_equals_on_frame` (`pbcard`'s `link_tests::fast_lean`) across the MSAC_C2 connections' timers.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Lean {
     sa: u8,
@@ -874,7 +878,9 @@ impl<'a> FastPath<'a> {
                                 true => frame.get(frame.len().wrapping_sub(2)).map_or(0, |f| f.wrapping_sub(rx.hsum)),
                                 false => pdu_sum(frame, t.pdu.len()),
                             };
-                            #[cfg(test)]
+                            // Checked in every test above the line side too (`pbcard`'s
+                            // `link_tests`, `fast::check`, the fuzz targets: `test-support`).
+                            #[cfg(any(test, feature = "test-support"))]
                             assert_eq!(sum, pdu_sum(frame, t.pdu.len()), "{frame:02x?}");
                             self.decide(now, frame, &t, rx.own, sum)
                         }
@@ -1740,8 +1746,15 @@ mod tests {
     /// A triple buffer hands out whole publications only.
     #[test]
     fn triple_buffer_is_never_torn() {
-        let tb: TripleBuffer<4> = TripleBuffer::new();
+        let mut tb: TripleBuffer<4> = TripleBuffer::new();
         let (mut w, mut r) = tb.halves();
+        assert!(!r.refresh(), "nothing published yet");
+        w.write(0, &[7; 16]);
+        w.publish();
+        assert!(r.refresh(), "the first publication reaches the reader");
+        let mut b = [0u8; 16];
+        r.read(0, &mut b);
+        assert_eq!(b, [7; 16]);
         for k in 0u8..50 {
             w.write(0, &[k; 16]);
             if k % 3 == 0 {

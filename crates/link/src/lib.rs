@@ -11,9 +11,9 @@
 //! * [`led`] — the PS / BS / FS LED logic (OPTE3/E5 §4.3).
 //!
 //! It depends on `pbcard-dp` and `pbcard-fdl` only, so Cargo keeps it free of the profile, the
-//! DPM and the card (`pbcard`), which re-exports its modules under the same names; it is
-//! optimised at opt-level 2 (the response path) while the card above it is sized (root
-//! `Cargo.toml`, README "Footprint"). `no_std`, no `unsafe`, no allocation.
+//! DPM and the card (`pbcard`), which re-exports its modules under the same names; its
+//! optimisation level is its own, opt-level 2 (the response path; the card above it stays at
+//! 2 too, root `Cargo.toml`, README "Footprint"). `no_std`, no `unsafe`, no allocation.
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]

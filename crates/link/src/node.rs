@@ -94,7 +94,7 @@ pub trait DataRecords: RecordHandler {
 impl DataRecords for NoRecords {}
 
 /// The MSAC_C2 connections a node keeps (GSD `C2_Max_Count_Channels`, which the card states as
-/// `card::C2_MAX_COUNT_CHANNELS`, checked equal at compile time): one MSAC_C2 SAP, timer and
+/// `pbcard::card::C2_MAX_COUNT_CHANNELS`, checked equal at compile time): one MSAC_C2 SAP, timer and
 /// I&M / record relation each.
 pub const C2_CHANNELS: usize = 2;
 

@@ -92,7 +92,7 @@ impl LineTicks {
         idle_seen.wrapping_sub(self.idle_to_stop_latest).wrapping_add(gap)
     }
 
-    /// The latest instant a response may start: `max_tsdr` (the GSD's, `card::max_tsdr`)
+    /// The latest instant a response may start: `max_tsdr` (the GSD's, `pbcard::card::max_tsdr`)
     /// after the earliest the last stop bit can have been ([`BitClock::response_latest`];
     /// at most one tick later than it).
     #[inline(always)]
