@@ -43,7 +43,11 @@ fuzz_target!(|data: &[u8]| {
     for a in [None, Some(&alarm)] {
         let n = pbcard::dp::alarm::device_block(data, true, a, &mut out);
         if validate_ext_diag(data, card::MAX_EXT_DIAG_LEN).is_ok() && data.len() <= 32 {
-            assert!(validate_ext_diag(&out[..n], card::MAX_EXT_DIAG_LEN).is_ok(), "DP-V1 blocks malformed: {:02x?}", &out[..n]);
+            assert!(
+                validate_ext_diag(&out[..n], card::MAX_EXT_DIAG_LEN).is_ok(),
+                "DP-V1 blocks malformed: {:02x?}",
+                &out[..n]
+            );
         }
     }
     if validate_ext_diag(data, card::MAX_EXT_DIAG_LEN).is_ok() {

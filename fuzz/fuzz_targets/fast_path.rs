@@ -21,11 +21,8 @@ use pbcard::fast::check::{self, Mode};
 fuzz_target!(|data: &[u8]| {
     let Some((&head, ops)) = data.split_first() else { return };
     let mode = if head & 1 == 0 { Mode::Sync } else { Mode::Lag };
-    let (cuts, ops) = if head & 2 == 0 {
-        (&[][..], ops)
-    } else {
-        ops.split_at((usize::from(head >> 2 & 7) + 1).min(ops.len()))
-    };
+    let (cuts, ops) =
+        if head & 2 == 0 { (&[][..], ops) } else { ops.split_at((usize::from(head >> 2 & 7) + 1).min(ops.len())) };
     let r = if cuts.is_empty() { check::run(ops, mode, 2000) } else { check::run_in_pieces(ops, mode, 2000, cuts) };
     if let Err(m) = r {
         panic!("{mode:?} {cuts:02x?}: {m:02x?}");

@@ -5,8 +5,8 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use pbcard::dpv1::im::{Call, Im, CALL_HEADER_LEN, RECORD_LEN};
 use pbcard::dpv1::im::ImData;
+use pbcard::dpv1::im::{Call, Im, CALL_HEADER_LEN, RECORD_LEN};
 use pbcard::store::{decode_slot, encode_slot, Record, Slot, StationAddress, HEADER_LEN, SLOT_SIZE};
 
 fuzz_target!(|data: &[u8]| {

@@ -19,8 +19,6 @@
 //!   read returns 2 bytes only after a successful selection.
 #![no_main]
 
-
-use pbcard::testkit::FakeDrive;
 use libfuzzer_sys::fuzz_target;
 use pbcard::dpv1::pdu::EmitError;
 use pbcard::profile::param::{
@@ -28,6 +26,7 @@ use pbcard::profile::param::{
     HEADER_LEN, MAX_LEN, MAX_PARAMETERS,
 };
 use pbcard::profile::weg48::{self, SimpleAccess, Weg48Error};
+use pbcard::testkit::FakeDrive;
 
 fn check_response(req: &ParamRequest<'_>, out: &[u8; MAX_LEN], n: usize) {
     assert!((HEADER_LEN..=MAX_LEN).contains(&n), "response length {n}");
