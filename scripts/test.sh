@@ -9,8 +9,9 @@ export CARGO_TERM_COLOR=never
 LOG=$(mktemp)
 exec > >(tee "$LOG") 2>&1
 
-echo "== format"
+echo "== format (the workspace and the fuzz crate, its own workspace)"
 cargo fmt --all -- --check
+(cd fuzz && cargo fmt -- --check)
 
 echo "== clippy: protocol library (host and firmware target, with its tests) and host-tests, -D warnings"
 cargo clippy -p pbcard -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib --target "$HOST" -- -D warnings
