@@ -124,6 +124,7 @@ mod app {
     use crate::LINE_RATE;
     #[cfg(feature = "board-f411")]
     use pbcard::phy::autobaud::Autobaud;
+    #[cfg(feature = "board-f411")]
     use pbcard::phy::rate_link::RateLink;
 
     /// What the log reports after a step, read while the node was locked.
@@ -414,26 +415,25 @@ mod app {
         supervisor: board::Supervisor,
     }
 
-    /// The split's queues and triple buffers (`pbcard::fast::Shared`) and the autobaud's rate
-    /// link (the F411's; QEMU runs at a fixed rate and leaves its 20 B unused) are `init`'s
-    /// local resources: statics with a `const` initialiser,
-    /// all zero, so they are in `.bss` and no start-up code builds or copies them (a
+    /// The split's queues and triple buffers (`pbcard::fast::Shared`) and, on the F411, the
+    /// autobaud's rate link are `init`'s local resources: statics with an all-zero `const`
+    /// initialiser, so they are in `.bss` and no start-up code builds or copies them (a
     /// `cortex_m::singleton!` built the 7 KiB value on the stack and copied it, issue 13
     /// item 1). `init` runs once, so each is handed out once, for the life of the firmware.
     #[init(local = [
         split: pbcard::fast::Shared = pbcard::fast::Shared::new(),
+        #[cfg(feature = "board-f411")]
         rate_link: RateLink = RateLink::new(),
     ])]
     fn init(cx: init::Context) -> (Shared, Local) {
-        init_board(cx.device, cx.core.SYST, cx.local.split, cx.local.rate_link)
+        init_board(cx.device, cx.core.SYST, cx.local)
     }
 
     #[cfg(feature = "qemu")]
     fn init_board(
         device: stm32f4xx_hal::pac::Peripherals,
         syst: cortex_m::peripheral::SYST,
-        split: &'static mut pbcard::fast::Shared,
-        rate_link: &'static mut RateLink,
+        local: init::LocalResources<'_>,
     ) -> (Shared, Local) {
         let board::Board { mut line, clock } = board::init(device, syst, LINE_RATE);
         defmt::info!("pbcard: station {=u8}, {=str}", STATION_ADDRESS, board::NAME);
@@ -441,8 +441,7 @@ mod app {
         let mut node = pbcard::card::node(DpSlave::new(&pbcard::card::SLAVE, STATION_ADDRESS));
         node.set_baudrate(Some(LINE_RATE));
         // The split's queues and triple buffers (`init`'s local), for the life of the firmware.
-        let _ = rate_link; // fixed rate on QEMU: no autobaud
-        let (fast, core_link) = split.split(&mut node);
+        let (fast, core_link) = local.split.split(&mut node);
         // The line half goes to the line interrupt, which alone uses `line` on QEMU.
         line.attach(fast);
         housekeeping::spawn().ok();
@@ -463,8 +462,7 @@ mod app {
     fn init_board(
         device: stm32f4xx_hal::pac::Peripherals,
         syst: cortex_m::peripheral::SYST,
-        split: &'static mut pbcard::fast::Shared,
-        rate_link: &'static mut RateLink,
+        local: init::LocalResources<'_>,
     ) -> (Shared, Local) {
         use pbcard::store::Flash as _;
         let recovered = crate::bsp::fault::take_recovered_fault();
@@ -512,10 +510,10 @@ mod app {
             drive.app.report_recovered_fault();
         }
         // The split's queues and triple buffers (`init`'s local), for the life of the firmware.
-        let (fast, core_link) = split.split(&mut node);
+        let (fast, core_link) = local.split.split(&mut node);
         // The Baud_Search starts now (the SysTick clock starts at 0 in `board::init`); the
         // line classifies and gates, housekeeping searches and switches (`phy::rate_link`).
-        let (rate_tap, baud) = rate_link.split(Autobaud::new(b.clock.now()));
+        let (rate_tap, baud) = local.rate_link.split(Autobaud::new(b.clock.now()));
         let mut line = b.line;
         // The line halves go to the line interrupts, which alone use `line`.
         line.attach(fast, rate_tap);
