@@ -65,7 +65,9 @@ pub use pbcard_link::led;
 mod link_tests;
 pub use pbcard_link::node;
 pub use pbcard_link::phy;
-pub mod profile;
+pub use pbcard_profile::profile;
+#[cfg(test)]
+mod profile_tests;
 pub use pbcard_link::store;
 #[cfg(any(test, feature = "test-support"))]
 pub mod testkit;

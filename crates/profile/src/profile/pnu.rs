@@ -542,7 +542,7 @@ mod telegram_pnu_tests {
             fault_counter: 0,
             faults: [0; FAULT_BUFFER_LEN],
             process: ProcessView::EMPTY,
-            device_id: &crate::card::RECORDS.device_id,
+            device_id: &[0, 0x0F11, 1, 2026, 2211, 1],
         }
     }
 

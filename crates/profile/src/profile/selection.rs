@@ -1,7 +1,7 @@
 //! Which process-data layout is selected: a PROFIdrive standard telegram, a PPO type, or a
 //! manufacturer's telegram of one [`Family`] (PROFIdrive profile P922, the four manuals'
 //! telegram lists). A profile concept: the DP layer's Chk_Cfg picks a module, the profile
-//! runtime works on its layout, and the DPM ([`crate::dpm`], which re-exports both types)
+//! runtime works on its layout, and the DPM (`pbcard::dpm`, which re-exports both types)
 //! carries the layout's code to the drive.
 
 use crate::dp::Module;

@@ -8,11 +8,11 @@
 //! DpSlave inputs  ◀─ Runtime::cycle ◀─ DriveStateImage   (DPM DRIVE_STATE) ◀─ drive
 //! ```
 //!
-//! Sans-IO and platform-neutral: [`crate::app::Application`] calls it every housekeeping
+//! Sans-IO and platform-neutral: `pbcard::app::Application` calls it every housekeeping
 //! step; the PKW jobs are served from the DP-V1 task ([`Runtime::service_pkw`]).
 //!
 //! The operate mode comes from the master (Set_Prm user parameter
-//! [`crate::card::PRM_OPERATE_MODE`], 1..=3 "remote") or, with 0 "local", from the drive's
+//! `pbcard::card::PRM_OPERATE_MODE`, 1..=3 "remote") or, with 0 "local", from the drive's
 //! configuration (DPM CONFIG.OPERATE_MODE, OPTE3/E5 §5.1.4); PROFIdrive when neither says.
 //!
 //! **I/O update delay (CFW-11 P0799 "Atraso Atualização I/O", 0.0…999.0, default 0.0):**

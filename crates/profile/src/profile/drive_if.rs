@@ -17,7 +17,7 @@
 //! 0..10000 = 0.00..100.00 %) converts at the profile layer, never in the drive.
 //!
 //! Both structures are plain values: the DPM carries them in sequenced blocks (see
-//! `crate::dpm`), so the drive always sees one consistent command and the card one
+//! `pbcard::dpm`), so the drive always sees one consistent command and the card one
 //! consistent status.
 
 bitflags::bitflags! {
@@ -64,7 +64,7 @@ bitflags::bitflags! {
         const PRE_EXCITE = 1 << 11;
         /// b12 Communication lost (DP watchdog expired, master in Clear, master gone, or
         /// control by PLC dropped while running): apply the drive's communication-error action
-        /// (P0313-style; the card's [`crate::card::PRM_COMM_LOSS_REACTION`] may override it
+        /// (P0313-style; the card's `pbcard::card::PRM_COMM_LOSS_REACTION` may override it
         /// through [`DriveCommand::comm_loss_reaction`]).
         const COMM_LOSS = 1 << 12;
         /// b13 The card's profile layer is in fault (e.g. PROFIdrive: control by PLC dropped

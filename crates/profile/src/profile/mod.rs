@@ -39,8 +39,6 @@
 //! response exists (0xB5)" sequence and the one-shot response buffer belong to the DP-V1
 //! record routing above them.
 
-#[cfg(test)]
-mod card_tests;
 pub mod cyclic;
 pub mod drive_if;
 #[cfg(test)]

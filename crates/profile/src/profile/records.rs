@@ -338,7 +338,7 @@ impl CardRecords {
     /// The profile layer's PROFIdrive fault buffer (OPTE3/E5 §6.4.6 Table 112; reference
     /// §5.2): PNU 944 `counter` (fault message counter) and PNU 947 `numbers` (fault
     /// numbers), as the records answer them over DP-V1. The application hands it in with every
-    /// step ([`crate::app::Card::apply`]); a copy of 66 bytes.
+    /// step (`pbcard::app::Card::apply`); a copy of 66 bytes.
     pub fn set_fault_buffer(&mut self, counter: u16, numbers: &[u16; FAULT_BUFFER_LEN]) {
         self.info.fault_counter = counter;
         self.info.faults = *numbers;

@@ -241,7 +241,7 @@ mod tests {
             fault_counter: f.counter(),
             faults: *f.numbers(),
             process: super::super::pnu::ProcessView::EMPTY,
-            device_id: &crate::card::RECORDS.device_id,
+            device_id: &[0, 0x0F11, 1, 2026, 2211, 1],
         };
         let mut card = CardTable { info, drive: &mut drive };
         let [c0, c1] = PNU_FAULT_COUNTER.to_be_bytes();
