@@ -4,7 +4,7 @@
 #
 # 1. Fails when the ELF contains the simulation: the simulated drive (`pbcard::drive::`,
 #    `SimDrive`), the bench (`pbcard::app::Application`) or the drive's side of the DPM
-#    transport (`pbcard::dpm::host::` — the host reference implementation the simulated drive
+#    transport (`dpm::host::`, in the crate `pbcard-dpm` — the host reference implementation the simulated drive
 #    runs —, `dpm::spi::SpiHost`, `dpm::spi::Loopback`). The shipped card is the SPI *slave*
 #    (`dpm::spi::SpiSlave` / `WireImage`); the drive's control board is the host, so nothing
 #    of the host side belongs in the card. (Symbols of functions LTO inlined are not in the
@@ -38,7 +38,7 @@ checks=(
     'pbcard::drive::|the simulated drive (pbcard::drive)'
     'SimDrive|the simulated drive (SimDrive)'
     'pbcard::app::Application|the bench (app::Application)'
-    'pbcard::dpm::host::|the drive-side host implementation (dpm::host)'
+    'dpm::host::|the drive-side host implementation (dpm::host)'
     'dpm::spi::SpiHost|the SPI master side (dpm::spi::SpiHost)'
     'dpm::spi::Loopback|the in-process SPI card (dpm::spi::Loopback)'
 )

@@ -14,12 +14,12 @@ cargo fmt --all -- --check
 (cd fuzz && cargo fmt -- --check)
 
 echo "== clippy: protocol library (host and firmware target, with its tests) and host-tests, -D warnings"
-cargo clippy -p pbcard -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib --target "$HOST" -- -D warnings
-cargo clippy -p pbcard -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib -- -D warnings
-cargo clippy -p pbcard -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib --tests --target "$HOST" -- -D warnings
+cargo clippy -p pbcard -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib --target "$HOST" -- -D warnings
+cargo clippy -p pbcard -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib -- -D warnings
+cargo clippy -p pbcard -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib --tests --target "$HOST" -- -D warnings
 cargo clippy -p host-tests --all-targets --target "$HOST" -- -D warnings
 echo "== rustdoc of the protocol crates: no broken or private intra-doc links, -D warnings"
-RUSTDOCFLAGS="-D warnings" cargo doc -q -p pbcard -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --no-deps --target "$HOST"
+RUSTDOCFLAGS="-D warnings" cargo doc -q -p pbcard -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --no-deps --target "$HOST"
 
 echo "== firmware: release build for the STM32F411 (thumbv7em-none-eabihf), the card alone: no simulation linked, footprint"
 # The shipped log level (.cargo/config.toml), whatever the caller's shell exports: the
@@ -37,8 +37,8 @@ DEFMT_LOG=warn cargo clippy --bins --features panic-location -- -D warnings
 DEFMT_LOG=info cargo clippy --bins --no-default-features --features bench -- -D warnings
 DEFMT_LOG=info cargo clippy --bins --no-default-features --features bench-dma -- -D warnings
 
-echo "== unit tests beside the code (protocol library on the host: pbcard and the crates of its stack, pbcard-profile, pbcard-link, pbcard-dp and pbcard-fdl)"
-cargo test -p pbcard -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib --target "$HOST"
+echo "== unit tests beside the code (protocol library on the host: pbcard and the crates of its stack, pbcard-dpm, pbcard-profile, pbcard-link, pbcard-dp and pbcard-fdl)"
+cargo test -p pbcard -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib --target "$HOST"
 
 echo "== host-tests: profirust master on a simulated bus, GSD cross-check, scripted services,"
 echo "   and end to end: the firmware in QEMU brought to data exchange by profirust over a socket"

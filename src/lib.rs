@@ -48,7 +48,9 @@ pub mod card;
 pub use pbcard_dp::dp;
 #[cfg(test)]
 mod dp_tests;
-pub mod dpm;
+pub use pbcard_dpm::dpm;
+#[cfg(test)]
+mod dpm_tests;
 pub use pbcard_dp::dpv1;
 pub mod drive;
 /// The ASIC-style split (issue 11): the crate `pbcard-link`'s [`pbcard_link::fast`], and

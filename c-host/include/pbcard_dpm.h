@@ -1,7 +1,7 @@
 /* pbcard_dpm.h: the pbcard DPM image (docs/DPM.md) and its SPI frames (docs/SPI.md).
  *
- * Generated from src/dpm/layout.rs, src/dpm/spi.rs and src/dpm/spi/cyclic.rs. Do not edit:
- * DPM_DOC_WRITE=1 cargo test --lib --target x86_64-unknown-linux-gnu dpm::c_header
+ * Generated from crates/dpm/src/dpm/layout.rs, spi.rs and spi/cyclic.rs. Do not edit:
+ * DPM_DOC_WRITE=1 cargo test -p pbcard-dpm --lib --target x86_64-unknown-linux-gnu dpm::c_header
  *
  * Blocks: PBCARD_<BLOCK>_START (absolute) and _SIZE; PBCARD_<BLOCK>_<FIELD> is the offset
  * inside the block, PBCARD_<BLOCK>_<FIELD>_ADDR the absolute one, _SIZE its bytes. Every

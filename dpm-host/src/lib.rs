@@ -3,14 +3,14 @@
 //! What a drive's control board runs to integrate the PROFIBUS DP-V1 option card through its
 //! dual-port memory (issue 7 item 5; ARCHITECTURE §5; the map in `docs/DPM.md`).
 //!
-//! The implementation itself is `pbcard::dpm::host` (`no_std`, no allocation, no `unsafe`,
+//! The implementation itself is `pbcard_dpm::dpm::host` (`pbcard::dpm::host` in the card; `no_std`, no allocation, no `unsafe`,
 //! time handed in), so that the card's own simulated drive (QEMU build, soft slave, host
 //! tests) runs exactly this code; this crate is the port's entry point: it re-exports it with
 //! the pbcard types a host needs, and adds, with the `std` feature (default), [`SharedDpm`],
 //! an image shared in one process.
 //!
 //! The layout is not repeated anywhere: every offset and every block codec comes from
-//! `pbcard::dpm::layout` and `pbcard::dpm::codec`, the card firmware's own source of truth.
+//! `pbcard_dpm::dpm::layout` and `pbcard_dpm::dpm::codec` (the crate `pbcard-dpm`), the card firmware's own source of truth.
 //!
 //! The crate's tests (`dpm-host/tests/`) run the [`Host`] against pbcard's card side (`Node`,
 //! `Link`) over both transports a port meets: the memory transport ([`SharedDpm`]) and the
@@ -24,7 +24,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
-pub use pbcard::dpm::host::{
+pub use pbcard_dpm::dpm::host::{
     Answer, CardEvents, ConfigOutcome, Cycle, DpmTransport, Error, Host, HostStats, MemoryTransport, OpenError,
     Options, ParameterServer, Poll, ProcessImage, Table, Transport, TransportError,
 };
@@ -33,29 +33,29 @@ pub use pbcard::dpm::host::{
 /// over the board's [`spi::SpiBus`]), its frame codec, the CYCLIC exchange, and the in-process
 /// card with the board's reply pipeline ([`spi::Loopback`]) for a port's tests.
 pub mod spi {
-    pub use pbcard::dpm::spi::cyclic::{CyclicReply, CyclicRequest};
-    pub use pbcard::dpm::spi::{
+    pub use pbcard_dpm::dpm::spi::cyclic::{CyclicReply, CyclicRequest};
+    pub use pbcard_dpm::dpm::spi::{
         crc16, BusFault, Command, HostError, Loopback, Reply, ReplyError, ResultCode, SpiBus, SpiHost, SpiHostCodec,
         StatusData, PROTOCOL_VERSION, T_READY_US,
     };
 }
 
 /// The pbcard items a host works with, re-exported so a port needs one dependency path.
-pub use pbcard::dpm::{
+pub use pbcard_dpm::dpm::{
     codec, layout, CardEvent, CardFlags, CardReport, CommState, DriveCommandImage, DriveReport, DriveStateImage,
     HostConfig, Identity, Liveness, MailboxRequest, ParamValues, PdFlags, ProcessData, PzdWords, RequestKind, Status,
     Telegram, Torn,
 };
-pub use pbcard::profile::drive_if::{CommandFlags, DriveCommand, DriveStatus, StatusFlags};
-pub use pbcard::time::{Duration, Instant};
+pub use pbcard_fdl::time::{Duration, Instant};
+pub use pbcard_profile::profile::drive_if::{CommandFlags, DriveCommand, DriveStatus, StatusFlags};
 
 #[cfg(feature = "std")]
 mod shared {
-    use pbcard::dpm::host::{DpmTransport, Transport, TransportError};
-    use pbcard::dpm::Dpm;
+    use pbcard_dpm::dpm::host::{DpmTransport, Transport, TransportError};
+    use pbcard_dpm::dpm::Dpm;
 
     /// An image shared by the card side and the host in one process (`std`): clone it, give one
-    /// clone to the [`Host`], keep the other for the card's [`crate::dpm::Link`].
+    /// clone to the [`Host`](crate::Host), keep the other for the card's `pbcard_dpm::dpm::Link`.
     #[derive(Debug, Clone, Default)]
     pub struct SharedDpm(pub std::rc::Rc<core::cell::RefCell<Dpm>>);
 

@@ -16,7 +16,7 @@
 //! `time` and `fdl` are the crate `pbcard-fdl` (`crates/fdl`), `dp` and `dpv1` the crate
 //! `pbcard-dp` (`crates/dp`, on `pbcard-fdl`), `phy`, `led`, `node`, `store` and `fast` the crate
 //! `pbcard-link` (`crates/link`, on both), `profile` the crate `pbcard-profile` (`crates/profile`,
-//! on those three), all re-exported by `src/lib.rs` (a `pub use`,
+//! on those three), `dpm` the crate `pbcard-dpm` (`crates/dpm`, on the profile), all re-exported by `src/lib.rs` (a `pub use`,
 //! not a `mod`, so the walk starts again at each crate's root): Cargo keeps each crate from
 //! naming anything above it; their ranks here still place the paths the modules above use
 //! (`crate::fdl::…`, `crate::dp::…`), and the walk of their own files checks what Cargo
@@ -62,7 +62,7 @@ const KNOWN_DEBT: &[(&str, &str)] = &[];
 /// The crate roots the walk starts from (relative to the workspace root): the library and the
 /// crates of the stack below it, whose top-level modules it re-exports under the same names
 /// (`pbcard-fdl`: `time`, `fdl`; `pbcard-dp`: `dp`, `dpv1`; `pbcard-link`: `phy`, `led`, `node`,
-/// `store`, `fast` — `pbcard` adds its test-support `fast::check`; `pbcard-profile`: `profile`; their roots bring the layers below
+/// `store`, `fast` — `pbcard` adds its test-support `fast::check`; `pbcard-profile`: `profile`; `pbcard-dpm`: `dpm`; their roots bring the layers below
 /// in as `crate::fdl` / `crate::time`, so a path is ranked the same in every crate).
 const ROOTS: &[&str] = &[
     "src/lib.rs",
@@ -70,6 +70,7 @@ const ROOTS: &[&str] = &[
     "crates/dp/src/lib.rs",
     "crates/link/src/lib.rs",
     "crates/profile/src/lib.rs",
+    "crates/dpm/src/lib.rs",
 ];
 
 fn rank(m: &str) -> Option<u8> {
@@ -300,6 +301,8 @@ fn the_walk_covers_every_layer() {
         "crates/link/src/store/mod.rs",
         "crates/profile/src/profile/mod.rs",
         "crates/profile/src/profile/cyclic.rs",
+        "crates/dpm/src/dpm/mod.rs",
+        "crates/dpm/src/dpm/spi.rs",
     ] {
         assert!(files.iter().any(|(_, file, _)| file.ends_with(f)), "{f} is not walked");
     }

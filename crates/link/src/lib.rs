@@ -23,8 +23,11 @@ pub mod led;
 pub mod node;
 pub mod phy;
 pub mod store;
-#[cfg(test)]
-mod test_card;
+/// The stand-in station of the line side's tests, for the tests of the crates above that need
+/// a station but not the card (feature `test-support`).
+#[cfg(any(test, feature = "test-support"))]
+#[doc(hidden)]
+pub mod test_card;
 
 use pbcard_dp::{dp, dpv1};
 use pbcard_fdl::{fdl, time};

@@ -26,8 +26,8 @@ fn define(out: &mut impl Write, name: &str, value: impl fmt::Display, doc: &str)
 pub fn write_c_header(out: &mut impl Write) -> fmt::Result {
     writeln!(out, "/* pbcard_dpm.h: the pbcard DPM image (docs/DPM.md) and its SPI frames (docs/SPI.md).")?;
     writeln!(out, " *")?;
-    writeln!(out, " * Generated from src/dpm/layout.rs, src/dpm/spi.rs and src/dpm/spi/cyclic.rs. Do not edit:")?;
-    writeln!(out, " * DPM_DOC_WRITE=1 cargo test --lib --target x86_64-unknown-linux-gnu dpm::c_header")?;
+    writeln!(out, " * Generated from crates/dpm/src/dpm/layout.rs, spi.rs and spi/cyclic.rs. Do not edit:")?;
+    writeln!(out, " * DPM_DOC_WRITE=1 cargo test -p pbcard-dpm --lib --target x86_64-unknown-linux-gnu dpm::c_header")?;
     writeln!(out, " *")?;
     writeln!(out, " * Blocks: PBCARD_<BLOCK>_START (absolute) and _SIZE; PBCARD_<BLOCK>_<FIELD> is the offset")?;
     writeln!(out, " * inside the block, PBCARD_<BLOCK>_<FIELD>_ADDR the absolute one, _SIZE its bytes. Every")?;
@@ -227,16 +227,16 @@ mod tests {
         names.sort_unstable();
         let twice: Vec<&str> = names.windows(2).filter(|w| w[0] == w[1]).map(|w| w[0]).collect();
         assert!(twice.is_empty(), "defined twice: {twice:?}");
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/c-host/include/pbcard_dpm.h");
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../c-host/include/pbcard_dpm.h");
         if std::env::var_os("DPM_DOC_WRITE").is_some() {
-            std::fs::create_dir_all(concat!(env!("CARGO_MANIFEST_DIR"), "/c-host/include")).unwrap();
+            std::fs::create_dir_all(concat!(env!("CARGO_MANIFEST_DIR"), "/../../c-host/include")).unwrap();
             std::fs::write(path, &h).unwrap();
         }
         let committed = std::fs::read_to_string(path).unwrap_or_default();
         assert!(
             committed == h,
-            "c-host/include/pbcard_dpm.h differs from src/dpm/layout.rs / spi.rs; regenerate it with\n  \
-             DPM_DOC_WRITE=1 cargo test --lib --target x86_64-unknown-linux-gnu dpm::c_header"
+            "c-host/include/pbcard_dpm.h differs from crates/dpm/src/dpm/layout.rs / spi.rs; regenerate it with\n  \
+             DPM_DOC_WRITE=1 cargo test -p pbcard-dpm --lib --target x86_64-unknown-linux-gnu dpm::c_header"
         );
     }
 }

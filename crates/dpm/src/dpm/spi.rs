@@ -1332,7 +1332,3 @@ pub mod wire;
 
 #[cfg(test)]
 mod tests;
-#[cfg(test)]
-mod tests_card;
-#[cfg(test)]
-mod tests_cycle;

@@ -846,10 +846,10 @@ pub const FIELDS: &[Field] = &[
 pub fn write_markdown(out: &mut impl core::fmt::Write) -> core::fmt::Result {
     writeln!(out, "# DPM memory map, layout version {LAYOUT_VERSION}")?;
     writeln!(out)?;
-    writeln!(out, "<!-- Generated from src/dpm/layout.rs (FIELDS, BLOCKS). Do not edit: run")?;
+    writeln!(out, "<!-- Generated from crates/dpm/src/dpm/layout.rs (FIELDS, BLOCKS). Do not edit: run")?;
     writeln!(
         out,
-        "     DPM_DOC_WRITE=1 cargo test --lib --target x86_64-unknown-linux-gnu dpm::tests_v2::doc_is_current -->"
+        "     DPM_DOC_WRITE=1 cargo test -p pbcard-dpm --lib --target x86_64-unknown-linux-gnu dpm::tests_v2::doc_is_current -->"
     )?;
     writeln!(out)?;
     writeln!(out, "Image size {IMAGE_SIZE} bytes (0x{IMAGE_SIZE:X}). All multi-byte integers are big-endian. Offsets are absolute.")?;

@@ -91,6 +91,7 @@ mod tests {
     use crate::dpm::spi::{SpiBus, SpiHost, MAX_REPLY};
     use crate::dpm::{layout, Link};
     use crate::time::Instant;
+    use pbcard_link::test_card;
 
     /// The wire image with the board's pipeline depth 1, simply (every reply in time).
     struct Wire<'a> {
@@ -112,8 +113,8 @@ mod tests {
     #[test]
     fn the_host_and_the_card_meet_through_the_hand_over() {
         let mut card = Dpm::new();
-        let mut link = Link::new(crate::card::MODULES);
-        let mut node = crate::card::node(crate::dp::DpSlave::new(&crate::card::SLAVE, 5));
+        let mut link = Link::new(test_card::SLAVE.modules);
+        let mut node = test_card::node(crate::dp::DpSlave::new(&test_card::SLAVE, 5));
         let ev = node.poll(Instant::from_millis(0));
         link.publish(&mut node, ev, &mut card);
         let mut wire = WireImage::new();

@@ -177,7 +177,7 @@ impl Link {
         self.startup_gate && self.config.is_none()
     }
 
-    /// The safe state after a card fault ([`crate::app::Card::fail_safe`]): empty
+    /// The safe state after a card fault (`pbcard::app::Card::fail_safe`): empty
     /// OUTPUTS (no data exchange), then DRIVE_CMD `cmd` tied to exactly these OUTPUTS, so the
     /// host's pairing check takes the fail-safe command.
     pub fn publish_safe_state(&mut self, cmd: &DriveCommandImage, dpm: &mut Dpm) {
@@ -343,7 +343,7 @@ impl Link {
     /// The platform's receiver counts of telegrams lost to the line (cumulative, wrapping):
     /// character errors, telegrams cut off or no telegram at all where one should start, as a
     /// receiver that delimits telegrams itself counts them (the F411's DMA receiver,
-    /// [`crate::phy::line::RxStats::lost_frames`]; the QEMU board's own framer). Shown in
+    /// `pbcard_link::phy::line::RxStats::lost_frames`; the QEMU board's own framer). Shown in
     /// `STATUS.CORRUPT_FRAMES` (DPM layout, docs/DPM.md) with the node's own framer count and
     /// the telegrams the FDL station found invalid (checksum, delimiters).
     pub fn set_line_errors(&mut self, count: u32) {

@@ -1,5 +1,4 @@
 use super::*;
-use crate::card;
 use proptest::prelude::*;
 
 #[test]
@@ -16,8 +15,8 @@ fn fresh_image_has_header_and_inactive_status() {
     assert_eq!((dpm.layout_version(), dpm.capabilities()), (4, layout::cap::ALL));
     let id = dpm.identity();
     assert_eq!((id.card_type, id.ident_number, id.serial), (CARD_TYPE, 0, 0), "no product's ident yet");
-    let id = Dpm::with_identity(&card::IDENTITY).identity();
-    assert_eq!((id.card_type, id.ident_number, id.serial), (CARD_TYPE, card::IDENT_NUMBER, 0));
+    let id = Dpm::with_identity(&Identity::of_product(0x0F11)).identity();
+    assert_eq!((id.card_type, id.ident_number, id.serial), (CARD_TYPE, 0x0F11, 0));
     assert_eq!(id.firmware, [0, 1, 0], "Cargo.toml version 0.1.0");
     assert_eq!(dpm.card_report().unwrap(), CardReport::default(), "never written: all zero, seq 0");
     assert_eq!(dpm.request(), Ok(None));
@@ -56,20 +55,6 @@ fn p0963_round_trip() {
     }
     assert_eq!(baudrate_from_p0963(5), None);
     assert_eq!(baudrate_from_p0963(10), None);
-}
-
-#[cfg(not(feature = "bench"))] // the bench-only modules are no GSD telegram
-#[test]
-fn every_gsd_module_has_a_telegram_of_its_size() {
-    for m in card::MODULES {
-        let t = Telegram::of_module(m).unwrap_or_else(|| panic!("{} has no telegram", m.name));
-        assert_eq!(t.input_bytes(), m.inputs as usize, "{}", m.name);
-        assert_eq!(t.output_bytes(), m.outputs as usize, "{}", m.name);
-        assert_eq!(Telegram::from_code(t.code()), t);
-    }
-    assert_eq!(Telegram::from_code(0), Telegram::None);
-    assert_eq!(Telegram::Standard(1).code(), 1);
-    assert_eq!(Telegram::Ppo(4).code(), 0x8004);
 }
 
 #[test]

@@ -217,7 +217,8 @@ mod tests {
     /// does not keep the mailbox busy.
     #[test]
     fn the_record_47_and_pkw_caches_never_take_each_others_answers() {
-        let (mut link, mut dpm, mut server) = (Link::new(crate::card::MODULES), Dpm::new(), MailboxServer::new());
+        let (mut link, mut dpm, mut server) =
+            (Link::new(pbcard_link::test_card::SLAVE.modules), Dpm::new(), MailboxServer::new());
         let (mut rec47, mut pkw) = (ParamCache::new(), ParamCache::new());
         let mut now = Instant::from_millis(0);
         let req = MailboxRequest::read(1, 100, 0, 1);
@@ -259,7 +260,7 @@ mod tests {
 
         // A claimant that never comes back (its job stopped without a new one): after the
         // mailbox timeout its answer no longer blocks the other cache.
-        let (mut link, mut dpm) = (Link::new(crate::card::MODULES), Dpm::new());
+        let (mut link, mut dpm) = (Link::new(pbcard_link::test_card::SLAVE.modules), Dpm::new());
         let mut server = MailboxServer::new();
         let (mut rec47, mut pkw) = (ParamCache::new(), ParamCache::new());
         {

@@ -355,7 +355,7 @@ fn a_host_restart_at_every_transaction_boundary_recovers_without_a_stale_reply()
             let _ = host.write_config(&cfg);
             let _ = host.serve_parameters(&mut |_: &_| crate::dpm::host::Answer::Later);
         }
-        let card = host.into_transport().bus_mut_owned();
+        let card = host.into_transport().into_bus().card;
         // The new host: open, CONFIG again, cycles; everything it takes is the card's.
         let mut host = Host::open(SpiHost::new(Cut { card, left: None }), Options::DEFAULT)
             .unwrap_or_else(|e| panic!("k {k}: {e:?}"));
@@ -371,12 +371,6 @@ fn a_host_restart_at_every_transaction_boundary_recovers_without_a_stale_reply()
         card_step(&mut link, &mut node, &mut host, now);
         assert_eq!(link.read_drive_state(host.transport().bus().card.dpm()).status.speed, 304, "k {k}");
         assert!(node.slave().is_ready() && node.slave().address() == 9, "k {k}");
-    }
-}
-
-impl SpiHost<Cut> {
-    fn bus_mut_owned(self) -> Loopback {
-        self.into_bus().card
     }
 }
 

@@ -768,8 +768,8 @@ fn spi_markdown() -> String {
     ];
     let mut out = String::from(
         "# DPM transport over SPI (board)\n\n\
-         Generated from the module documentation of `src/dpm/spi.rs` (constants resolved); \
-         regenerate with\n`DPM_DOC_WRITE=1 cargo test --lib --target x86_64-unknown-linux-gnu \
+         Generated from the module documentation of `crates/dpm/src/dpm/spi.rs` (constants resolved); \
+         regenerate with\n`DPM_DOC_WRITE=1 cargo test -p pbcard-dpm --lib --target x86_64-unknown-linux-gnu \
          dpm::spi::tests::spi_doc_is_current`.\nThe image the frames address is `docs/DPM.md`.\n\n",
     );
     let mut on = false;
@@ -816,14 +816,14 @@ fn spi_doc_is_current() {
         assert_eq!(crc16(&f[..n - 2]).to_be_bytes(), [f[n - 2], f[n - 1]], "example CRC {f:02X?}");
         assert!(parse_request(f).is_ok(), "the card accepts the example {f:02X?}");
     }
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/docs/SPI.md");
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../docs/SPI.md");
     if std::env::var_os("DPM_DOC_WRITE").is_some() {
         std::fs::write(path, &doc).unwrap();
     }
     let committed = std::fs::read_to_string(path).unwrap_or_default();
     assert!(
         committed == doc,
-        "docs/SPI.md differs from src/dpm/spi.rs; regenerate it with\n  \
-         DPM_DOC_WRITE=1 cargo test --lib --target x86_64-unknown-linux-gnu dpm::spi::tests::spi_doc_is_current"
+        "docs/SPI.md differs from crates/dpm/src/dpm/spi.rs; regenerate it with\n  \
+         DPM_DOC_WRITE=1 cargo test -p pbcard-dpm --lib --target x86_64-unknown-linux-gnu dpm::spi::tests::spi_doc_is_current"
     );
 }
