@@ -19,7 +19,7 @@ cargo clippy -p pbcard -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-
 cargo clippy -p pbcard -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib --tests --target "$HOST" -- -D warnings
 cargo clippy -p host-tests --all-targets --target "$HOST" -- -D warnings
 echo "== rustdoc of the protocol crates: no broken or private intra-doc links, -D warnings"
-RUSTDOCFLAGS="-D warnings" cargo doc -q -p pbcard -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --no-deps --target "$HOST"
+RUSTDOCFLAGS="-D warnings" cargo doc -q -p pbcard -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl -p dpm-host --no-deps --target "$HOST"
 
 echo "== firmware: release build for the STM32F411 (thumbv7em-none-eabihf), the card alone: no simulation linked, footprint"
 # The shipped log level (.cargo/config.toml), whatever the caller's shell exports: the
