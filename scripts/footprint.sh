@@ -2,8 +2,10 @@
 # The card-only F411 firmware's footprint (issue 13 item 1): run after `cargo build --release`
 # (default features: board-f411, no `sim-drive`).
 #
-# 1. Fails when the ELF contains the simulation: the simulated drive (`pbcard::drive::`,
-#    `SimDrive`), the bench (`pbcard::app::Application`) or the drive's side of the DPM
+# 1. Fails when the ELF contains the simulation: anything of the crate `pbcard-sim` (the
+#    simulated drive `pbcard_sim::drive::`, `SimDrive`, the bench
+#    `pbcard_sim::bench::Application` — the card-only build does not even compile that crate,
+#    `scripts/test.sh` checks its dependency tree) or the drive's side of the DPM
 #    transport (`dpm::host::`, in the crate `pbcard-dpm` — the host reference implementation the simulated drive
 #    runs —, `dpm::spi::SpiHost`, `dpm::spi::Loopback`). The shipped card is the SPI *slave*
 #    (`dpm::spi::SpiSlave` / `WireImage`); the drive's control board is the host, so nothing
@@ -35,9 +37,9 @@ fail=0
 symbols=$(arm-none-eabi-nm -C "$ELF")
 # The simulation's symbols: the pattern, and what it is.
 checks=(
-    'pbcard::drive::|the simulated drive (pbcard::drive)'
+    'pbcard_sim::|the simulation crate (pbcard-sim: the simulated drive, the bench)'
     'SimDrive|the simulated drive (SimDrive)'
-    'pbcard::app::Application|the bench (app::Application)'
+    'bench::Application|the bench (pbcard_sim::bench::Application)'
     'dpm::host::|the drive-side host implementation (dpm::host)'
     'dpm::spi::SpiHost|the SPI master side (dpm::spi::SpiHost)'
     'dpm::spi::Loopback|the in-process SPI card (dpm::spi::Loopback)'
@@ -52,7 +54,7 @@ for c in "${checks[@]}"; do
         fail=1
     fi
 done
-[[ $fail == 0 ]] && echo "footprint: no simulation symbols (drive::, SimDrive, app::Application, dpm::host::, SpiHost, Loopback)"
+[[ $fail == 0 ]] && echo "footprint: no simulation symbols (pbcard_sim::, SimDrive, bench::Application, dpm::host::, SpiHost, Loopback)"
 
 # Berkeley text / data / bss as arm-none-eabi-size prints them. With cortex-m-rt's linker
 # script the initialised `.data` (RAM, copied from flash at start) is counted in `text` (its

@@ -14,18 +14,24 @@ cargo fmt --all -- --check
 (cd fuzz && cargo fmt -- --check)
 
 echo "== clippy: protocol library (host and firmware target, with its tests) and host-tests, -D warnings"
-cargo clippy -p pbcard -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib --target "$HOST" -- -D warnings
-cargo clippy -p pbcard -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib -- -D warnings
-cargo clippy -p pbcard -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib --tests --target "$HOST" -- -D warnings
+cargo clippy -p pbcard -p pbcard-sim -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib --target "$HOST" -- -D warnings
+cargo clippy -p pbcard -p pbcard-sim -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib -- -D warnings
+cargo clippy -p pbcard -p pbcard-sim -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib --tests --target "$HOST" -- -D warnings
 cargo clippy -p host-tests --all-targets --target "$HOST" -- -D warnings
 echo "== rustdoc of the protocol crates: no broken or private intra-doc links, -D warnings"
-RUSTDOCFLAGS="-D warnings" cargo doc -q -p pbcard -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl -p dpm-host --no-deps --target "$HOST"
+RUSTDOCFLAGS="-D warnings" cargo doc -q -p pbcard -p pbcard-sim -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl -p dpm-host --no-deps --target "$HOST"
 
 echo "== firmware: release build for the STM32F411 (thumbv7em-none-eabihf), the card alone: no simulation linked, footprint"
 # The shipped log level (.cargo/config.toml), whatever the caller's shell exports: the
 # footprint's limits are for it.
 DEFMT_LOG=warn cargo build --release
 bash scripts/footprint.sh
+# The simulation is a crate above the card (pbcard-sim): the card-only firmware does not depend on it.
+if cargo tree -q -p pbcard-firmware --target thumbv7em-none-eabihf -e normal | grep -q pbcard-sim; then
+    echo "FAIL: the card-only firmware depends on pbcard-sim (the simulation)" >&2
+    exit 1
+fi
+echo "the card-only firmware's dependency tree holds no pbcard-sim"
 
 echo "== firmware: QEMU netduinoplus2 builds (features qemu, bench, bench-dma) and clippy of the firmware builds, -D warnings"
 bash scripts/qemu.sh build
@@ -37,8 +43,8 @@ DEFMT_LOG=warn cargo clippy --bins --features panic-location -- -D warnings
 DEFMT_LOG=info cargo clippy --bins --no-default-features --features bench -- -D warnings
 DEFMT_LOG=info cargo clippy --bins --no-default-features --features bench-dma -- -D warnings
 
-echo "== unit tests beside the code (protocol library on the host: pbcard and the crates of its stack, pbcard-dpm, pbcard-profile, pbcard-link, pbcard-dp and pbcard-fdl)"
-cargo test -p pbcard -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib --target "$HOST"
+echo "== unit tests beside the code (protocol library on the host: pbcard and the crates of its stack, pbcard-sim, pbcard-dpm, pbcard-profile, pbcard-link, pbcard-dp and pbcard-fdl)"
+cargo test -p pbcard -p pbcard-sim -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib --target "$HOST"
 
 echo "== host-tests: profirust master on a simulated bus, GSD cross-check, scripted services,"
 echo "   and end to end: the firmware in QEMU brought to data exchange by profirust over a socket"

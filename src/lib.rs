@@ -33,8 +33,9 @@
 //! * [`node`] — framer + station + slave as one object that every platform drives.
 //! * [`dpm`] — the dual-port memory image shared with the drive's control board (layout,
 //!   sequenced tear-free blocks, P0740 / P0963 status) and the card-side [`dpm::Link`].
-//! * [`drive`] — a simulated drive behind the DPM (PROFIdrive STW1/ZSW1 state machine, ramp).
-//! * [`app`] — node + DPM + simulated drive in one step, for QEMU, the soft slave and tests.
+//! * [`app`] — the card as it ships ([`app::Card`]): node-side DPM link, profile runtime,
+//!   fail-safe and the card's DPM image in one step. The simulated drive and the bench that
+//!   wraps the card with it are the crate `pbcard-sim` (`crates/sim`), above this one.
 //! * [`led`] — the PS / BS / FS LED patterns (OPTE3/E5 §4.3) from the card's state.
 //! * [`time`] — instants, durations and bit times (the crate `pbcard-fdl`, with [`fdl`]).
 //! * [`phy`] — USART divisors per rate and the autobaud search / Baud_Control supervision (reference §1.2, §1.6).
@@ -52,7 +53,6 @@ pub use pbcard_dpm::dpm;
 #[cfg(test)]
 mod dpm_tests;
 pub use pbcard_dp::dpv1;
-pub mod drive;
 /// The ASIC-style split (issue 11): the crate `pbcard-link`'s [`pbcard_link::fast`], and
 /// with the feature `test-support` the differential check of the split against the core alone
 /// with this card (`fast::check`, here because it runs the card's configuration and records).

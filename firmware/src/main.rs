@@ -6,9 +6,9 @@
 //! "Hardware"). Behind the node sits the card ([`CardApp`]): the F411 build without `sim-drive` runs [`pbcard::app::Card`] alone (the
 //! DPM image, the card-side link, the profile layer; the drive's control board is the SPI
 //! master and writes the host blocks, block "DPM SPI transport" below; nothing of
-//! `pbcard::drive` is linked, `scripts/footprint.sh`). QEMU and the F411 with the `sim-drive`
-//! feature run the bench [`pbcard::app::Application`]: the same card with the simulated
-//! drive (`pbcard::drive::SimDrive`, PROFIdrive state machine and ramp) over the in-process
+//! `pbcard_sim::drive` is linked, `scripts/footprint.sh`). QEMU and the F411 with the `sim-drive`
+//! feature run the bench [`pbcard_sim::bench::Application`]: the same card with the simulated
+//! drive (`pbcard_sim::drive::SimDrive`, PROFIdrive state machine and ramp) over the in-process
 //! SPI frames — the same application as the soft slave's.
 //!
 //! | priority | task | does |
@@ -112,11 +112,11 @@ mod app {
     use pbcard::dp::{DpSlave, DpState, Events};
     use pbcard::dpm::spi::SlavePort;
     use pbcard::dpm::CommState;
-    #[cfg(any(feature = "qemu", feature = "sim-drive"))]
-    use pbcard::drive::DriveConfig;
     use pbcard::led::{LedInputs, Leds};
     use pbcard::node::Node;
     use pbcard::profile::profidrive::State as DriveState;
+    #[cfg(any(feature = "qemu", feature = "sim-drive"))]
+    use pbcard_sim::drive::DriveConfig;
     use rtic::Mutex;
     use rtic_monotonics::systick::prelude::*;
 
@@ -866,7 +866,7 @@ mod app {
     #[cfg(not(feature = "board-f411"))]
     type DpmSpiPort = NoSpiPort;
     /// QEMU has no SPI port: its DPM transport is in process (`pbcard::dpm::spi::Loopback`
-    /// inside `pbcard::app::Application`).
+    /// inside `pbcard_sim::bench::Application`).
     #[cfg(not(feature = "board-f411"))]
     pub struct NoSpiPort;
     /// No transaction and no reply buffer ever exists on a board without an SPI port.

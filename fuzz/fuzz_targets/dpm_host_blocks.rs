@@ -1,4 +1,4 @@
-//! Bad bytes from the drive's side of the DPM: a whole `pbcard::app::Application` (card-side
+//! Bad bytes from the drive's side of the DPM: a whole `pbcard_sim::bench::Application` (card-side
 //! `Link`, profile runtime, parameter caches, and the simulated drive on the host reference
 //! implementation `dpm::host`) with a `Node` brought to data exchange by the scripted master
 //! of `pbcard::testkit`, and arbitrary bytes written into the image between the drive's turn
@@ -33,16 +33,16 @@
 mod src;
 
 use libfuzzer_sys::fuzz_target;
-use pbcard::app::Application;
 use pbcard::card;
 use pbcard::dp::DpState;
 use pbcard::dpm::layout::{Writer, BLOCKS};
 use pbcard::dpm::{codec, ConfigResult, Dpm, HostConfig, LinkStats};
-use pbcard::drive::DriveConfig;
 use pbcard::fdl::telegram::{self, Decoded, Telegram};
 use pbcard::node::Node;
-use pbcard::testkit::{CardRig, Rig, SetPrm};
 use pbcard::time::{Baudrate, Duration};
+use pbcard_sim::bench::Application;
+use pbcard_sim::drive::DriveConfig;
+use pbcard_sim::testkit::{CardRig, Rig, SetPrm};
 use src::Src;
 
 const ME: u8 = 5;

@@ -15,10 +15,10 @@
 //! republished — the soft slave's main loop.
 
 use super::*;
-use pbcard::app::Application;
-use pbcard::drive::DriveConfig;
 use pbcard::fast::{single_threaded, CoreLink, FastPath, Shared};
 use pbcard::node::Node;
+use pbcard_sim::bench::Application;
+use pbcard_sim::drive::DriveConfig;
 
 /// How often the application steps (the firmware's housekeeping period).
 const STEP_US: u64 = 1000;

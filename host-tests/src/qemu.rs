@@ -2,7 +2,7 @@
 //! USART1 on a Unix socket, collect the firmware's defmt log (decoded by `defmt-print`), and
 //! run profirust's DP master against it in wall-clock time ([`LiveMaster`]) or send scripted
 //! requests ([`StreamPhy::request`]). [`DriveSession`] is a PLC program on that master for the
-//! firmware's application — the simulated drive behind the DPM (`pbcard::app::Application`) —
+//! firmware's application — the simulated drive behind the DPM (`pbcard_sim::bench::Application`) —
 //! that checks every input image against what that drive may answer.
 //!
 //! Used by `tests/qemu.rs` (end-to-end test), `src/bin/qemu_demo.rs` (README command 1) and
@@ -536,7 +536,7 @@ impl<S: std::io::Read + std::io::Write> LiveMaster<S> {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The firmware's application: the simulated drive behind the DPM (pbcard::app::Application).
+// The firmware's application: the simulated drive behind the DPM (pbcard_sim::bench::Application).
 // ---------------------------------------------------------------------------------------------
 
 /// 100 % speed in the N2 coding of NSOLL_A / NIST_A.

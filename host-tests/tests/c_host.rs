@@ -11,7 +11,6 @@
 //! seen by BOOT_ID, and the per-cycle budget.
 
 use host_tests::c_host::{config, result, CDrive};
-use pbcard::app::Application;
 use pbcard::card;
 use pbcard::dp::diag::Status1;
 use pbcard::dp::{DpSlave, DpState};
@@ -20,6 +19,7 @@ use pbcard::fdl::telegram;
 use pbcard::node::Node;
 use pbcard::testkit::{self, Frame, Rig, ScriptedMaster, SetPrm};
 use pbcard::time::{Baudrate, Duration, Instant};
+use pbcard_sim::bench::Application;
 
 const MASTER: u8 = 2;
 const SLAVE: u8 = 5;

@@ -251,7 +251,7 @@ fn class2_send_timeout_aborts_the_connection() {
 
 // ----- The simulated drive's parameter table (pbcard::profile::table) behind the node -----
 
-use pbcard::drive::params::{self, DriveTable};
+use pbcard_sim::drive::params::{self, DriveTable};
 
 /// Request, process with `table` as the drive, poll: one MSAC_C1 exchange.
 fn table_transact(m: &mut Master, table: &mut DriveTable, pdu: &[u8]) -> Vec<u8> {

@@ -11,14 +11,14 @@
 
 use host_tests::scripted::Ans;
 use host_tests::{hex, profirust_rate};
-use pbcard::app::Application;
 use pbcard::card;
 use pbcard::dp::{DpSlave, DpState};
-use pbcard::drive::DriveConfig;
 use pbcard::fdl::telegram;
 use pbcard::node::Node;
 use pbcard::testkit::{ScriptedMaster, SetPrm};
 use pbcard::time::{Baudrate, BitTimes, Instant};
+use pbcard_sim::bench::Application;
+use pbcard_sim::drive::DriveConfig;
 use profirust::phy::{ProfibusPhy, SimulatorPhy};
 
 const ME: u8 = 3;

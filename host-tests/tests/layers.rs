@@ -31,8 +31,9 @@ use syn::visit::Visit;
 /// name each other). `node` and `store` sit on DP-V1 (the node composes FDL, DP and DP-V1 and
 /// defines the record-handler seam; the store persists DP/DP-V1 records); `fast` wraps the
 /// node; `profile` implements the record handlers; `dpm` carries the profile to the drive;
-/// `card` is this product's configuration; `drive` (the simulated drive), `app` (composition
-/// root) and `testkit` are on top.
+/// `card` is this product's configuration; `app` (the card), `drive` (the simulated drive) and
+/// `bench` (the card with the simulated drive; `drive` and `bench` are the crate `pbcard-sim`,
+/// above `pbcard`) and `testkit` are on top.
 const LAYERS: &[(&str, u8)] = &[
     ("time", 0),
     ("fdl", 1),
@@ -48,6 +49,7 @@ const LAYERS: &[(&str, u8)] = &[
     ("card", 8),
     ("drive", 9),
     ("app", 10),
+    ("bench", 10),
     ("testkit", 10),
 ];
 
@@ -62,7 +64,7 @@ const KNOWN_DEBT: &[(&str, &str)] = &[];
 /// The crate roots the walk starts from (relative to the workspace root): the library and the
 /// crates of the stack below it, whose top-level modules it re-exports under the same names
 /// (`pbcard-fdl`: `time`, `fdl`; `pbcard-dp`: `dp`, `dpv1`; `pbcard-link`: `phy`, `led`, `node`,
-/// `store`, `fast` — `pbcard` adds its test-support `fast::check`; `pbcard-profile`: `profile`; `pbcard-dpm`: `dpm`; their roots bring the layers below
+/// `store`, `fast` — `pbcard` adds its test-support `fast::check`; `pbcard-profile`: `profile`; `pbcard-dpm`: `dpm`; `pbcard-sim` (above `pbcard`): `drive`, `bench`; their roots bring the layers below
 /// in as `crate::fdl` / `crate::time`, so a path is ranked the same in every crate).
 const ROOTS: &[&str] = &[
     "src/lib.rs",
@@ -71,6 +73,7 @@ const ROOTS: &[&str] = &[
     "crates/link/src/lib.rs",
     "crates/profile/src/lib.rs",
     "crates/dpm/src/lib.rs",
+    "crates/sim/src/lib.rs",
 ];
 
 fn rank(m: &str) -> Option<u8> {
@@ -303,6 +306,8 @@ fn the_walk_covers_every_layer() {
         "crates/profile/src/profile/cyclic.rs",
         "crates/dpm/src/dpm/mod.rs",
         "crates/dpm/src/dpm/spi.rs",
+        "crates/sim/src/drive/mod.rs",
+        "crates/sim/src/bench.rs",
     ] {
         assert!(files.iter().any(|(_, file, _)| file.ends_with(f)), "{f} is not walked");
     }

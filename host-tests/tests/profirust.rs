@@ -445,11 +445,11 @@ fn judge_rejects_early_answer() {
 
 /// The card's profile layer (`pbcard::profile::runtime::Runtime`: the module's cyclic
 /// engine, its control profile, the PKW server) with the drive model
-/// (`pbcard::drive::model::DriveModel`) behind the drive-neutral interface, run on every new
+/// (`pbcard_sim::drive::model::DriveModel`) behind the drive-neutral interface, run on every new
 /// output image: what the card's `Application` does through the DPM, without the DPM.
 struct DriveApp {
     rt: pbcard::profile::runtime::Runtime,
-    model: pbcard::drive::model::DriveModel,
+    model: pbcard_sim::drive::model::DriveModel,
     status: pbcard::profile::drive_if::DriveStatus,
     words: Vec<u16>,
     last_command: pbcard::profile::drive_if::DriveCommand,
@@ -458,13 +458,13 @@ struct DriveApp {
 
 impl DriveApp {
     fn new() -> Self {
-        let cfg = pbcard::drive::model::ModelConfig {
+        let cfg = pbcard_sim::drive::model::ModelConfig {
             ramp_time: pbcard::time::Duration::from_millis(40),
-            ..pbcard::drive::model::ModelConfig::DEFAULT
+            ..pbcard_sim::drive::model::ModelConfig::DEFAULT
         };
         DriveApp {
             rt: pbcard::profile::runtime::Runtime::default(),
-            model: pbcard::drive::model::DriveModel::new(cfg),
+            model: pbcard_sim::drive::model::DriveModel::new(cfg),
             status: Default::default(),
             words: vec![],
             last_command: Default::default(),

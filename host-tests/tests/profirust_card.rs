@@ -15,8 +15,8 @@ use host_tests::profirust::dp::PeripheralEvent;
 use host_tests::*;
 use pbcard::card;
 use pbcard::dp::DpState;
-use pbcard::drive::DriveConfig;
 use pbcard::time::{Baudrate, Duration};
+use pbcard_sim::drive::DriveConfig;
 
 const SLAVE: u8 = 7;
 

@@ -1,7 +1,7 @@
 //! End to end: the real firmware (the RTIC application with the QEMU board module, built by
 //! `scripts/qemu.sh build`) boots in `qemu-system-arm -M netduinoplus2`; profirust's DP master
 //! on the host talks to its USART1 through a Unix socket ([`host_tests::serial::StreamPhy`]),
-//! brings it to data exchange and runs the firmware's simulated drive (`pbcard::app::Application`
+//! brings it to data exchange and runs the firmware's simulated drive (`pbcard_sim::bench::Application`
 //! behind the DPM) like a PLC program: 0x047E → ready, 0x047F with a setpoint → the speed
 //! ramps up and holds, 0x047E → it ramps down to standstill. Every input image is checked
 //! ([`DriveSession`]: state bits, PKW, PZD echo in order); the ramps must be monotonic and
@@ -430,7 +430,7 @@ fn dpv1_card_and_drive_parameters_through_msac_c1_and_c2() {
             let ok = r.len() == 72
                 && r[..8] == [0x5E, 0, 0xFF, 68, 0x08, 0x00, 0xFD, 0xE8]
                 && &r[8 + 12..8 + 19] == b"ODC-PB1"
-                && &r[8 + 32..8 + 48] == pbcard::drive::SIM_DEVICE.serial_number.as_slice()
+                && &r[8 + 32..8 + 48] == pbcard_sim::drive::SIM_DEVICE.serial_number.as_slice()
                 && r[8 + 48..8 + 50] == [0, 2]
                 && r[8 + 56..8 + 58] == [0x3A, 0x00];
             if !ok {

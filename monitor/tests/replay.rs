@@ -13,10 +13,8 @@
 //! * the VACON OPTE3/E5 §6.4.4 and WEG CFW-11 §4.2.5 parameter-access examples decoded field by
 //!   field.
 
-use pbcard::app::Application;
 use pbcard::card;
 use pbcard::dp::DpSlave;
-use pbcard::drive::DriveConfig;
 use pbcard::fdl::telegram::{FunctionCode, Header, ResponseStatus};
 use pbcard::node::Node;
 use pbcard::testkit::{self, ScriptedMaster, SetPrm};
@@ -24,6 +22,8 @@ use pbcard::time::{Baudrate, BitTimes, Instant};
 use pbcard_monitor::capture::Writer;
 use pbcard_monitor::product::Product;
 use pbcard_monitor::{decode_raw, replay, Line};
+use pbcard_sim::bench::Application;
+use pbcard_sim::drive::DriveConfig;
 
 const RATE: Baudrate = Baudrate::B19200;
 const MASTER: u8 = 2;

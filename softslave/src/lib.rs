@@ -1,7 +1,7 @@
 //! # pbcard-softslave — the card's PROFIBUS DP slave and a simulated drive on a serial port
 //!
 //! The same sans-IO stack as the firmware ([`pbcard::node::Node`]) and the same simulated
-//! drive behind the same DPM image ([`pbcard::app::Application`]), driven by a host loop:
+//! drive behind the same DPM image ([`pbcard_sim::bench::Application`]), driven by a host loop:
 //!
 //! * bytes are read non-blocking and fed to [`Node::on_byte`](pbcard::node::Node::on_byte) with their arrival time;
 //!   telegrams are found by their length, parity/framing errors (8E1 with `PARMRK`) go to
@@ -13,7 +13,7 @@
 //!   answered ([`Summary::dropped_line_active`]). The telegram itself still reached its station,
 //!   as on the F411, whose `pbcard::phy::line::tx_plan` drops the response for the same reason
 //!   (`TxDrop::LineActive`) after the receiver has handed the telegram on;
-//! * [`Application::step`](pbcard::app::Application::step) runs every 2 ms and after every received chunk;
+//! * [`Application::step`](pbcard_sim::bench::Application::step) runs every 2 ms and after every received chunk;
 //! * [`run`] returns when `stop` is set (the binary sets it on Ctrl-C).
 //!
 //! A pseudo-terminal has no parity and no line timing: bytes pass, and the DP master at the

@@ -2,7 +2,6 @@
 
 use std::fmt::Write as _;
 
-use pbcard::app::Application;
 use pbcard::card;
 use pbcard::dp::prm::{PrmError, SetPrm, StationStatus};
 use pbcard::dp::{sap, DpState, Events};
@@ -10,6 +9,7 @@ use pbcard::dpm::{CommState, ProcessData, Telegram};
 use pbcard::fdl::telegram::{self, Decoded, RequestFunction, Telegram as Frame};
 use pbcard::node::Node;
 use pbcard::profile::profidrive::State;
+use pbcard_sim::bench::Application;
 
 /// Hex dump `10 02 08 49 53 16`.
 pub fn hex(bytes: &[u8]) -> String {
@@ -252,7 +252,7 @@ fn drive_summary(app: &Application) -> String {
     let f = st.flags;
     if f.contains(pbcard::profile::drive_if::StatusFlags::FAULT) {
         format!("drive fault {:04X}{}", st.fault_code, {
-            use pbcard::drive::model::{FAULT_ACCESS_ERROR, FAULT_CLEAR_MODE, FAULT_FIELDBUS, FAULT_OFFLINE};
+            use pbcard_sim::drive::model::{FAULT_ACCESS_ERROR, FAULT_CLEAR_MODE, FAULT_FIELDBUS, FAULT_OFFLINE};
             let fieldbus = [FAULT_FIELDBUS, FAULT_CLEAR_MODE, FAULT_OFFLINE, FAULT_ACCESS_ERROR];
             if fieldbus.contains(&st.fault_code) {
                 " (fieldbus: communication lost)"

@@ -32,14 +32,14 @@ use std::time::Duration;
 
 use serde::Deserialize;
 
-use pbcard::app::Application;
 use pbcard::card::{self, Module};
 use pbcard::dp::DpSlave;
-use pbcard::drive::DriveConfig;
 use pbcard::fast::{single_threaded, CoreLink, FastPath, Shared};
 use pbcard::fdl::framer::{Framer, Push};
 use pbcard::node::Node;
 use pbcard::time::Instant;
+use pbcard_sim::bench::Application;
+use pbcard_sim::drive::DriveConfig;
 
 use crate::monitor::Monitor;
 

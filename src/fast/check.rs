@@ -44,13 +44,13 @@ use crate::dp::{DpSlave, SlaveConfig};
 use crate::dpv1::c1;
 use crate::dpv1::c2::{self, ConnectionState};
 use crate::dpv1::pdu::{AddressBlock, InitiateRequest};
-use crate::drive::params::{DriveTable, SIM_DRIVE_TABLE};
 use crate::fdl::telegram::{
     self, Decoded, FunctionCode, Header, RequestFunction, ResponseStatus, Telegram, MAX_FRAME_LEN,
 };
 use crate::node::Node;
 use crate::phy::stream::TelegramSink;
 use crate::profile::records::CardRecords;
+use crate::testkit::FakeDrive;
 use crate::testkit::{Frame, SetPrm};
 use crate::time::Instant;
 
@@ -594,9 +594,9 @@ pub fn run_in_pieces(data: &[u8], mode: Mode, max_ops: usize, cuts: &[u8]) -> Re
     let mut now = 0u64;
     // The split's answer to the request the station stored last (what a retry repeats).
     let mut stored: Option<Option<Frame>> = None;
-    // The DP-V1 task's parameters of each card.
-    let mut pa_alone: DriveTable = SIM_DRIVE_TABLE;
-    let mut pa_split: DriveTable = SIM_DRIVE_TABLE;
+    // The DP-V1 task's parameters of each card (the tests' one fake drive table).
+    let mut pa_alone = FakeDrive::new();
+    let mut pa_split = FakeDrive::new();
     // Each card's data records (records 47 / 48), owned by the application.
     let mut rec_alone = CardRecords::new(&crate::card::RECORDS);
     let mut rec_split = CardRecords::new(&crate::card::RECORDS);

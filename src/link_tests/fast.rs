@@ -382,7 +382,7 @@ fn dpv1_held_poll_keeps_the_response() {
     // I&M0 read.
     assert_eq!(fast.on_frame(now, &c1(&mut m, &[0x5E, 0, 255, 64])), Verdict::Answer(&[telegram::SC]));
     core.run(&mut node);
-    let mut params = crate::drive::params::SIM_DRIVE_TABLE;
+    let mut params = crate::testkit::FakeDrive::new();
     node.process_acyclic(now, &mut crate::profile::records::CardRecords::new(&crate::card::RECORDS).with(&mut params));
     assert!(node.c1().ready_frame().is_some());
     // Not published yet: the line says "not ready", the core holds the response.

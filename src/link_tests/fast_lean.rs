@@ -24,12 +24,12 @@ use crate::dp::DpSlave;
 use crate::dpv1::c1;
 use crate::dpv1::c2::{self, ConnectionState};
 use crate::dpv1::pdu::Function;
-use crate::drive::params::{DriveTable, SIM_DRIVE_TABLE};
 use crate::fast::{CoreLink, FastPath, Shared, Verdict, C2_CONNECTIONS};
 use crate::fdl::telegram::{self, Decoded, FunctionCode, Header, Telegram};
 use crate::node::Node;
 use crate::phy::stream::TelegramSink;
 use crate::profile::records::CardRecords;
+use crate::testkit::FakeDrive;
 use crate::testkit::{ScriptedMaster, SetPrm};
 use crate::time::Instant;
 
@@ -112,7 +112,7 @@ struct Duo<'s> {
     cb: CoreLink<'s>,
     nb: Node,
     records: [CardRecords; 2],
-    params: [DriveTable; 2],
+    params: [FakeDrive; 2],
     m: ScriptedMaster,
     /// Now (µs).
     t: u64,
@@ -492,7 +492,7 @@ fn lean_case(
         cb,
         nb,
         records: [CardRecords::new(&card::RECORDS), CardRecords::new(&card::RECORDS)],
-        params: [SIM_DRIVE_TABLE, SIM_DRIVE_TABLE],
+        params: [FakeDrive::new(), FakeDrive::new()],
         m: ScriptedMaster::new(M1, ME),
         t: 100,
         cuts: if cuts.is_empty() { std::vec![3] } else { cuts.to_vec() },

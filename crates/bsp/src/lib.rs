@@ -52,9 +52,9 @@ pub use qemu as board;
 use pbcard::time::Instant;
 
 /// What runs behind the node: the bench with the simulated drive (QEMU, and the F411 with
-/// `sim-drive`: [`pbcard::app::Application`]).
+/// `sim-drive`: [`pbcard_sim::bench::Application`]).
 #[cfg(any(feature = "qemu", feature = "sim-drive"))]
-pub type CardApp = pbcard::app::Application;
+pub type CardApp = pbcard_sim::bench::Application;
 /// What runs behind the node: the card alone (the F411 with a drive: [`pbcard::app::Card`];
 /// no simulated drive is linked).
 #[cfg(not(any(feature = "qemu", feature = "sim-drive")))]

@@ -738,7 +738,7 @@ impl Supervisor {
 }
 
 /// No fault path to register with: a panic ends QEMU.
-pub fn register_application(_app: &mut pbcard::app::Application) {}
+pub fn register_application(_app: &mut pbcard_sim::bench::Application) {}
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Tx {

@@ -6,7 +6,7 @@
 //! firmware's own log (defmt over semihosting, decoded by defmt-print) is interleaved, marked
 //! `firmware |`.
 //!
-//! The drive is the firmware's simulated drive behind the DPM (`pbcard::app::Application`,
+//! The drive is the firmware's simulated drive behind the DPM (`pbcard_sim::bench::Application`,
 //! PROFIdrive state machine, 2 s ramp per 100 %). Every input image is checked
 //! ([`DriveSession`]: state bits, PKW, PZD echo), each ramp must be monotonic and reach its
 //! setpoint; the exit code says whether all was well.

@@ -26,7 +26,7 @@ use crate::node::{DataRecords, Node};
 use crate::time::Instant;
 
 /// The application a card's main loop steps (implemented above this layer: the shipped card
-/// `app::Card`, the bench `app::Application`, a product's own drive interface).
+/// `app::Card`, the bench `pbcard_sim::bench::Application`, a product's own drive interface).
 pub trait CardApp {
     /// The DP-V1 data records the application serves behind I&M, for one
     /// [`Node::process_acyclic`] ([`crate::dpv1::records::NoRecords`] for none).

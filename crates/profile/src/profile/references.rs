@@ -20,7 +20,7 @@
 //! apply; the profile keeps its state when the scale changes.
 //!
 //! **Mailbox sharing:** the reads go through the DPM parameter mailbox, one request at a
-//! time, in the answer cache of record 47 (`app::Application`): neither takes the other's
+//! time, in the answer cache of record 47 (`app::Card`): neither takes the other's
 //! answers. A read still unanswered after [`RETRY_AFTER`] is waited for again; after
 //! [`TRIES`] such periods the defaults stay (counted in [`ReferenceStats::gave_up`]).
 

@@ -8,7 +8,7 @@
 //! DpSlave inputs  ◀─ Runtime::cycle ◀─ DriveStateImage   (DPM DRIVE_STATE) ◀─ drive
 //! ```
 //!
-//! Sans-IO and platform-neutral: `pbcard::app::Application` calls it every housekeeping
+//! Sans-IO and platform-neutral: `pbcard::app::Card` calls it every housekeeping
 //! step; the PKW jobs are served from the DP-V1 task ([`Runtime::service_pkw`]).
 //!
 //! The operate mode comes from the master (Set_Prm user parameter
@@ -335,7 +335,7 @@ impl Runtime {
     }
 
     /// The I/O update delay after going online (CFW-11 P0799-style, module docs): the drive's
-    /// DPM `CONFIG.IO_UPDATE_DELAY` (0.1 s units), set by `app::Application` on every cycle;
+    /// DPM `CONFIG.IO_UPDATE_DELAY` (0.1 s units), set by `app::Card` on every cycle;
     /// default 0 = the master's outputs are taken at once. Takes effect at the next
     /// offline → online transition.
     pub fn set_io_update_delay(&mut self, delay: Duration) {
@@ -346,7 +346,7 @@ impl Runtime {
         self.delay.delay
     }
     /// The drive's communication-loss delay (DPM `CONFIG.COMM_LOSS_DELAY_MS`, set by
-    /// `app::Application` on every cycle; 0 = none): a loss (watchdog, master gone, Clear)
+    /// `app::Card` on every cycle; 0 = none): a loss (watchdog, master gone, Clear)
     /// shorter than this is bridged — the drive keeps the profile's command of the last output
     /// image, without [`CommandFlags`](super::drive_if::CommandFlags)`::COMM_LOSS`, and the
     /// I/O update delay does not restart; once it lasts longer, the loss command follows.
@@ -358,7 +358,7 @@ impl Runtime {
     /// Whether the master is in Clear (its outputs are zero, reference §3.6): a lost cycle
     /// then runs the profile's [`ControlProfile::clear`] (VACON PROFIdrive: b10 = 0 in
     /// operation → FAULT, OPTE3/E5 §6.3.3) instead of [`ControlProfile::comm_lost`].
-    /// `app::Application` sets it from the DP slave's Clear state on every cycle.
+    /// `app::Card` sets it from the DP slave's Clear state on every cycle.
     pub fn set_clear_mode(&mut self, clear: bool) {
         self.clear = clear;
     }

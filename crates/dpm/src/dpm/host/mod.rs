@@ -3,7 +3,7 @@
 //! allocation, time handed in: port it by implementing [`Transport`] for the board's link to
 //! the card (the SPI frames of [`crate::dpm::spi`], a dual-port RAM) and calling [`Host`] from the
 //! drive's cycle. The simulated drive of the QEMU build, the soft slave and the host tests
-//! (`pbcard::app::Application`) runs through it. The `dpm-host` crate re-exports it with `std`
+//! (`pbcard_sim::bench::Application`) runs through it. The `dpm-host` crate re-exports it with `std`
 //! extras (a shared in-process image).
 //!
 //! * [`Host::open`] — check magic, layout version, image size, capabilities.

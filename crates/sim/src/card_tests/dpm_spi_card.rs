@@ -2,7 +2,7 @@
 //! CONFIG), `CARD.BOOT_ID` and the host's restart handling, the fail-safe command reaching
 //! the drive over the SPI frames.
 
-use crate::app::Application;
+use crate::bench::Application;
 use crate::card;
 use crate::dp::diag::{Status1, Status2};
 use crate::dp::{DpSlave, DpState, Events};

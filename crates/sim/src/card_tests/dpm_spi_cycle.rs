@@ -3,7 +3,7 @@
 //! the scripted master) and a drive running the reference host's [`Host::cycle`] over the
 //! real frames (`SpiHost` → `Loopback` with the board's reply pipeline). The benchmark
 //! `cyclic_exchange_figures` prints transactions, bytes and setpoint latency per drive cycle
-//! (`cargo test --lib --target x86_64-unknown-linux-gnu cyclic_exchange_figures -- --nocapture`).
+//! (`cargo test -p pbcard-sim --lib --target x86_64-unknown-linux-gnu cyclic_exchange_figures -- --nocapture`).
 
 use crate::card::{self, Module};
 use crate::dp::DpSlave;

@@ -4,7 +4,7 @@
 //! Each test names the manual table it follows and, where the manuals contradict themselves,
 //! the reading we chose.
 
-use crate::app::tests::{words, Bench};
+use crate::bench::tests::{words, Bench};
 use crate::card;
 use crate::dp::DpState;
 use crate::dpm::HostConfig;
