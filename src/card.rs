@@ -267,7 +267,11 @@ pub const DRIVE_MODULE_SLOT: u8 = 1;
 pub const RECORD_SLOTS: [u8; 2] = [0, DRIVE_MODULE_SLOT];
 /// The DPM IDENT block of this card (`dpm::Identity`: card type, firmware version, the GSD
 /// [`IDENT_NUMBER`]; the serial number from the platform).
-pub const IDENTITY: crate::dpm::Identity = crate::dpm::Identity::of_product(IDENT_NUMBER);
+pub const IDENTITY: crate::dpm::Identity = crate::dpm::Identity::of_product(IDENT_NUMBER).with_firmware(
+    env!("CARGO_PKG_VERSION_MAJOR"),
+    env!("CARGO_PKG_VERSION_MINOR"),
+    env!("CARGO_PKG_VERSION_PATCH"),
+);
 // The DPM carries every module's cyclic images whole (the benchmark build's 244-byte module does
 // not: its data is cut to `dpm::layout::PD_CAPACITY`, `ProcessData::new`, see `BENCH_244`), and
 // the drive's extended diagnosis fits the slave's.

@@ -1,8 +1,22 @@
-//! Every GSD module of this card has a DPM telegram of its size (moved from `pbcard_dpm`'s
-//! tests: it needs `card::MODULES`).
+//! The DPM with this card's configuration (moved from `pbcard_dpm`'s tests: they need
+//! `card::MODULES` and `card::IDENTITY`): every GSD module has a DPM telegram of its size, and
+//! the image's IDENT block carries the card's ident number and this crate's version.
 
+#[cfg_attr(feature = "bench", allow(unused_imports))]
 use crate::card;
+#[cfg_attr(feature = "bench", allow(unused_imports))]
 use crate::dpm::Telegram;
+use crate::dpm::{Dpm, CARD_TYPE};
+
+#[test]
+fn the_card_identity_names_its_ident_number_and_version() {
+    let id = Dpm::with_identity(&card::IDENTITY).identity();
+    assert_eq!((id.card_type, id.ident_number, id.serial), (CARD_TYPE, card::IDENT_NUMBER, 0));
+    let v = |s: &str| s.parse::<u8>().unwrap();
+    let version =
+        [v(env!("CARGO_PKG_VERSION_MAJOR")), v(env!("CARGO_PKG_VERSION_MINOR")), v(env!("CARGO_PKG_VERSION_PATCH"))];
+    assert_eq!(id.firmware, version, "pbcard's Cargo.toml version");
+}
 
 #[cfg(not(feature = "bench"))] // the bench-only modules are no GSD telegram
 #[test]

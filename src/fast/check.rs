@@ -35,7 +35,7 @@
 //! Read / Write / Data_Transport / Alarm_Ack / raw PDUs and polls (right and wrong SSAP, any
 //! master), MSAC_C2 RM Initiate.req (good, malformed, no SSAP) followed by the Initiate.req on
 //! the granted SAP, requests / Idle / Abort / polls on the connection SAPs, a second master,
-//! and runs of `Node::process_acyclic` over the simulated drive's parameters.
+//! and runs of `Node::process_acyclic` over the tests' fake drive table (`testkit::FakeDrive`).
 
 use heapless::Vec;
 

@@ -1,6 +1,8 @@
 //! The one fake drive parameter table of the tests (issue 13 item 5): the fuzz targets
 //! `profidrive` and `node_dpv1`, the DP-V1 record tests (`host-tests/tests/dpv1.rs`), the DPM
-//! mailbox tests (`dpm::tests_v2`, `dpm-host/tests/mailbox.rs`) read and write it through
+//! mailbox tests (`src/dpm_tests/v2_card.rs`, `dpm-host/tests/mailbox.rs`), the fast path's
+//! differential check (`fast::check`) and the lean DP-V1 tests (`link_tests::fast_lean`) read
+//! and write it through
 //! [`ParameterAccess`]. Every PNU exercises one rule of the PROFIdrive parameter access
 //! (reference §5.2: formats, arrays, limits, read-only, descriptions, texts):
 //!

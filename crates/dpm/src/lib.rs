@@ -6,8 +6,9 @@
 //!
 //! It depends on `pbcard-profile`, `pbcard-link`, `pbcard-dp` and `pbcard-fdl` only, so Cargo
 //! keeps it free of the card and the simulated drive (`pbcard`, which re-exports [`dpm`] under
-//! the same name). Its tests that need the card's configuration, the scripted master or the
-//! simulated drive are in `pbcard` (`src/dpm_tests/`). `no_std`, no `unsafe`, no allocation.
+//! the same name). Its tests that need the card's configuration or the scripted master are in
+//! `pbcard` (`src/dpm_tests/`), those with the simulated drive in `pbcard-sim`
+//! (`crates/sim/src/card_tests/`). `no_std`, no `unsafe`, no allocation.
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]

@@ -6,8 +6,9 @@
 //!
 //! It depends on `pbcard-link`, `pbcard-dp` and `pbcard-fdl` only, so Cargo keeps it free of
 //! the DPM, the card and the simulated drive (`pbcard`, which re-exports [`profile`] under the
-//! same name). Its tests that need the card's configuration or the simulated drive are in
-//! `pbcard` (`src/profile_tests/`). `no_std`, no `unsafe`, no allocation.
+//! same name). Its tests that need the card's configuration are in `pbcard`
+//! (`src/profile_tests/`), those through the card and the simulated drive in `pbcard-sim`
+//! (`crates/sim/src/card_tests/profile.rs`). `no_std`, no `unsafe`, no allocation.
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]

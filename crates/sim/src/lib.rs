@@ -8,7 +8,7 @@
 //! board crate's QEMU / `sim-drive` builds, so Cargo keeps the simulation out of the card. The
 //! tests of the card that need the simulated drive — the card's conformance and Clear / Sync
 //! suites, the profile defects replayed through the card, the DPM over the SPI loopback with
-//! the drive, the fast path's differential check with the drive's parameter table — are here.
+//! the card rig and the drive — are here (`card_tests`, `bench::tests`).
 //! `no_std`, no `unsafe`, no allocation.
 #![cfg_attr(not(test), no_std)]
 #![forbid(unsafe_code)]

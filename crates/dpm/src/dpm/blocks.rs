@@ -43,10 +43,10 @@ pub struct Identity {
 }
 
 impl Identity {
-    /// This card with this crate's version and no serial number (the platform sets it).
-    /// A card of this firmware (its [`CARD_TYPE`] and this crate's version) for the PROFIBUS
-    /// ident number `ident_number` (the product's GSD `Ident_Number`; this card:
-    /// `card::IDENTITY`), no serial number (the platform sets it).
+    /// A card of this image (its [`CARD_TYPE`], this crate's version — a product states its
+    /// own firmware's with [`with_firmware`](Self::with_firmware)) for the PROFIBUS ident
+    /// number `ident_number` (the product's GSD `Ident_Number`; this card: `card::IDENTITY`),
+    /// no serial number (the platform sets it).
     pub const fn of_product(ident_number: u16) -> Identity {
         Identity {
             card_type: CARD_TYPE,
@@ -58,6 +58,13 @@ impl Identity {
             ident_number,
             serial: 0,
         }
+    }
+
+    /// The same identity with the firmware version `major.minor.patch` (decimal strings, as
+    /// Cargo's `CARGO_PKG_VERSION_*` of the product's crate; each part saturates at 255).
+    pub const fn with_firmware(mut self, major: &str, minor: &str, patch: &str) -> Identity {
+        self.firmware = [parse_u8(major), parse_u8(minor), parse_u8(patch)];
+        self
     }
 
     pub(super) fn encode(&self, b: &mut [u8]) {

@@ -8,7 +8,7 @@
 //! [`Dpm`] is a plain byte array. The card side ([`CardSide`], via [`Dpm::card`]) writes the
 //! status and the master's outputs and reads the drive's inputs; the host side
 //! ([`HostSide`], via [`Dpm::host`]) is what the drive's control board does with the same
-//! bytes (the simulated drive in `pbcard::drive` uses it; a transport such as SPI moves
+//! bytes (the simulated drive in `pbcard_sim::drive` uses it; a transport such as SPI moves
 //! [`Dpm::as_bytes`] ranges). [`Link`] moves data between a [`Node`](crate::node::Node)
 //! and the image.
 //!

@@ -39,7 +39,7 @@
 //! P15.02–P15.23 is the drive's (Table 2-6 "settings on the HD2 series inverter side"): the
 //! card always scales PZD2 as a set frequency and passes PZD3..PZD12 raw; the drive decides
 //! which word is its frequency (P15.02 = 0 "invalid": not PZD2) and fills PZD3..PZD12 of the
-//! response (the simulated drive: `pbcard::drive`, "INVT").
+//! response (the simulated drive: `pbcard_sim::drive`, "INVT").
 
 use super::drive_if::{CommandFlags, ControlProfile, DriveCommand, DriveStatus, StatusFlags};
 use super::profidrive::SpeedScale;

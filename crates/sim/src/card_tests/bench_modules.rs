@@ -1,5 +1,5 @@
 //! The benchmark modules through the whole card (DP slave, node, DPM, simulated drive):
-//! `cargo test -p pbcard-sim --lib --features bench card_tests::bench_modules` (the other tests assume the GSD's modules).
+//! `cargo test -p pbcard-sim --lib --features bench --target x86_64-unknown-linux-gnu card_tests::bench_modules` (the other tests assume the GSD's modules).
 
 use crate::bench::Application;
 use crate::card::*;

@@ -1,5 +1,5 @@
 //! Issue 15: each product's PLC program runs unchanged — the profile defects, each replayed
-//! through the shipped card (`Node` + `app::Application` with the simulated drive behind the
+//! through the shipped card (`Node` + `bench::Application` with the simulated drive behind the
 //! DPM): bytes or a control-word sequence in, the status word / values / drive command out.
 //! Each test names the manual table it follows and, where the manuals contradict themselves,
 //! the reading we chose.

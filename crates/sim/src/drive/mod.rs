@@ -14,7 +14,7 @@
 //! previous command, a cycle late). It reports faults and warnings in the DRIVE block (with
 //! the GSD's device-related diagnosis block), keeps its heartbeat going, and serves the
 //! parameter mailbox from its parameter table ([`params`]) — with block accesses
-//! (`Options::cyclic_mailbox` off in `app::Application`: a job within one card step, as the
+//! (`Options::cyclic_mailbox` off in `bench::Application`: a job within one card step, as the
 //! card's parameter tests count; a drive maker's host carries it in the CYCLIC fragments).
 //!
 //! **Communication errors (WEG CFW500 §4 P0313 and §6, CFW-11 §3 P0313 and §5):** the drive
