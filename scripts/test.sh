@@ -45,6 +45,9 @@ DEFMT_LOG=info cargo clippy --bins --no-default-features --features bench-dma --
 
 echo "== unit tests beside the code (protocol library on the host: pbcard and the crates of its stack, pbcard-sim, pbcard-dpm, pbcard-profile, pbcard-link, pbcard-dp and pbcard-fdl)"
 cargo test -p pbcard -p pbcard-sim -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib --target "$HOST"
+echo "== the card's unit tests in the QEMU benchmark build (feature bench: the bench-only modules Bench 32/32, 244/244 beside the GSD's)"
+cargo test -p pbcard -p pbcard-sim --lib --features pbcard-sim/bench --target "$HOST"
+cargo clippy -p pbcard -p pbcard-sim --lib --tests --features pbcard-sim/bench --target "$HOST" -- -D warnings
 
 echo "== host-tests: profirust master on a simulated bus, GSD cross-check, scripted services,"
 echo "   and end to end: the firmware in QEMU brought to data exchange by profirust over a socket"

@@ -51,6 +51,9 @@ fn no_module_is_another_or_a_concatenation() {
     }
 }
 
+// The bench build's 244-byte module with any other is refused for its length first (a
+// different error), so these two hold for the GSD's modules.
+#[cfg(not(feature = "bench"))]
 #[test]
 fn one_drive_module_only() {
     let st1 = card::MODULES[0];
@@ -90,6 +93,7 @@ proptest::proptest! {
         }
     }
 
+    #[cfg(not(feature = "bench"))]
     #[test]
     fn accepted_bytes_are_exactly_one_module(i in 0..card::MODULES.len(), j in 0..card::MODULES.len()) {
         let m = &card::MODULES[i];

@@ -221,7 +221,8 @@ fn next_action(src: &mut Src<'_>, rig: &mut Rig, alone: &Node) -> Action {
                 _ => usize::from(src.u8()) % 40,
             };
             let pdu = src.bytes(n);
-            let mut out = [0u8; 64];
+            // Room for the largest module's outputs (244 bytes in the bench build).
+            let mut out = [0u8; 256];
             out[..pdu.len()].copy_from_slice(pdu);
             rig.request(da, m, None, None, &out[..n], srd)
         }

@@ -7,6 +7,7 @@ use crate::dp::{DpSlave, DpState};
 use crate::dpm::{CommState, PdFlags, ProcessData, Telegram};
 use crate::fdl::telegram::{self, FunctionCode, Header};
 use crate::profile::drive_if::CommandFlags;
+#[cfg_attr(feature = "bench", allow(unused_imports))] // the trait of a test the bench build leaves out
 use crate::profile::drive_if::ControlProfile;
 use crate::profile::profidrive::{State as DriveState, StopKind};
 use crate::profile::records::CardRecords;

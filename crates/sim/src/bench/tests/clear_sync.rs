@@ -102,7 +102,7 @@ impl Model {
 }
 
 fn image_of(seed: u8, n: usize) -> Vec<u8> {
-    (0..n).map(|i| seed.wrapping_mul(31).wrapping_add(i as u8 * 7).wrapping_add(1)).collect()
+    (0..n).map(|i| seed.wrapping_mul(31).wrapping_add((i as u8).wrapping_mul(7)).wrapping_add(1)).collect()
 }
 
 impl Bench {
@@ -137,9 +137,14 @@ impl Bench {
 }
 
 /// The modules of every control profile family with Sync support (the GSD's ST1, ST20,
-/// PPO 1 … 5, the vendor telegrams).
+/// PPO 1 … 5, the vendor telegrams; in the bench build also Bench 32/32). The bench build's
+/// 244-byte module is left out: the DPM carries only its first `PD_CAPACITY` bytes
+/// (`card::BENCH_244`), so the drive never sees the whole image the model compares.
 fn modules() -> Vec<&'static card::Module> {
-    card::MODULES.iter().filter(|m| m.outputs >= 4).collect()
+    card::MODULES
+        .iter()
+        .filter(|m| m.outputs >= 4 && usize::from(m.outputs) <= crate::dpm::layout::PD_CAPACITY)
+        .collect()
 }
 
 fn run(module: usize, ops: &[Op]) -> Result<(), TestCaseError> {
