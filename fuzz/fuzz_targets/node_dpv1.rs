@@ -180,7 +180,11 @@ impl Bus {
             }
         }
 
-        if let Some(t) = req.filter(|t| t.da == own && t.fc.is_request()) {
+        // A frame the station refuses before its retry memory — a reserved FC (bit 7) or an
+        // impossible source (SA 127 or our own address) — neither is a retry nor replaces the
+        // last answer an FCB retry repeats (`fdl::station`'s table).
+        let refused = |t: &telegram::DataTelegram<'_>| t.fc.0 & 0x80 != 0 || t.sa == telegram::BROADCAST || t.sa == own;
+        if let Some(t) = req.filter(|t| t.da == own && t.fc.is_request() && !refused(t)) {
             let f = t.fc.function();
             if is_retry {
                 let prev = self.last_answer.clone().expect("a retry without a previous answer");
