@@ -65,6 +65,23 @@ impl Bench {
         resp.expect("no response")
     }
 
+    /// An SDN Global_Control (SAP 58) with `command` and `group` select, fed byte by byte (no
+    /// answer).
+    pub(crate) fn gc(&mut self, command: u8, group: u8) {
+        let hdr = Header {
+            da: SLAVE,
+            sa: MASTER,
+            fc: FunctionCode::request(0x6, false, false),
+            dsap: Some(58),
+            ssap: Some(62),
+        };
+        let mut buf = [0u8; telegram::MAX_FRAME_LEN];
+        let n = telegram::emit(&mut buf, &hdr, &[command, group]).unwrap();
+        for &x in &buf[..n] {
+            assert!(self.node.on_byte(self.now, x).is_none(), "SDN: no answer");
+        }
+    }
+
     pub(crate) fn step(&mut self, ms: u64) -> Events {
         self.now = self.now + Duration::from_millis(ms);
         self.app.step(self.now, &mut self.node)
@@ -974,18 +991,7 @@ mod process_data_semantics {
 
         /// Global_Control `command` to group 0 (SDN to SAP 58), then a step.
         fn global_control(&mut self, command: u8) {
-            let hdr = Header {
-                da: SLAVE,
-                sa: MASTER,
-                fc: FunctionCode::request(0x6, false, false),
-                dsap: Some(58),
-                ssap: Some(62),
-            };
-            let mut buf = [0u8; telegram::MAX_FRAME_LEN];
-            let n = telegram::emit(&mut buf, &hdr, &[command, 0x00]).unwrap();
-            for &x in &buf[..n] {
-                assert!(self.node.on_byte(self.now, x).is_none(), "SDN: no answer");
-            }
+            self.gc(command, 0x00);
             self.step(1);
         }
 

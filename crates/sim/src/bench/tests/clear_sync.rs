@@ -106,22 +106,6 @@ fn image_of(seed: u8, n: usize) -> Vec<u8> {
 }
 
 impl Bench {
-    /// An SDN Global_Control (SAP 58) with `command` and `group` select.
-    fn gc(&mut self, command: u8, group: u8) {
-        let hdr = Header {
-            da: SLAVE,
-            sa: MASTER,
-            fc: FunctionCode::request(0x6, false, false),
-            dsap: Some(58),
-            ssap: Some(62),
-        };
-        let mut buf = [0u8; telegram::MAX_FRAME_LEN];
-        let n = telegram::emit(&mut buf, &hdr, &[command, group]).unwrap();
-        for &x in &buf[..n] {
-            assert!(self.node.on_byte(self.now, x).is_none(), "SDN: no answer");
-        }
-    }
-
     /// A Data_Exchange from `sa`; the response bytes.
     fn dx_from(&mut self, sa: u8, outputs: &[u8]) -> Vec<u8> {
         self.send_from(sa, None, None, outputs)
