@@ -18,8 +18,11 @@
 
 pub mod dp;
 pub mod dpv1;
-#[cfg(test)]
-mod test_card;
+/// The stand-in product of this crate's tests, for the tests of the crates above that need its
+/// values but not the card (feature `test-support`).
+#[cfg(any(test, feature = "test-support"))]
+#[doc(hidden)]
+pub mod test_card;
 
 // The layer below, under the paths the modules have always used (`crate::fdl::…`,
 // `crate::time::…`); not re-exported (`pbcard` exports `pbcard_fdl` itself).

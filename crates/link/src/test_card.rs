@@ -6,14 +6,14 @@
 use heapless::Vec;
 
 use crate::dp::{AcceptAll, DpSlave, Module, SlaveConfig};
-use crate::dpv1::im::{ImDevice, PROFILE_ID_PROFIDRIVE};
+use crate::dpv1::im::ImDevice;
 use crate::fdl::telegram::{self, Header, MAX_FRAME_LEN};
 use crate::node::Node;
 
 /// A DP-V1 slave with one 4-byte module (`pbcard::card`'s ident number, so the FDL and DP
 /// answers look like the card's).
 pub static SLAVE: SlaveConfig = SlaveConfig {
-    ident_number: 0x0F11,
+    ident_number: pbcard_dp::test_card::IDENT_NUMBER,
     default_address: 126,
     modules: &[Module { name: "4 bytes in/out", reference: 1, cfg: &[0xF1], inputs: 4, outputs: 4 }],
     user_prm_len: 3,
@@ -38,16 +38,10 @@ pub fn frame(hdr: &Header, pdu: &[u8]) -> Vec<u8, MAX_FRAME_LEN> {
     f
 }
 
-/// The I&M0 values of the stand-in (`pbcard::card::IM`'s).
-pub static IM: ImDevice = ImDevice {
-    manufacturer_id: 0,
-    order_id: "ODC-PB1",
-    hardware_revision: 1,
-    software_revision: [b'V', 0, 1, 0],
-    profile_id: PROFILE_ID_PROFIDRIVE,
-};
+/// The I&M0 values of the stand-in (`pbcard::card::IM`'s): the DP layers' stand-in.
+pub static IM: ImDevice = pbcard_dp::test_card::IM;
 
 /// A node of the stand-in over `slave` (as `pbcard::card::node`).
 pub fn node(slave: DpSlave) -> Node {
-    Node::with_device(slave, &IM, 0x3A00)
+    Node::with_device(slave, &IM, pbcard_dp::test_card::PROFILE_IDENT_NUMBER)
 }
