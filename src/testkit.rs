@@ -10,7 +10,9 @@
 
 use heapless::Vec;
 
+mod card_rig;
 mod fake_drive;
+pub use card_rig::{CardRig, NodeOnly, NodeRig};
 pub use fake_drive::{FakeDrive, LAST_PNU, PNUS};
 
 use crate::card;
@@ -318,49 +320,6 @@ pub trait Rig {
     }
 }
 
-/// A [`Node`] fed byte by byte with the time advanced by `step` before every request: the
-/// simplest [`Rig`].
-#[derive(Debug)]
-pub struct NodeRig {
-    /// The card's protocol stack.
-    pub node: Node,
-    /// The master's script.
-    pub master: ScriptedMaster,
-    /// The time of the last request.
-    pub now: Instant,
-    /// Added to `now` before every request.
-    pub step: crate::time::Duration,
-}
-
-impl NodeRig {
-    /// A node at `slave`, a master at `master`, time 0, 500 µs between requests.
-    pub fn new(master: u8, slave: u8) -> Self {
-        NodeRig {
-            node: crate::card::node(crate::dp::DpSlave::new(&crate::card::SLAVE, slave)),
-            master: ScriptedMaster::new(master, slave),
-            now: Instant::from_millis(0),
-            step: crate::time::Duration::from_micros(500),
-        }
-    }
-}
-
-impl Rig for NodeRig {
-    fn master(&mut self) -> &mut ScriptedMaster {
-        &mut self.master
-    }
-    fn deliver(&mut self, frame: &[u8]) -> Option<Frame> {
-        self.now = self.now + self.step;
-        self.node.poll(self.now);
-        feed(&mut self.node, self.now, frame)
-    }
-    fn dp_state(&self) -> DpState {
-        self.node.slave().state()
-    }
-    fn input_len(&self) -> usize {
-        self.node.slave().input_len()
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -418,7 +377,7 @@ mod tests {
 
     #[test]
     fn a_node_rig_reaches_data_exchange() {
-        let mut r = NodeRig::new(2, 5);
+        let mut r = NodeRig::node_only(2, 5);
         r.bring_up(&SetPrm::CARD, card::MODULES[0].cfg);
         assert_eq!(r.data_exchange(&[0, 0, 0, 0]).len(), r.input_len());
     }

@@ -19,11 +19,11 @@ const MASTER: u8 = 2;
 const SLAVE: u8 = 5;
 
 /// The card alone under the scripted master: [`CardRig`] with `step` = one 1 ms step.
-struct Card(CardRig);
+struct Card(CardRig<Application>);
 
 impl Card {
     fn card_only() -> Self {
-        Card(CardRig::card_only(MASTER, SLAVE))
+        Card(CardRig::new(Application::card_only(), MASTER, SLAVE))
     }
 
     fn step(&mut self) {
@@ -36,14 +36,14 @@ impl Card {
 }
 
 impl core::ops::Deref for Card {
-    type Target = CardRig;
-    fn deref(&self) -> &CardRig {
+    type Target = CardRig<Application>;
+    fn deref(&self) -> &CardRig<Application> {
         &self.0
     }
 }
 
 impl core::ops::DerefMut for Card {
-    fn deref_mut(&mut self) -> &mut CardRig {
+    fn deref_mut(&mut self) -> &mut CardRig<Application> {
         &mut self.0
     }
 }

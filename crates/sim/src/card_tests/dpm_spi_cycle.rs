@@ -5,6 +5,7 @@
 //! `cyclic_exchange_figures` prints transactions, bytes and setpoint latency per drive cycle
 //! (`cargo test -p pbcard-sim --lib --target x86_64-unknown-linux-gnu cyclic_exchange_figures -- --nocapture`).
 
+use crate::bench::Application;
 use crate::card::{self, Module};
 use crate::dp::DpSlave;
 use crate::dpm::host::Cycle;
@@ -27,8 +28,8 @@ fn module(reference: u16) -> &'static Module {
 }
 
 /// The card in data exchange with `m`, the drive's CONFIG written (start-up gate).
-fn rig(m: &Module) -> CardRig {
-    let mut r = CardRig::card_only(MASTER, SLAVE);
+fn rig(m: &Module) -> CardRig<Application> {
+    let mut r = CardRig::new(Application::card_only(), MASTER, SLAVE);
     r.settle();
     r.app.host_mut().write_config(&HostConfig::DEFAULT).unwrap();
     r.settle();
@@ -88,9 +89,14 @@ struct Figures {
 /// The drive's parameter PNU 100 (a word), served through the mailbox.
 const PNU: u16 = 100;
 
-impl CardRig {
+/// The MSAC_C1 exchange of these tests on the card rig.
+trait C1 {
     /// One MSAC_C1 request to the card and the DP-V1 task over the mailbox-backed
     /// parameters; the response PDU of the poll that follows.
+    fn c1(&mut self, pdu: &[u8]) -> Vec<u8>;
+}
+
+impl C1 for CardRig<Application> {
     fn c1(&mut self, pdu: &[u8]) -> Vec<u8> {
         let f = self.master.request(MASTER, Some(51), Some(51), pdu, true);
         assert_eq!(feed(&mut self.node, self.now, &f).as_deref(), Some(&[crate::fdl::telegram::SC][..]));
