@@ -40,14 +40,14 @@ fn configuration_pending_in_data_exchange_and_taken_over_after(via) {
         let p = host.poll(card.now);
         assert!(p.report.unwrap().flags.contains(CardFlags::CONFIG_PENDING));
     }
-    assert_eq!(card.link.config(), None, "not taken over while in data exchange");
+    assert_eq!(card.app.link.config(), None, "not taken over while in data exchange");
     // The master stops: the DP watchdog expires, data exchange ends, the card takes it.
     let ev = card.cycle(2000);
     assert!(ev.contains(Events::WATCHDOG_EXPIRED));
     assert_ne!(card.node.slave().state(), DpState::DataExch);
     card.cycle(1);
     assert_eq!(host.config_outcome(), Ok(ConfigOutcome::Accepted));
-    assert_eq!(card.link.take_config(), Some(cfg));
+    assert_eq!(card.app.link.take_config(), Some(cfg));
     let p = host.poll(card.now);
     assert!(!p.report.unwrap().flags.contains(CardFlags::CONFIG_PENDING));
     assert!(p.events.contains(CardEvent::Watchdog) && p.events.contains(CardEvent::Offline));
@@ -58,7 +58,7 @@ fn configuration_pending_in_data_exchange_and_taken_over_after(via) {
     card.cycle(1);
     card.cycle(1);
     assert_eq!(host.config_outcome(), Ok(ConfigOutcome::Refused));
-    assert_eq!(card.link.config(), Some(&cfg));
+    assert_eq!(card.app.link.config(), Some(&cfg));
 }
 }
 
@@ -71,7 +71,7 @@ fn configuration_outside_data_exchange_is_taken_at_once(via) {
     card.cycle(1);
     card.cycle(1);
     assert_eq!(host.config_outcome(), Ok(ConfigOutcome::Accepted));
-    assert_eq!(card.link.take_config(), Some(cfg));
+    assert_eq!(card.app.link.take_config(), Some(cfg));
 }
 }
 
@@ -97,7 +97,7 @@ fn process_data_through_the_link_reaches_the_master(via) {
     host.write_inputs(&ProcessData::new(Telegram::Ppo(1), PdFlags::empty(), &[0; 12])).unwrap();
     card.cycle(1);
     assert_eq!(card.data_exchange(&[0x04, 0x7F, 0x20, 0x00]), [0x02, 0x37, 0x1F, 0xF0]);
-    assert_eq!(card.link.stats().stale_telegram, 1);
+    assert_eq!(card.app.link.stats().stale_telegram, 1);
 }
 }
 

@@ -18,7 +18,7 @@ use pbcard::dpm::CardEvent;
 over_both! {
 fn drive_heartbeat_loss_is_seen_by_the_card_and_its_return_by_the_host(via) {
     let mut card = Card::via(via);
-    card.link.set_drive_timeout(Duration::from_millis(50));
+    card.app.link.set_drive_timeout(Duration::from_millis(50));
     card.bring_up();
     let mut host = Host::open(card.transport(), Options::DEFAULT).unwrap();
     let inputs = ProcessData::new(Telegram::Standard(1), PdFlags::empty(), &[0x02, 0x37, 0x00, 0x10]);
@@ -28,14 +28,14 @@ fn drive_heartbeat_loss_is_seen_by_the_card_and_its_return_by_the_host(via) {
         card.cycle(10);
     }
     assert_eq!(card.data_exchange(&[0x04, 0x7F, 0, 0]), [0x02, 0x37, 0x00, 0x10]);
-    assert!(!card.link.drive_lost());
+    assert!(!card.app.link.drive_lost());
     // The drive stops (no poll): after 50 ms the card counts it lost.
     for _ in 0..5 {
         card.cycle(10);
     }
-    assert!(!card.link.drive_lost(), "50 ms is not over yet");
+    assert!(!card.app.link.drive_lost(), "50 ms is not over yet");
     card.cycle(10);
-    assert!(card.link.drive_lost());
+    assert!(card.app.link.drive_lost());
     assert_eq!(card.data_exchange(&[0x04, 0x7F, 0, 0]), [0x00, 0x08, 0x00, 0x00], "ZSW1 fault to the master");
     assert!(card.node.slave().standard_diag().status2.contains(Status2::STAT_DIAG));
     card.cycle(1);
@@ -48,7 +48,7 @@ fn drive_heartbeat_loss_is_seen_by_the_card_and_its_return_by_the_host(via) {
     host.write_inputs(&inputs).unwrap();
     card.cycle(1);
     card.cycle(1);
-    assert!(!card.link.drive_lost());
+    assert!(!card.app.link.drive_lost());
     let p = host.poll(card.now);
     assert!(p.events.contains(CardEvent::DriveReturned));
     assert!(!p.report.unwrap().flags.contains(CardFlags::DRIVE_LOST));
@@ -109,7 +109,7 @@ impl Transport for Cuttable {
 over_both! {
 fn a_dead_link_is_a_lost_card_and_a_lost_drive(via) {
     let mut card = Card::via(via);
-    card.link.set_drive_timeout(Duration::from_millis(50));
+    card.app.link.set_drive_timeout(Duration::from_millis(50));
     let opts = Options { card_timeout: Duration::from_millis(50), ..Options::DEFAULT };
     let mut host = Host::open(Cuttable(card.transport(), false), opts).unwrap();
     for _ in 0..3 {
@@ -128,7 +128,7 @@ fn a_dead_link_is_a_lost_card_and_a_lost_drive(via) {
     }
     // Last change seen at 30 ms; lost when more than 50 ms passed: at 90 ms, the sixth poll.
     assert_eq!(lost_at, Some(5), "lost once, after the timeout");
-    assert!(card.link.drive_lost(), "and the card lost the drive");
+    assert!(card.app.link.drive_lost(), "and the card lost the drive");
     assert!(host.stats().transport_errors >= 20);
 }
 }

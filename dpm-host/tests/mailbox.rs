@@ -25,13 +25,13 @@ fn ask(
     t: &mut FakeDrive,
     req: MailboxRequest,
 ) -> Result<ParamValues, ParamError> {
-    let id = card.link.submit_parameter(card.now, &req, &mut card.dpm.borrow_mut()).unwrap();
+    let id = card.0.app.link.submit_parameter(card.0.now, &req, &mut card.0.app.dpm.borrow_mut()).unwrap();
     card.cycle(1);
-    assert_eq!(card.link.take_parameter_response(), None, "not answered yet");
+    assert_eq!(card.app.link.take_parameter_response(), None, "not answered yet");
     assert_eq!(host.serve_parameters(&mut Table(t)), Ok(Some(id)));
     assert_eq!(host.serve_parameters(&mut Table(t)), Ok(None), "each request once");
     card.cycle(1);
-    let (got, out) = card.link.take_parameter_response().unwrap();
+    let (got, out) = card.app.link.take_parameter_response().unwrap();
     assert_eq!(got, id);
     out
 }
@@ -65,48 +65,48 @@ fn reads_writes_and_the_drives_errors(via) {
     );
     // A closure as the server.
     let id =
-        card.link.submit_parameter(card.now, &MailboxRequest::read(1, 7, 0, 1), &mut card.dpm.borrow_mut()).unwrap();
+        card.0.app.link.submit_parameter(card.0.now, &MailboxRequest::read(1, 7, 0, 1), &mut card.0.app.dpm.borrow_mut()).unwrap();
     let mut f = |r: &MailboxRequest| {
         Answer::Now(ParamValues::new(Format::WORD, 1, &r.pnu.to_be_bytes()).ok_or(ErrorValue::NOT_EXECUTABLE.into()))
     };
     assert_eq!(host.serve_parameters(&mut f), Ok(Some(id)));
     card.cycle(1);
-    assert_eq!(card.link.take_parameter_response().map(|(i, v)| (i, words(&v.unwrap()))), Some((id, vec![7])));
+    assert_eq!(card.app.link.take_parameter_response().map(|(i, v)| (i, words(&v.unwrap()))), Some((id, vec![7])));
     let s = host.stats();
     assert_eq!((s.requests, s.responses, s.stale_responses), (7, 7, 0));
-    assert_eq!(card.link.mailbox().stats().late_responses, 0);
+    assert_eq!(card.app.link.mailbox().stats().late_responses, 0);
 }
 }
 
 over_both! {
 fn timeout_then_late_answer_is_refused_and_never_taken_for_the_next_request(via) {
     let mut card = Card::via(via);
-    card.link.set_mailbox_timeout(Duration::from_millis(100));
+    card.app.link.set_mailbox_timeout(Duration::from_millis(100));
     let mut host = Host::open(card.transport(), Options::DEFAULT).unwrap();
     let id1 =
-        card.link.submit_parameter(card.now, &MailboxRequest::read(1, 100, 0, 1), &mut card.dpm.borrow_mut()).unwrap();
+        card.0.app.link.submit_parameter(card.0.now, &MailboxRequest::read(1, 100, 0, 1), &mut card.0.app.dpm.borrow_mut()).unwrap();
     // The drive takes it but answers later.
     let mut slow = |_: &MailboxRequest| Answer::Later;
     assert_eq!(host.serve_parameters(&mut slow), Ok(Some(id1)));
     assert_eq!(host.open_request(), Some(id1));
     card.cycle(99);
-    assert_eq!(card.link.take_parameter_response(), None);
+    assert_eq!(card.app.link.take_parameter_response(), None);
     card.cycle(1);
-    assert_eq!(card.link.take_parameter_response(), Some((id1, Err(TIMEOUT_ERROR))), "0x11 / 0xDD01, never a hang");
+    assert_eq!(card.app.link.take_parameter_response(), Some((id1, Err(TIMEOUT_ERROR))), "0x11 / 0xDD01, never a hang");
     // The card asks the next thing; then the drive's late answer to the first arrives.
     let id2 =
-        card.link.submit_parameter(card.now, &MailboxRequest::read(1, 200, 0, 1), &mut card.dpm.borrow_mut()).unwrap();
+        card.0.app.link.submit_parameter(card.0.now, &MailboxRequest::read(1, 200, 0, 1), &mut card.0.app.dpm.borrow_mut()).unwrap();
     assert_ne!(id2, id1);
     let late = ParamValues::new(Format::WORD, 1, &[0, 42]).unwrap();
     assert_eq!(host.respond(id1, Ok(late)), Err(Error::StaleResponse { id: id1, current: id2 }));
     assert_eq!(host.open_request(), None);
     card.cycle(1);
-    assert_eq!(card.link.take_parameter_response(), None, "nothing taken for the second request");
+    assert_eq!(card.app.link.take_parameter_response(), None, "nothing taken for the second request");
     // The real answer to the second.
     let mut t = FakeDrive { p100: [0; 4], ..FakeDrive::new() };
     assert_eq!(host.serve_parameters(&mut Table(&mut t)), Ok(Some(id2)));
     card.cycle(1);
-    let (id, v) = card.link.take_parameter_response().unwrap();
+    let (id, v) = card.app.link.take_parameter_response().unwrap();
     assert_eq!((id, words(&v.unwrap())), (id2, vec![0xBEEF]));
     assert_eq!(host.stats().stale_responses, 1);
 }
@@ -115,18 +115,18 @@ fn timeout_then_late_answer_is_refused_and_never_taken_for_the_next_request(via)
 over_both! {
 fn a_late_answer_with_no_new_request_is_ignored_by_the_card(via) {
     let mut card = Card::via(via);
-    card.link.set_mailbox_timeout(Duration::from_millis(50));
+    card.app.link.set_mailbox_timeout(Duration::from_millis(50));
     let mut host = Host::open(card.transport(), Options::DEFAULT).unwrap();
     let id =
-        card.link.submit_parameter(card.now, &MailboxRequest::read(1, 100, 0, 1), &mut card.dpm.borrow_mut()).unwrap();
+        card.0.app.link.submit_parameter(card.0.now, &MailboxRequest::read(1, 100, 0, 1), &mut card.0.app.dpm.borrow_mut()).unwrap();
     assert_eq!(host.fetch_request().unwrap().map(|r| r.id), Some(id));
     card.cycle(60);
-    assert_eq!(card.link.take_parameter_response(), Some((id, Err(TIMEOUT_ERROR))));
+    assert_eq!(card.app.link.take_parameter_response(), Some((id, Err(TIMEOUT_ERROR))));
     // Still the card's current request in MBX_REQ: the host may write it; the card ignores it.
     host.respond(id, Ok(ParamValues::NONE)).unwrap();
     card.cycle(1);
-    assert_eq!(card.link.take_parameter_response(), None);
-    assert_eq!(card.link.mailbox().stats().late_responses, 1);
+    assert_eq!(card.app.link.take_parameter_response(), None);
+    assert_eq!(card.app.link.mailbox().stats().late_responses, 1);
     card.cycle(1);
     assert_eq!(host.poll(card.now).report.unwrap().late_responses, 1, "the host sees the card's counters");
 }
@@ -135,15 +135,15 @@ fn a_late_answer_with_no_new_request_is_ignored_by_the_card(via) {
 over_both! {
 fn requests_while_the_drive_is_lost_are_answered_by_the_card(via) {
     let mut card = Card::via(via);
-    card.link.set_drive_timeout(Duration::from_millis(30));
+    card.app.link.set_drive_timeout(Duration::from_millis(30));
     let mut host = Host::open(card.transport(), Options::DEFAULT).unwrap();
     host.poll(card.now);
     card.cycle(10);
     card.cycle(40);
-    assert!(card.link.drive_lost());
+    assert!(card.app.link.drive_lost());
     let id =
-        card.link.submit_parameter(card.now, &MailboxRequest::read(1, 100, 0, 1), &mut card.dpm.borrow_mut()).unwrap();
-    assert_eq!(card.link.take_parameter_response(), Some((id, Err(DRIVE_LOST_ERROR))));
+        card.0.app.link.submit_parameter(card.0.now, &MailboxRequest::read(1, 100, 0, 1), &mut card.0.app.dpm.borrow_mut()).unwrap();
+    assert_eq!(card.app.link.take_parameter_response(), Some((id, Err(DRIVE_LOST_ERROR))));
     assert_eq!(host.fetch_request(), Ok(None), "not even written to the drive");
 }
 }

@@ -50,7 +50,7 @@ const MASTER: u8 = 2;
 
 /// The card publishes, the drive runs, `scribble` writes into the image, the card collects:
 /// the card reads the scribbled bytes.
-fn step_with(c: &mut CardRig, scribble: impl FnOnce(&mut Dpm)) {
+fn step_with(c: &mut CardRig<Application>, scribble: impl FnOnce(&mut Dpm)) {
     c.now = c.now + Duration::from_millis(1);
     c.app.step_publish(c.now, &mut c.node);
     c.app.step_drive(c.now);

@@ -11,11 +11,13 @@ use std::rc::Rc;
 use dpm_host::spi::{BusFault, CyclicRequest, Loopback, SpiBus, SpiHost};
 use dpm_host::{Duration, Instant, SharedDpm, Transport, TransportError};
 use pbcard::card;
-use pbcard::dp::{DpSlave, DpState, Events};
+use pbcard::dp::Events;
 use pbcard::dpm::spi::cyclic::MAX_REPLY_DATA;
 use pbcard::dpm::{Dpm, Link};
+use pbcard::dpv1::records::NoRecords;
+use pbcard::fast::CardApp;
 use pbcard::node::Node;
-use pbcard::testkit::{self, Frame, Rig, ScriptedMaster, SetPrm};
+use pbcard::testkit::{CardRig, Rig, SetPrm};
 
 pub const MASTER: u8 = 2;
 pub const SLAVE: u8 = 5;
@@ -146,12 +148,45 @@ impl Transport for Wire {
     }
 }
 
-pub struct Card {
-    pub node: Node,
+/// The card side of these tests: the card's DPM link alone, on an image behind the chosen
+/// transport — a [`CardApp`] whose step is the node's timers, [`Link::publish`] and
+/// [`Link::collect`] (no profile layer, no data records: the host's blocks are the test's).
+pub struct LinkApp {
     pub dpm: Image,
     pub link: Link,
-    pub now: Instant,
-    master: ScriptedMaster,
+}
+
+impl CardApp for LinkApp {
+    type Records<'a> = NoRecords;
+
+    fn step(&mut self, now: Instant, node: &mut Node) -> Events {
+        let ev = node.poll(now);
+        let mut dpm = self.dpm.borrow_mut();
+        self.link.publish(node, ev, &mut dpm);
+        self.link.collect(now, node, &dpm);
+        ev
+    }
+
+    fn records(&mut self, _now: Instant) -> NoRecords {
+        NoRecords
+    }
+}
+
+/// The one card rig ([`CardRig`]: this card's node, the scripted master, the clock) with the
+/// DPM link as its application; `card.app.link`, `card.app.dpm` are the card side's parts.
+pub struct Card(pub CardRig<LinkApp>);
+
+impl core::ops::Deref for Card {
+    type Target = CardRig<LinkApp>;
+    fn deref(&self) -> &CardRig<LinkApp> {
+        &self.0
+    }
+}
+
+impl core::ops::DerefMut for Card {
+    fn deref_mut(&mut self) -> &mut CardRig<LinkApp> {
+        &mut self.0
+    }
 }
 
 impl Card {
@@ -162,45 +197,36 @@ impl Card {
 
     /// The card with its image behind `via`.
     pub fn via(via: Via) -> Self {
-        Card {
-            node: pbcard::card::node(DpSlave::new(&pbcard::card::SLAVE, SLAVE)),
-            dpm: Image::new(via, Dpm::new()),
-            link: Link::new(pbcard::card::MODULES),
-            now: Instant::from_millis(0),
-            master: ScriptedMaster::new(MASTER, SLAVE),
-        }
+        let app = LinkApp { dpm: Image::new(via, Dpm::new()), link: Link::new(pbcard::card::MODULES) };
+        Card(CardRig::new(app, MASTER, SLAVE))
     }
 
     /// A host transport onto the card's image.
     pub fn transport(&self) -> Wire {
-        self.dpm.transport()
+        self.app.dpm.transport()
     }
 
     /// One card cycle after `ms`: poll the node, publish to the image, collect from it.
     pub fn cycle(&mut self, ms: u64) -> Events {
-        self.now = self.now + Duration::from_millis(ms);
-        let ev = self.node.poll(self.now);
-        let mut dpm = self.dpm.borrow_mut();
-        self.link.publish(&mut self.node, ev, &mut dpm);
-        self.link.collect(self.now, &mut self.node, &dpm);
-        ev
+        self.0.step(ms)
     }
 
     /// Only the collecting half (the card keeps reading but stops publishing CARD).
     pub fn collect_only(&mut self, ms: u64) {
-        self.now = self.now + Duration::from_millis(ms);
-        let dpm = self.dpm.borrow_mut();
-        self.link.collect(self.now, &mut self.node, &dpm);
+        let r = &mut self.0;
+        r.now = r.now + Duration::from_millis(ms);
+        let dpm = r.app.dpm.borrow_mut();
+        r.app.link.collect(r.now, &mut r.node, &dpm);
     }
 
     /// Set_Prm (watchdog 1 × 100 × 10 ms, as the pbcard tests) and Chk_Cfg for ST1: data
     /// exchange.
     pub fn bring_up(&mut self) {
-        Rig::bring_up(self, &SetPrm::CARD, card::MODULES[0].cfg);
+        Rig::bring_up(&mut self.0, &SetPrm::CARD, card::MODULES[0].cfg);
     }
 
     pub fn data_exchange(&mut self, out: &[u8]) -> Vec<u8> {
-        Rig::data_exchange(self, out).to_vec()
+        Rig::data_exchange(&mut self.0, out).to_vec()
     }
 }
 
@@ -209,25 +235,7 @@ impl Card {
 impl Drop for Card {
     fn drop(&mut self) {
         if !std::thread::panicking() {
-            self.dpm.assert_frames_crossed();
+            self.app.dpm.assert_frames_crossed();
         }
-    }
-}
-
-impl Rig for Card {
-    fn master(&mut self) -> &mut ScriptedMaster {
-        &mut self.master
-    }
-    fn deliver(&mut self, frame: &[u8]) -> Option<Frame> {
-        testkit::feed(&mut self.node, self.now, frame)
-    }
-    fn settle(&mut self) {
-        self.cycle(1);
-    }
-    fn dp_state(&self) -> DpState {
-        self.node.slave().state()
-    }
-    fn input_len(&self) -> usize {
-        self.node.slave().input_len()
     }
 }
