@@ -29,7 +29,7 @@ struct Master {
 impl Master {
     fn new() -> Self {
         Master {
-            rig: NodeRig::new(M1, ME),
+            rig: NodeRig::node_only(M1, ME),
             records: CardRecords::new(&pbcard::card::RECORDS),
             drive: FakeDrive { p100: [50, 0, 0, 0], ..FakeDrive::new() },
         }

@@ -4,7 +4,9 @@
 //! `DpSlave::new(&OTHER, address)`, `Node`, the fast-path split `fast::Shared::split` — and a
 //! scripted class-1 master drives it bytes in, bytes out: Set_Prm (its ident accepted, this
 //! card's refused with Prm_Fault), Chk_Cfg (its modules, its rule), Data_Exchange through its
-//! drive interface, Slave_Diag (its ident), Get_Cfg, and its I&M0 over MSAC_C1.
+//! drive interface, Slave_Diag (its ident), Get_Cfg, and its I&M0 over MSAC_C1 — and the same
+//! session on the tests' one card rig (`testkit::CardRig::with_node`) answered byte for byte
+//! alike.
 //!
 //! Run: `cargo test -p host-tests --target x86_64-unknown-linux-gnu --test porting`.
 
@@ -193,4 +195,55 @@ fn every_module_of_the_product_in_speed_control() {
         assert_eq!(inputs.len(), usize::from(m.inputs), "{}: {inputs:02x?}", m.name);
         assert_eq!(inputs[..4], [0x06, 0x31, 0x00, 0x00], "{}: stopped", m.name);
     }
+}
+
+/// The one card rig of the tests runs another product as well (`CardRig::with_node`: its node,
+/// its application): every answer of a whole session — diagnosis, Get_Cfg, its Set_Prm and
+/// Chk_Cfg, Data_Exchange, Rd_Outp, a wrong-length Data_Exchange, its I&M0 over MSAC_C1 with
+/// the polls — is byte for byte the one the product's platform split (`Product`: line half,
+/// core half, main-loop step) gives.
+#[test]
+fn the_card_rig_runs_the_product_as_its_platform_does() {
+    use pbcard::testkit::{CardRig, Rig};
+    let mut node = pbcard::card::node(DpSlave::new(&OTHER, ME));
+    *node.im_mut() = Im::new(&OTHER_IM);
+    let mut rig = CardRig::with_node(node, Fc20::default(), MASTER);
+    let mut p = Product::new();
+    let run = [0x04, 0x7F, 0x20, 0x00, 0, 0, 0, 0];
+    let script: Vec<(Option<u8>, Option<u8>, Vec<u8>)> = vec![
+        (Some(60), Some(62), vec![]),
+        (Some(59), Some(62), vec![]),
+        (Some(61), Some(62), set_prm(IDENT_NUMBER, &user(1))),
+        (Some(62), Some(62), EXTENDED.cfg.to_vec()),
+        (Some(60), Some(62), vec![]),
+        (None, None, run.to_vec()),
+        (None, None, run.to_vec()),
+        (Some(57), Some(62), vec![]),
+        (Some(51), Some(51), vec![0x5F, 0x00, 0xFF, 0x04, 0x08, 0x00, 0xFD, 0xE8]),
+        (Some(51), Some(51), vec![]),
+        (Some(51), Some(51), vec![]),
+        (Some(51), Some(51), vec![0x5E, 0x00, 0xFF, 0xF0]),
+        (Some(51), Some(51), vec![]),
+        (Some(51), Some(51), vec![]),
+        (None, None, run.to_vec()),
+        // Outputs of the wrong length: RS, the slave leaves data exchange (Cfg_Fault).
+        (None, None, vec![0; 3]),
+        (Some(60), Some(62), vec![]),
+    ];
+    for (i, (dsap, ssap, pdu)) in script.iter().enumerate() {
+        let f = rig.master.request(MASTER, *dsap, *ssap, pdu, true);
+        let on_rig = rig.deliver(&f).map(|a| a.to_vec());
+        rig.step(1);
+        rig.acyclic();
+        let on_platform = p.send(*dsap, *ssap, pdu);
+        assert_eq!(on_rig, on_platform, "request {i} {f:02x?}");
+        assert!(on_rig.is_some(), "request {i} answered");
+        assert_eq!(rig.dp_state(), p.node.slave().state(), "request {i}");
+        if i == 5 {
+            assert_eq!(rig.dp_state(), DpState::DataExch);
+        }
+    }
+    assert_eq!(rig.app.setpoint, 0x2000);
+    assert_eq!((rig.app.control, rig.app.setpoint), (p.drive.control, p.drive.setpoint));
+    assert_eq!(rig.dp_state(), DpState::WaitPrm, "after the wrong-length outputs");
 }

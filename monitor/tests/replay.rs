@@ -14,11 +14,9 @@
 //!   field.
 
 use pbcard::card;
-use pbcard::dp::DpSlave;
 use pbcard::fdl::telegram::{FunctionCode, Header, ResponseStatus};
-use pbcard::node::Node;
-use pbcard::testkit::{self, ScriptedMaster, SetPrm};
-use pbcard::time::{Baudrate, BitTimes, Instant};
+use pbcard::testkit::{self, CardRig, Rig, SetPrm};
+use pbcard::time::{Baudrate, BitTimes, Duration, Instant};
 use pbcard_monitor::capture::Writer;
 use pbcard_monitor::product::Product;
 use pbcard_monitor::{decode_raw, replay, Line};
@@ -29,12 +27,11 @@ const RATE: Baudrate = Baudrate::B19200;
 const MASTER: u8 = 2;
 const SLAVE: u8 = 5;
 
-/// The card on a simulated line with exact times, every byte written to a capture.
+/// The card on a simulated line with exact times, every byte written to a capture: the one
+/// card rig (`CardRig`: the shipped node, the bench's card and drive, the scripted master, the
+/// clock) with the line's capture around it.
 struct Bus {
-    node: Node,
-    app: Application,
-    master: ScriptedMaster,
-    t_us: u64,
+    rig: CardRig<Application>,
     capture: Writer<Vec<u8>>,
     /// Every telegram on the line, in order (the raw byte stream).
     raw: Vec<u8>,
@@ -44,14 +41,14 @@ impl Bus {
     fn new() -> Self {
         let mut app = Application::new(DriveConfig::DEFAULT);
         app.set_baudrate(Some(RATE));
-        Bus {
-            node: pbcard::card::node(DpSlave::new(&pbcard::card::SLAVE, SLAVE)),
-            app,
-            master: ScriptedMaster::new(MASTER, SLAVE),
-            t_us: 1_000_000,
-            capture: Writer::new(Vec::new(), Some(RATE)).unwrap(),
-            raw: Vec::new(),
-        }
+        let mut rig = CardRig::new(app, MASTER, SLAVE);
+        rig.now = Instant::from_micros(1_000_000);
+        Bus { rig, capture: Writer::new(Vec::new(), Some(RATE)).unwrap(), raw: Vec::new() }
+    }
+
+    /// The line's clock advanced by `bits` bit times.
+    fn wait(&mut self, bits: u32) {
+        self.rig.now = self.rig.now + Duration::from_micros(Self::us(bits));
     }
 
     fn us(bits: u32) -> u64 {
@@ -59,48 +56,44 @@ impl Bus {
     }
 
     fn put(&mut self, bytes: &[u8]) {
-        self.t_us += Self::us(11 * bytes.len() as u32);
-        self.capture.bytes(Some(self.t_us), bytes).unwrap();
+        self.wait(11 * bytes.len() as u32);
+        self.capture.bytes(Some(self.rig.now.as_micros()), bytes).unwrap();
         self.raw.extend_from_slice(bytes);
     }
 
     /// A request on the line; the card's answer after its min_TSDR (unless `lose` it).
     fn send(&mut self, frame: &[u8], lose: bool) -> Option<Vec<u8>> {
         self.put(frame);
-        let now = Instant::from_micros(self.t_us);
-        let answer = testkit::feed(&mut self.node, now, frame).map(|f| f.to_vec());
+        let answer = self.rig.deliver(frame).map(|f| f.to_vec());
         if let Some(a) = &answer {
-            self.t_us += Self::us(self.node.min_tsdr().0);
+            self.wait(self.rig.node.min_tsdr().0);
             if lose {
                 // The answer is lost on the line: the master hears nothing within its slot time.
-                self.t_us += Self::us(11 * a.len() as u32);
+                self.wait(11 * a.len() as u32);
             } else {
                 self.put(a);
             }
         }
         // The line is idle before the next request; the card runs its cycle.
-        self.t_us += Self::us(100);
-        self.node.on_idle(BitTimes(100));
-        let now = Instant::from_micros(self.t_us);
-        self.app.step(now, &mut self.node);
-        if self.node.has_acyclic_work() {
-            self.node.process_acyclic(now, &mut self.app.records(now));
-        }
+        self.wait(100);
+        self.rig.node.on_idle(BitTimes(100));
+        self.rig.step(0);
+        self.rig.acyclic();
         answer
     }
 
     fn srd(&mut self, dsap: Option<u8>, pdu: &[u8]) -> Vec<u8> {
-        let f = self.master.srd(dsap, pdu);
+        let f = self.rig.master.srd(dsap, pdu);
         self.send(&f, false).expect("an answer")
     }
 
     /// A DP-V1 MSAC_C1 request (SAP 51 ↔ 51), then polls until the response PDU comes.
     fn c1(&mut self, pdu: &[u8]) -> Vec<u8> {
-        let f = self.master.request(MASTER, Some(51), Some(51), pdu, true);
+        let f = self.rig.master.request(MASTER, Some(51), Some(51), pdu, true);
         let r = self.send(&f, false).expect("an answer");
         assert_eq!(r, [0xE5], "the request is acknowledged with SC");
         for _ in 0..20 {
-            let poll = self.master.request(MASTER, Some(51), Some(51), &[], true);
+            let poll = self.rig.master.request(MASTER, Some(51), Some(51), &[], true);
             let r = self.send(&poll, false).expect("an answer");
             if r != [0xE5] {
                 return r;
@@ -132,7 +125,7 @@ fn session() -> (String, Vec<u8>) {
         b.srd(None, &out);
     }
     // One lost answer and the master's retry (same FCB: the card answers from its stored response).
-    let dx = b.master.srd(None, &[0x04, 0x7F, 0x20, 0x00]);
+    let dx = b.rig.master.srd(None, &[0x04, 0x7F, 0x20, 0x00]);
     assert!(b.send(&dx, true).is_some());
     assert!(b.send(&dx, false).is_some());
     // DP-V1: read PNU 918 (station address) through record 47 (VACON Table 55 shape, axis 1).
@@ -397,13 +390,13 @@ const C2_MASTER: u8 = 10;
 impl Bus {
     /// A DP-V1 request from `sa` to `dsap` (SSAP `ssap`), then polls until the response PDU.
     fn dpv1(&mut self, sa: u8, dsap: u8, ssap: u8, pdu: &[u8]) -> Vec<u8> {
-        let f = self.master.request(sa, Some(dsap), Some(ssap), pdu, true);
+        let f = self.rig.master.request(sa, Some(dsap), Some(ssap), pdu, true);
         let mut r = self.send(&f, false).expect("an answer");
         for _ in 0..20 {
             if r != [0xE5] {
                 return answer_pdu(&r).expect("a data telegram");
             }
-            let poll = self.master.request(sa, Some(dsap), Some(ssap), &[], true);
+            let poll = self.rig.master.request(sa, Some(dsap), Some(ssap), &[], true);
             r = self.send(&poll, false).expect("an answer");
         }
         panic!("no DP-V1 response");
@@ -472,7 +465,7 @@ fn im_session() -> (String, Vec<u8>) {
     let dt = c2(&mut b, &[&[0x51, 0x00, 0xFF, 0x04][..], &im_call(65001, None)].concat());
     assert_eq!(dt[..8], [0x51, 0x00, 0xFF, 68, 0x08, 0x00, 0xFD, 0xE9]);
     // The master closes the connection (Abort, acknowledged with SC).
-    let abort = b.master.request(C2_MASTER, Some(sap), Some(50), &[0x58, 0x00, 0x20, 0x00], true);
+    let abort = b.rig.master.request(C2_MASTER, Some(sap), Some(50), &[0x58, 0x00, 0x20, 0x00], true);
     assert_eq!(b.send(&abort, false).as_deref(), Some(&[0xE5][..]));
     let text = String::from_utf8(b.capture.into_inner()).unwrap();
     (text, b.raw)
