@@ -18,8 +18,13 @@ cargo clippy -p pbcard -p pbcard-sim -p pbcard-dpm -p pbcard-profile -p pbcard-l
 cargo clippy -p pbcard -p pbcard-sim -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib -- -D warnings
 cargo clippy -p pbcard -p pbcard-sim -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl --lib --tests --target "$HOST" -- -D warnings
 cargo clippy -p host-tests --all-targets --target "$HOST" -- -D warnings
+# The profile layer's test support (the one fake drive table, the mailbox) alone, host and
+# firmware target (no_std).
+cargo clippy -p pbcard-profile --features test-support --lib --target "$HOST" -- -D warnings
+cargo clippy -p pbcard-profile --features test-support --lib -- -D warnings
 echo "== rustdoc of the protocol crates: no broken or private intra-doc links, -D warnings"
 RUSTDOCFLAGS="-D warnings" cargo doc -q -p pbcard -p pbcard-sim -p pbcard-dpm -p pbcard-profile -p pbcard-link -p pbcard-dp -p pbcard-fdl -p dpm-host --no-deps --target "$HOST"
+RUSTDOCFLAGS="-D warnings" cargo doc -q -p pbcard-profile --features test-support --no-deps --target "$HOST"
 
 echo "== firmware: release build for the STM32F411 (thumbv7em-none-eabihf), the card alone: no simulation linked, footprint"
 # The shipped log level (.cargo/config.toml), whatever the caller's shell exports: the

@@ -11,9 +11,10 @@
 use heapless::Vec;
 
 mod card_rig;
-mod fake_drive;
 pub use card_rig::{CardRig, NodeOnly, NodeRig};
-pub use fake_drive::{FakeDrive, LAST_PNU, PNUS};
+/// The one fake drive parameter table and the mailbox around a table live in the profile layer
+/// (`pbcard_profile::testkit`), re-exported here for the card's tests.
+pub use pbcard_profile::testkit::{FakeDrive, Mailbox, LAST_PNU, PNUS};
 
 use crate::card;
 use crate::dp::DpState;

@@ -1,8 +1,9 @@
 //! The PKW channel (`profile::pkw`) on arbitrary request sequences.
 //!
-//! Input: byte 0 selects the dialect (VACON, INVT, PROFIdrive 2.0) and how slow the table is
-//! (0..=3 calls pending per job); then steps of 9 bytes — an operation byte (bit 0: give the
-//! request, bit 1: service, bit 2: repeat the held request, bit 3: reset) and the 8 request bytes.
+//! Input: byte 0 selects the dialect (VACON, INVT, PROFIdrive 2.0) and whether the drive answers
+//! at once or behind the mailbox (bits 2–3 not zero); then steps of 9 bytes — an operation byte
+//! (bit 0: give the request, bit 1: service, bit 2: repeat the held request, bit 3: reset, bit 4:
+//! the drive behind the mailbox answers) and the 8 request bytes.
 //!
 //! Checks, after every step: no panic; the response is the 8-byte field and all zero while no
 //! answered job is held; an answered response echoes the request's PNU / address / index as the
@@ -12,9 +13,9 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use pbcard::profile::param::{ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
 use pbcard::profile::pkw::{PkwDialect, PkwServer, PkwWords, PKW_LEN, PNU_MASK, VACON_DRIVE_PARAMETER};
 use pbcard::profile::table::{slots, ParamDef, Table, Type};
+use pbcard::testkit::{FakeDrive, Mailbox};
 
 const DEFS: &[ParamDef] = &[
     ParamDef::new(1, "Word", Type::U16).limits(0, 1000),
@@ -28,57 +29,21 @@ const DEFS: &[ParamDef] = &[
 ];
 const N: usize = slots(DEFS);
 
-/// The table, pending for the first `slow` calls of each job, counting what reaches it.
-struct Slow {
-    table: Table<N>,
-    slow: u8,
-    left: u8,
-    pending: bool,
-    writes: u32,
+/// The drive: the one fake drive (`pbcard::testkit::FakeDrive`) with the table above, either
+/// answering at once or behind the asynchronous mailbox (`pbcard::testkit::Mailbox`, as over
+/// the DPM), where it answers only when a step lets it.
+enum Drive {
+    Sync(FakeDrive<N>),
+    Async(Mailbox<FakeDrive<N>>),
 }
 
-impl Slow {
-    /// Whether this call waits (and the table is not touched).
-    fn wait(&mut self) -> bool {
-        self.pending = self.left > 0;
-        self.left = self.left.saturating_sub(1);
-        self.pending
-    }
-}
-
-fn waiting() -> ParamError {
-    pbcard::profile::param::ErrorValue::NOT_EXECUTABLE.into()
-}
-
-impl ParameterAccess for Slow {
-    fn has_axis(&self, axis: u8) -> bool {
-        self.table.has_axis(axis)
-    }
-    fn read_value(&mut self, axis: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-        if self.wait() {
-            return Err(waiting());
+impl Drive {
+    /// Value writes that reached the drive.
+    fn writes(&self) -> u32 {
+        match self {
+            Drive::Sync(d) => d.write_calls,
+            Drive::Async(m) => m.drive.write_calls,
         }
-        self.table.read_value(axis, a, out)
-    }
-    fn write_value(&mut self, axis: u8, a: &ParamAddress, v: &ValueBlock<'_>) -> Result<(), ParamError> {
-        if self.wait() {
-            return Err(waiting());
-        }
-        self.writes += 1;
-        self.table.write_value(axis, a, v)
-    }
-    fn read_description(&mut self, axis: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-        if self.wait() {
-            return Err(waiting());
-        }
-        self.table.read_description(axis, a, out)
-    }
-    fn pending(&self) -> bool {
-        self.pending
-    }
-    fn start_job(&mut self) {
-        self.left = self.slow;
-        self.pending = false;
     }
 }
 
@@ -112,7 +77,8 @@ fn run(data: &[u8]) -> Vec<[u8; PKW_LEN]> {
         1 => PkwDialect::Invt,
         _ => PkwDialect::Profidrive2,
     };
-    let mut table = Slow { table: Table::new(DEFS), slow: (head >> 2) & 3, left: 0, pending: false, writes: 0 };
+    let fake = FakeDrive::with_table(Table::new(DEFS));
+    let mut table = if (head >> 2) & 3 == 0 { Drive::Sync(fake) } else { Drive::Async(Mailbox::new(fake)) };
     let mut s = PkwServer::new(dialect);
     let mut trace = Vec::new();
     for step in steps.chunks_exact(1 + PKW_LEN) {
@@ -127,7 +93,15 @@ fn run(data: &[u8]) -> Vec<[u8; PKW_LEN]> {
             s.on_request(held);
         }
         if op & 2 != 0 {
-            s.service(&mut table);
+            match &mut table {
+                Drive::Sync(d) => s.service(d),
+                Drive::Async(m) => s.service(m),
+            }
+        }
+        if op & 0x10 != 0 {
+            if let Drive::Async(m) = &mut table {
+                m.deliver();
+            }
         }
         if op & 8 != 0 {
             s.reset();
@@ -135,7 +109,7 @@ fn run(data: &[u8]) -> Vec<[u8; PKW_LEN]> {
         check(dialect, &s);
         let c = s.counters();
         assert!(c.completed <= c.jobs && c.rejected <= c.completed, "{c:?}");
-        assert!(table.writes <= c.jobs, "{} writes for {} jobs", table.writes, c.jobs);
+        assert!(table.writes() <= c.jobs, "{} writes for {} jobs", table.writes(), c.jobs);
         trace.push(s.response());
     }
     trace

@@ -15,6 +15,9 @@
 
 pub mod profile;
 
+#[cfg(any(test, feature = "test-support"))]
+pub mod testkit;
+
 use pbcard_dp::{dp, dpv1};
 use pbcard_fdl::time;
 use pbcard_link::node;

@@ -963,119 +963,71 @@ impl<'a> ParamResponse<'a> {
 mod tests {
     use super::*;
     use crate::dpv1::pdu::{self, DataRequest, Function, PduError, ReadRequest, Request, Response};
+    use crate::profile::table::{slots, ParamDef, Table, Type};
+    use crate::testkit::{FakeDrive, Indirect, Quirk, QuirkPnu};
     use proptest::prelude::*;
 
     // ---------------------------------------------------------------------------------------
     // Fake parameter tables holding exactly what the manuals' examples show.
     // ---------------------------------------------------------------------------------------
 
-    /// VACON OPTE3/E5 as §6.4.4 shows it: axis 1; PNU 918 = 3 (§6.4.4.2: "The node address used
-    /// in the example was 3"); PNU 964 = Table 65; PNU 900 absent; PNU 10001 = drive parameter
-    /// with the ID in the subindex (§6.4.4.7): ID 101 minimum frequency, ID 102 maximum frequency
-    /// (101 ≤ 102, §6.4.4.11), ID 103 acceleration time 30 = 3.0 s (Table 74), 0 not allowed
-    /// (§6.4.4.9).
-    #[derive(Clone)]
-    struct Vacon {
-        drive: [(u16, u16); 3],
-    }
+    /// VACON OPTE3/E5 as §6.4.4 shows it, as the one fake drive (`testkit::FakeDrive`): axis 1;
+    /// PNU 918 = 3 (§6.4.4.2: "The node address used in the example was 3"); PNU 964 = Table 65;
+    /// PNU 900 absent; PNU 10001 = drive parameter with the ID in the subindex (§6.4.4.7), Word
+    /// only: ID 101 minimum frequency, ID 102 maximum frequency (101 ≤ 102, §6.4.4.11), ID 103
+    /// acceleration time 30 = 3.0 s (Table 74), 0 not allowed (§6.4.4.9); no descriptions.
+    const VACON_DEFS: &[ParamDef] = &[
+        ParamDef::new(101, "Min frequency", Type::U16).limits(0, 32000),
+        ParamDef::new(102, "Max frequency", Type::U16).limits(0, 32000).with_default(5000),
+        ParamDef::new(103, "Accel time", Type::U16).limits(1, 30000).with_default(30),
+        ParamDef::new(918, "Node address", Type::U16).read_only().with_default(3),
+        ParamDef::new(964, "Device ident", Type::U16)
+            .array(6)
+            .read_only()
+            .with_defaults(&[0x01BA, 0x0002, 0x006B, 0x07DA, 0x0A2D, 0x0001]),
+    ];
+    const VN: usize = slots(VACON_DEFS);
+    type Vacon = FakeDrive<VN>;
 
-    impl Vacon {
-        const P964: [u16; 6] = [0x01BA, 0x0002, 0x006B, 0x07DA, 0x0A2D, 0x0001];
-        fn new() -> Self {
-            Vacon { drive: [(101, 0), (102, 5000), (103, 30)] }
-        }
-        fn get(&self, id: u16) -> Option<u16> {
-            self.drive.iter().find(|d| d.0 == id).map(|d| d.1)
-        }
-        fn set(&mut self, id: u16, v: u16) -> Result<(), ParamError> {
-            let (min, max) = match id {
-                101 => (0, self.get(102).unwrap_or(0)),
-                102 => (self.get(101).unwrap_or(0), 32000),
-                103 => (1, 30000),
-                _ => return Err(ErrorValue::VACON_DRIVE_PARAMETER_NOT_FOUND.into()),
-            };
-            if !(min..=max).contains(&v) {
-                return Err(ErrorValue::LIMIT_EXCEEDED.into());
-            }
-            self.drive.iter_mut().filter(|d| d.0 == id).for_each(|d| d.1 = v);
-            Ok(())
+    /// §6.4.4.11: the minimum frequency (ID 101) never above the maximum (ID 102).
+    fn min_le_max(t: &Table<VN>, id: u16, v: i64) -> Result<(), ErrorValue> {
+        match id {
+            101 if v > t.get(102, 0).unwrap_or(0) => Err(ErrorValue::LIMIT_EXCEEDED),
+            102 if v < t.get(101, 0).unwrap_or(0) => Err(ErrorValue::LIMIT_EXCEEDED),
+            _ => Ok(()),
         }
     }
 
-    fn element(a: &ParamAddress, k: u8) -> Result<u16, ParamError> {
-        a.subindex.checked_add(k as u16).ok_or(ErrorValue::INVALID_SUBINDEX.into())
+    fn vacon() -> Vacon {
+        let ids = Indirect { pnu: 10001, not_found: ErrorValue::VACON_DRIVE_PARAMETER_NOT_FOUND, drive_only: 1..=900 };
+        FakeDrive::with_table(Table::new(VACON_DEFS))
+            .on_axis(1)
+            .indirect(ids)
+            .rule(min_le_max)
+            .word_only()
+            .without_descriptions()
     }
 
-    impl ParameterAccess for Vacon {
-        fn has_axis(&self, axis: u8) -> bool {
-            axis == 1
-        }
-        fn read_value(&mut self, _: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-            match a.pnu {
-                918 if a.subindex != 0 || a.count() != 1 => Err(ErrorValue::NO_ARRAY.into()),
-                918 => out.push_u16(3),
-                964 => {
-                    let s = a.subindex as usize;
-                    let vals = Self::P964.get(s..s + a.count() as usize).ok_or(ErrorValue::INVALID_SUBINDEX)?;
-                    vals.iter().try_for_each(|&v| out.push_u16(v))
-                }
-                10001 => (0..a.count()).try_for_each(|k| {
-                    let v = self.get(element(a, k)?).ok_or(ErrorValue::VACON_DRIVE_PARAMETER_NOT_FOUND)?;
-                    out.push_u16(v)
-                }),
-                _ => Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into()),
-            }
-        }
-        fn write_value(&mut self, _: u8, a: &ParamAddress, v: &ValueBlock<'_>) -> Result<(), ParamError> {
-            match a.pnu {
-                918 | 964 => Err(ErrorValue::VALUE_CANNOT_BE_CHANGED.into()),
-                10001 if v.format != Format::WORD => Err(ErrorValue::INCORRECT_DATA_TYPE.into()),
-                // Element by element; the first failure ends the request (§6.4.4.11 note).
-                10001 => (0..v.count).try_for_each(|k| self.set(element(a, k)?, v.u16(k as usize).unwrap_or(0))),
-                _ => Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into()),
-            }
-        }
+    /// WEG CFW-11 as §4.2.5 assumes, as the one fake drive: DO-ID 0, every parameter a Word,
+    /// P0002 = 100 rpm, P0003 = 5.0 A (50; absent for the negative example), P0100
+    /// acceleration time ×0.1 s (limited to 8.0 s for the negative example); no descriptions.
+    const CFW11_DEFS: &[ParamDef] = &[
+        ParamDef::new(2, "Motor speed", Type::U16).read_only().with_default(100),
+        ParamDef::new(3, "Motor current", Type::U16).read_only().with_default(50),
+        ParamDef::new(100, "Accel. time", Type::U16).limits(0, 9999).with_default(50),
+    ];
+    const CFW11_NO_P0003: &[ParamDef] = &[CFW11_DEFS[0], CFW11_DEFS[2]];
+
+    fn cfw11<const N: usize>(defs: &'static [ParamDef]) -> FakeDrive<N> {
+        FakeDrive::with_table(Table::new(defs)).on_axis(0).word_only().without_descriptions()
     }
 
-    /// WEG CFW-11 as §4.2.5 assumes: DO-ID 0, every parameter a Word, P0002 = 100 rpm,
-    /// P0003 = 5.0 A (50; absent for the negative example), P0100 acceleration time ×0.1 s.
-    struct Cfw11 {
-        p0003: Option<u16>,
-        p0100: u16,
-        p0100_max: u16,
-    }
-
-    impl ParameterAccess for Cfw11 {
-        fn has_axis(&self, axis: u8) -> bool {
-            axis == 0
+    /// P0100 at most 80 (8.0 s): the negative example's limit.
+    fn p0100_at_most_80<const N: usize>(_: &Table<N>, pnu: u16, v: i64) -> Result<(), ErrorValue> {
+        if pnu == 100 && v > 80 {
+            return Err(ErrorValue::LIMIT_EXCEEDED);
         }
-        fn read_value(&mut self, _: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-            let v = match a.pnu {
-                2 => Some(100),
-                3 => self.p0003,
-                100 => Some(self.p0100),
-                _ => None,
-            };
-            let v = v.ok_or(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER)?;
-            if a.subindex != 0 || a.count() != 1 {
-                return Err(ErrorValue::NO_ARRAY.into());
-            }
-            out.push_u16(v)
-        }
-        fn write_value(&mut self, _: u8, a: &ParamAddress, v: &ValueBlock<'_>) -> Result<(), ParamError> {
-            match a.pnu {
-                2 | 3 => Err(ErrorValue::VALUE_CANNOT_BE_CHANGED.into()),
-                100 if v.format != Format::WORD => Err(ErrorValue::INCORRECT_DATA_TYPE.into()),
-                100 => match v.u16(0) {
-                    Some(x) if x <= self.p0100_max => {
-                        self.p0100 = x;
-                        Ok(())
-                    }
-                    _ => Err(ErrorValue::LIMIT_EXCEEDED.into()),
-                },
-                _ => Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into()),
-            }
-        }
+        Ok(())
     }
 
     // ---------------------------------------------------------------------------------------
@@ -1189,7 +1141,7 @@ mod tests {
     /// §6.4.4.1–6.4.4.9: the consistent examples, replayed as one session on one table.
     #[test]
     fn vacon_6_4_4_1_to_9_replay() {
-        let mut t = Vacon::new();
+        let mut t = vacon();
 
         // 6.4.4.1/2 (Table 54: reference 1, read, axis 1, one parameter, 0x10, 1 element, PNU 918, subindex 0).
         let r = request(&V1_WRITE);
@@ -1223,12 +1175,12 @@ mod tests {
         let block = ValueBlock { format: Format::WORD, count: 1, bytes: &[0x00, 0x28] };
         assert_eq!(params(&r), [Parameter { address: value(10001, 1, 103), value: Some(block) }]);
         exchange(&mut t, &V5_WRITE, &V_ACK_0E, &V_READ, &V5_RESP);
-        assert_eq!(t.get(103), Some(40));
+        assert_eq!(t.get(103, 0), Some(40));
 
         // 6.4.4.9: change ID 103 to 0 → 0x82, `44 01 00 02`; the value stays.
         assert_eq!(params(&request(&V6_WRITE))[0].value.unwrap().u16(0), Some(0));
         exchange(&mut t, &V6_WRITE, &V_ACK_0E, &V_READ, &V6_RESP);
-        assert_eq!(t.get(103), Some(40));
+        assert_eq!(t.get(103, 0), Some(40));
     }
 
     /// §6.4.4.10–6.4.4.11: the multi-parameter examples contradict themselves; each is replayed
@@ -1246,8 +1198,8 @@ mod tests {
     /// * Tables 88 and 94 label the response ID field "Request ID"; the bytes are the Response ID.
     #[test]
     fn vacon_6_4_4_10_and_11_replay_with_corrections() {
-        let mut t = Vacon::new();
-        t.set(103, 40).unwrap(); // the state after §6.4.4.8/9
+        let mut t = vacon();
+        t.table.set(103, 0, 40).unwrap(); // the state after §6.4.4.8/9
 
         // The printed bytes are refused at the DP-V1 layer.
         assert_eq!(
@@ -1273,7 +1225,7 @@ mod tests {
         assert_eq!((p[0].address, p[1].address), (value(10001, 1, 101), value(10001, 1, 102)));
         assert_eq!((p[0].value.unwrap().u16(0), p[1].value.unwrap().u16(0)), (Some(1000), Some(4000)));
         exchange(&mut t, &w, &[0x5F, 0x00, 0x2F, 0x18], &V_READ, &with(&V7_RESP, &[(3, 0x04)]));
-        assert_eq!((t.get(101), t.get(102)), (Some(1000), Some(4000)));
+        assert_eq!((t.get(101, 0), t.get(102, 0)), (Some(1000), Some(4000)));
 
         // 6.4.4.10 method 2 (Table 89): one parameter, two elements.
         let w = with(&V8_WRITE, &[(3, 0x10)]);
@@ -1292,7 +1244,7 @@ mod tests {
         let w = with(&V9_WRITE, &[(3, 0x18), (26, 0x01)]);
         assert_eq!(params(&request(&w))[1].value.unwrap().u16(0), Some(500));
         exchange(&mut t, &w, &[0x5F, 0x00, 0x2F, 0x18], &V_READ, &with(&V9_RESP, &[(3, 0x0A)]));
-        assert_eq!((t.get(101), t.get(102)), (Some(1000), Some(4000)));
+        assert_eq!((t.get(101, 0), t.get(102, 0)), (Some(1000), Some(4000)));
 
         // 6.4.4.11 method 2 (Table 101/102): element 101 written, element 102 fails.
         let w = with(&V10_WRITE, &[(3, 0x10)]);
@@ -1300,7 +1252,7 @@ mod tests {
         let expected = [0x5E, 0x00, 0x2F, 0x08, 0x07, 0x82, 0x01, 0x01, 0x44, 0x01, 0x00, 0x02];
         assert_eq!(&expected[4..], &[&V10_RESP[4..8], &V10_RESP[9..]].concat()[..]);
         exchange(&mut t, &w, &[0x5F, 0x00, 0x2F, 0x10], &V_READ, &expected);
-        assert_eq!((t.get(101), t.get(102)), (Some(1000), Some(4000)));
+        assert_eq!((t.get(101, 0), t.get(102, 0)), (Some(1000), Some(4000)));
     }
 
     // ---------------------------------------------------------------------------------------
@@ -1341,7 +1293,7 @@ mod tests {
 
     #[test]
     fn cfw11_4_2_5_replay() {
-        let mut t = Cfw11 { p0003: Some(50), p0100: 50, p0100_max: 9999 };
+        let mut t = cfw11::<{ slots(CFW11_DEFS) }>(CFW11_DEFS);
 
         let w = ds_write(&W1_REQUEST);
         let r = request(&w);
@@ -1349,7 +1301,7 @@ mod tests {
         assert_eq!(params(&r), [read_param(value(2, 1, 0)), read_param(value(3, 1, 0))]);
         exchange(&mut t, &w, &ds_write_ack(&W1_REQUEST), &V_READ, &ds_read_response(&W1_POSITIVE));
 
-        let mut missing = Cfw11 { p0003: None, ..t };
+        let mut missing = cfw11::<{ slots(CFW11_NO_P0003) }>(CFW11_NO_P0003);
         exchange(&mut missing, &w, &ds_write_ack(&W1_REQUEST), &V_READ, &ds_read_response(&W1_NEGATIVE));
 
         let w = ds_write(&W2_REQUEST);
@@ -1358,11 +1310,11 @@ mod tests {
         let block = ValueBlock { format: Format::WORD, count: 1, bytes: &[0x00, 0x55] };
         assert_eq!(params(&r), [Parameter { address: value(100, 1, 0), value: Some(block) }]);
         exchange(&mut t, &w, &ds_write_ack(&W2_REQUEST), &V_READ, &ds_read_response(&W2_POSITIVE));
-        assert_eq!(t.p0100, 85);
+        assert_eq!(t.get(100, 0), Some(85));
 
-        let mut limited = Cfw11 { p0003: Some(50), p0100: 50, p0100_max: 80 };
+        let mut limited = cfw11::<{ slots(CFW11_DEFS) }>(CFW11_DEFS).rule(p0100_at_most_80);
         exchange(&mut limited, &w, &ds_write_ack(&W2_REQUEST), &V_READ, &ds_read_response(&W2_NEGATIVE));
-        assert_eq!(limited.p0100, 50);
+        assert_eq!(limited.get(100, 0), Some(50));
     }
 
     // ---------------------------------------------------------------------------------------
@@ -1465,20 +1417,12 @@ mod tests {
         assert!(ParamRequest::parse(&[&last_odd3[..], &[0, 0]].concat()).is_err());
 
         // Read sub-responses with an odd byte count carry a pad byte: VisibleString "abc".
-        struct Name;
-        impl ParameterAccess for Name {
-            fn has_axis(&self, _: u8) -> bool {
-                true
-            }
-            fn read_value(&mut self, _: u8, _: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-                out.push_str(b"abc")
-            }
-            fn write_value(&mut self, _: u8, _: &ParamAddress, _: &ValueBlock<'_>) -> Result<(), ParamError> {
-                Ok(())
-            }
-        }
+        const NAME: &[QuirkPnu] = &[
+            QuirkPnu { pnu: 1, read: Quirk::Str(b"abc"), write: Ok(()) },
+            QuirkPnu { pnu: 2, read: Quirk::Str(b"abc"), write: Ok(()) },
+        ];
         let req = [1, 1, 0, 2, 0x10, 1, 0, 1, 0, 0, 0x10, 1, 0, 2, 0, 0];
-        let n = respond(&ParamRequest::parse(&req).unwrap(), &mut Name, &mut out);
+        let n = respond(&ParamRequest::parse(&req).unwrap(), &mut FakeDrive::empty().quirks(NAME), &mut out);
         assert_eq!(&out[..n], &[1, 1, 0, 2, 0x09, 3, b'a', b'b', b'c', 0, 0x09, 3, b'a', b'b', b'c', 0]);
         let r = ParamResponse::parse(&out[..n]).unwrap();
         assert_eq!(r.values().map(|v| v.bytes).collect::<Vec<_>>(), [b"abc", b"abc"]);
@@ -1486,7 +1430,7 @@ mod tests {
 
     #[test]
     fn per_parameter_checks() {
-        let mut t = Vacon::new();
+        let mut t = vacon();
         let mut out = [0u8; MAX_LEN];
         let mut run = |data: &[u8], t: &mut Vacon| {
             let n = respond(&ParamRequest::parse(data).unwrap(), t, &mut out);
@@ -1521,39 +1465,25 @@ mod tests {
                 0x18, 0x44, 1, 0, 0x01
             ]
         );
-        assert_eq!(t.get(103), Some(30));
+        assert_eq!(t.get(103, 0), Some(30));
     }
 
-    /// A table with a 234-element array PNU 1, PNU 2 that reports additional info, PNU 3 whose
-    /// reader ignores a full buffer, PNU 4 that mixes value sizes.
-    struct Big;
-    impl ParameterAccess for Big {
-        fn has_axis(&self, _: u8) -> bool {
-            true
-        }
-        fn read_value(&mut self, _: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-            match a.pnu {
-                1 => (0..a.count()).try_for_each(|k| out.push_u16(k as u16)),
-                2 => Err(ParamError { value: ErrorValue::INVALID_SUBINDEX, additional_info: Some(0x66) }),
-                3 => {
-                    for k in 0..a.count() {
-                        let _ = out.push_u32(k as u32);
-                    }
-                    Ok(())
-                }
-                4 => {
-                    out.push_u16(1)?;
-                    out.push_u8(2)
-                }
-                _ => Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into()),
-            }
-        }
-        fn write_value(&mut self, _: u8, a: &ParamAddress, _: &ValueBlock<'_>) -> Result<(), ParamError> {
-            match a.pnu {
-                2 => Err(ParamError { value: ErrorValue::LIMIT_EXCEEDED, additional_info: Some(0x0101) }),
-                _ => Ok(()),
-            }
-        }
+    /// A table with an unbounded array PNU 1 (234 elements read), PNU 2 that reports additional
+    /// info, PNU 3 whose reader ignores a full buffer, PNU 4 that mixes value sizes: the one fake
+    /// drive with these quirk PNUs only.
+    const BIG: &[QuirkPnu] = &[
+        QuirkPnu { pnu: 1, read: Quirk::Ramp, write: Ok(()) },
+        QuirkPnu {
+            pnu: 2,
+            read: Quirk::Fails(ParamError { value: ErrorValue::INVALID_SUBINDEX, additional_info: Some(0x66) }),
+            write: Err(ParamError { value: ErrorValue::LIMIT_EXCEEDED, additional_info: Some(0x0101) }),
+        },
+        QuirkPnu { pnu: 3, read: Quirk::IgnoresFull, write: Ok(()) },
+        QuirkPnu { pnu: 4, read: Quirk::Mixed, write: Ok(()) },
+    ];
+
+    fn big() -> FakeDrive {
+        FakeDrive::empty().quirks(BIG)
     }
 
     #[test]
@@ -1567,33 +1497,33 @@ mod tests {
         };
         // 234 words do not fit: 0x15, and the second parameter is still answered.
         let req = reads(&[(1, 234), (1, 1)]);
-        let n = respond(&ParamRequest::parse(&req).unwrap(), &mut Big, &mut out);
+        let n = respond(&ParamRequest::parse(&req).unwrap(), &mut big(), &mut out);
         assert_eq!(&out[..n], &[1, 0x81, 0, 2, 0x44, 1, 0, 0x15, 0x42, 1, 0, 0]);
         // 100 words fit (206 bytes); the next 100 do not, the third (1 word) still does.
         let req = reads(&[(1, 100), (1, 100), (1, 1)]);
-        let n = respond(&ParamRequest::parse(&req).unwrap(), &mut Big, &mut out);
+        let n = respond(&ParamRequest::parse(&req).unwrap(), &mut big(), &mut out);
         assert_eq!(n, 4 + 202 + 4 + 4);
         assert_eq!(&out[206..n], &[0x44, 1, 0, 0x15, 0x42, 1, 0, 0]);
         // 117 words: exactly 4 + 2 + 234 = 240.
-        let n = respond(&ParamRequest::parse(&reads(&[(1, 117)])).unwrap(), &mut Big, &mut out);
+        let n = respond(&ParamRequest::parse(&reads(&[(1, 117)])).unwrap(), &mut big(), &mut out);
         assert_eq!((n, out[1], out[5]), (240, 0x01, 117));
         // A table that ignores the overflow is still reported 0x15; mixed sizes 0x05.
-        let n = respond(&ParamRequest::parse(&reads(&[(3, 100), (4, 1)])).unwrap(), &mut Big, &mut out);
+        let n = respond(&ParamRequest::parse(&reads(&[(3, 100), (4, 1)])).unwrap(), &mut big(), &mut out);
         assert_eq!(&out[..n], &[1, 0x81, 0, 2, 0x44, 1, 0, 0x15, 0x44, 1, 0, 0x05]);
         // Additional info as a second value.
-        let n = respond(&ParamRequest::parse(&reads(&[(2, 1)])).unwrap(), &mut Big, &mut out);
+        let n = respond(&ParamRequest::parse(&reads(&[(2, 1)])).unwrap(), &mut big(), &mut out);
         assert_eq!(&out[..n], &[1, 0x81, 0, 1, 0x44, 2, 0, 0x03, 0, 0x66]);
         let e = ParamResponse::parse(&out[..n]).unwrap().values().next().unwrap().error();
         assert_eq!(e, Some(ParamError { value: ErrorValue(3), additional_info: Some(0x66) }));
         // 39 parameters of one word each: 4 + 39 × 4 = 160.
-        let n = respond(&ParamRequest::parse(&reads(&[(1, 1); 39])).unwrap(), &mut Big, &mut out);
+        let n = respond(&ParamRequest::parse(&reads(&[(1, 1); 39])).unwrap(), &mut big(), &mut out);
         assert_eq!(n, 160);
         // A change with additional info.
         let blk = Some(ValueBlock { format: Format::WORD, count: 1, bytes: &[0, 9] });
         let p = [Parameter { address: value(1, 1, 0), value: blk }, Parameter { address: value(2, 1, 0), value: blk }];
         let mut buf = [0u8; MAX_LEN];
         let m = emit_request(&mut buf, 3, RequestId::Change, 0, &p).unwrap();
-        let n = respond(&ParamRequest::parse(&buf[..m]).unwrap(), &mut Big, &mut out);
+        let n = respond(&ParamRequest::parse(&buf[..m]).unwrap(), &mut big(), &mut out);
         assert_eq!(&out[..n], &[3, 0x82, 0, 2, 0x40, 0, 0x44, 2, 0, 0x02, 0x01, 0x01]);
     }
 
@@ -1723,7 +1653,7 @@ mod tests {
             let Ok(n) = emit_request(&mut buf, reference, id, axis, &p) else { return Ok(()) };
             let req = ParamRequest::parse(&buf[..n]).unwrap();
             let mut out = [0u8; MAX_LEN];
-            let m = if big { respond(&req, &mut Big, &mut out) } else { respond(&req, &mut Vacon::new(), &mut out) };
+            let m = if big { respond(&req, &mut self::big(), &mut out) } else { respond(&req, &mut vacon(), &mut out) };
             prop_assert!((HEADER_LEN..=MAX_LEN).contains(&m));
             let r = ParamResponse::parse(&out[..m]).unwrap();
             prop_assert_eq!((r.reference, r.axis, r.count as usize), (reference, axis, p.len()));
@@ -1743,9 +1673,9 @@ mod tests {
             match ParamRequest::parse(&bytes) {
                 Ok(req) => {
                     let mut out = [0u8; MAX_LEN];
-                    let m = respond(&req, &mut Vacon::new(), &mut out);
+                    let m = respond(&req, &mut vacon(), &mut out);
                     prop_assert!(ParamResponse::parse(&out[..m]).is_ok());
-                    let m = respond(&req, &mut Big, &mut out);
+                    let m = respond(&req, &mut big(), &mut out);
                     prop_assert!(ParamResponse::parse(&out[..m]).is_ok());
                 }
                 Err(e) => {

@@ -706,6 +706,7 @@ fn invt_error(f: Failure) -> u16 {
 mod tests {
     use super::super::table::{slots, ParamDef, Table, Type};
     use super::*;
+    use crate::testkit::{FakeDrive, Indirect, Mailbox, Refusal};
     use proptest::prelude::*;
 
     /// One small drive: VACON application IDs 1, 102, 125 (OPTE3/E5 §6.6.3: maximum frequency
@@ -725,119 +726,31 @@ mod tests {
     const N: usize = slots(DEFS);
     const TABLE: Table<N> = Table::new(DEFS);
 
-    /// A synchronous table that counts what reaches it; VACON's PNU 10001 with the application
-    /// ID as subindex is the inner table's PNU = ID (OPTE3/E5 §6.4.4.7).
-    #[derive(Clone)]
-    struct Drive {
-        t: Table<N>,
-        reads: u32,
-        writes: u32,
-        /// Refuse every write with this error (the drive's state).
-        refuse: Option<ErrorValue>,
+    /// A synchronous table that counts what reaches it (the one fake drive,
+    /// `testkit::FakeDrive`, with the table above); VACON's PNU 10001 with the application ID
+    /// as subindex is the table's PNU = ID (OPTE3/E5 §6.4.4.7).
+    type Drive = FakeDrive<N>;
+
+    fn drive() -> Drive {
+        let ids = Indirect {
+            pnu: VACON_DRIVE_PARAMETER,
+            not_found: ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER,
+            #[allow(clippy::reversed_empty_ranges)]
+            drive_only: 1..=0,
+        };
+        FakeDrive::with_table(TABLE).indirect(ids)
     }
 
-    impl Drive {
-        fn new() -> Self {
-            Drive { t: TABLE, reads: 0, writes: 0, refuse: None }
-        }
-        fn map(a: &ParamAddress) -> ParamAddress {
-            if a.pnu == VACON_DRIVE_PARAMETER {
-                ParamAddress { pnu: a.subindex, subindex: 0, ..*a }
-            } else {
-                *a
-            }
-        }
+    /// Every change refused with `error` (the drive's state).
+    fn refuse(error: ErrorValue) -> Option<Refusal> {
+        Some(Refusal { pnu: None, error })
     }
 
-    impl ParameterAccess for Drive {
-        fn has_axis(&self, axis: u8) -> bool {
-            self.t.has_axis(axis)
-        }
-        fn read_value(&mut self, axis: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-            self.reads += 1;
-            self.t.read_value(axis, &Self::map(a), out)
-        }
-        fn write_value(&mut self, axis: u8, a: &ParamAddress, v: &ValueBlock<'_>) -> Result<(), ParamError> {
-            self.writes += 1;
-            if let Some(e) = self.refuse {
-                return Err(e.into());
-            }
-            self.t.write_value(axis, &Self::map(a), v)
-        }
-        fn read_description(
-            &mut self,
-            axis: u8,
-            a: &ParamAddress,
-            out: &mut ValueWriter<'_>,
-        ) -> Result<(), ParamError> {
-            self.t.read_description(axis, &Self::map(a), out)
-        }
-    }
-
-    /// An asynchronous table like the DPM mailbox (`dpm::params`): a value not answered yet is
-    /// sent for (one at a time) and the table is pending; [`Async::deliver`] lets the drive
-    /// answer; answers are kept for the job and forgotten at `start_job`. It is pending while a
-    /// request is in flight (a value missing from the answers is either in flight or waits for
-    /// the one in flight).
-    struct Async {
-        drive: Drive,
-        inflight: Option<Op>,
-        answers: Vec<(Op, Result<Vec<u8>, ParamError>)>,
-    }
-
-    #[derive(Clone, PartialEq, Debug)]
-    enum Op {
-        Read(ParamAddress),
-        Write(ParamAddress, Format, Vec<u8>),
-    }
-
-    impl Async {
-        fn new() -> Self {
-            Async { drive: Drive::new(), inflight: None, answers: Vec::new() }
-        }
-        fn deliver(&mut self) {
-            let Some(op) = self.inflight.take() else { return };
-            let answer = match &op {
-                Op::Read(a) => {
-                    let mut buf = [0u8; 8];
-                    let mut w = ValueWriter::new(&mut buf);
-                    self.drive.read_value(1, a, &mut w).map(|()| w.bytes().to_vec())
-                }
-                Op::Write(a, format, bytes) => {
-                    let block = ValueBlock { format: *format, count: 1, bytes };
-                    self.drive.write_value(1, a, &block).map(|()| Vec::new())
-                }
-            };
-            self.answers.push((op, answer));
-        }
-        fn ask(&mut self, op: Op) -> Result<Vec<u8>, ParamError> {
-            if let Some((_, answer)) = self.answers.iter().find(|(o, _)| *o == op) {
-                return answer.clone();
-            }
-            self.inflight.get_or_insert(op);
-            Err(ErrorValue::NOT_EXECUTABLE.into())
-        }
-    }
-
-    impl ParameterAccess for Async {
-        fn has_axis(&self, _axis: u8) -> bool {
-            true
-        }
-        fn read_value(&mut self, _: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-            let bytes = self.ask(Op::Read(*a))?;
-            out.set_format(if bytes.len() == 4 { Format::DOUBLE_WORD } else { Format::WORD });
-            out.push_raw(&bytes)
-        }
-        fn write_value(&mut self, _: u8, a: &ParamAddress, v: &ValueBlock<'_>) -> Result<(), ParamError> {
-            self.ask(Op::Write(*a, v.format, v.bytes.to_vec())).map(|_| ())
-        }
-        fn pending(&self) -> bool {
-            self.inflight.is_some()
-        }
-        fn start_job(&mut self) {
-            self.answers.clear();
-            self.inflight = None;
-        }
+    /// An asynchronous table like the DPM mailbox (`dpm::params`): the one fake drive behind
+    /// `testkit::Mailbox` (a value not answered yet is sent for, one at a time, and the table is
+    /// pending; `deliver` lets the drive answer; answers are kept for the job).
+    fn mailbox() -> Mailbox<Drive> {
+        Mailbox::new(drive())
     }
 
     fn words(id: u16, index: u16, high: u16, low: u16) -> [u8; 8] {
@@ -864,7 +777,7 @@ mod tests {
     #[test]
     fn vacon_6_6_3_1_read_maximum_frequency() {
         let mut s = PkwServer::new(PkwDialect::Vacon);
-        let mut d = Drive::new();
+        let mut d = drive();
         let rsp = exchange(&mut s, &mut d, [0x10, 0x66, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00]);
         assert_eq!(rsp, [0x10, 0x66, 0x00, 0x00, 0x00, 0x00, 0x13, 0x88]);
     }
@@ -876,10 +789,10 @@ mod tests {
     #[test]
     fn vacon_6_6_3_2_write_control_place() {
         let mut s = PkwServer::new(PkwDialect::Vacon);
-        let mut d = Drive::new();
+        let mut d = drive();
         let rsp = exchange(&mut s, &mut d, [0x20, 0x7D, 0x00, 0x00, 0x00, 0x00, 0x00, 0x02]);
         assert_eq!(rsp, [0x10, 0x7D, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00]);
-        assert_eq!(d.t.get(125, 0), Some(2));
+        assert_eq!(d.table.get(125, 0), Some(2));
     }
 
     /// INVT §2.6 "Example 1: Reading the value of a parameter", the only PKW example of the
@@ -890,7 +803,7 @@ mod tests {
     #[test]
     fn invt_example_1_read_keypad_frequency() {
         let mut s = PkwServer::new(PkwDialect::Invt);
-        let mut d = Drive::new();
+        let mut d = drive();
         let rsp = exchange(&mut s, &mut d, [0x00, 0x01, 0x00, 0x10, 0x00, 0x00, 0x00, 0x00]);
         assert_eq!(rsp, [0x00, 0x01, 0x00, 0x10, 0x00, 0x00, 0x50, 0x00]);
     }
@@ -899,7 +812,7 @@ mod tests {
     #[test]
     fn profidrive2_double_word_value() {
         let mut s = PkwServer::new(PkwDialect::Profidrive2);
-        let mut d = Drive::new();
+        let mut d = drive();
         assert_eq!(exchange(&mut s, &mut d, words(0x1000 | 30, 0, 0, 0)), words(0x2000 | 30, 0, 0x0A5C, 0xDD50));
         // INVT: response 2 "two words" (Table 2-11).
         let mut s = PkwServer::new(PkwDialect::Invt);
@@ -909,7 +822,7 @@ mod tests {
     #[test]
     fn response_is_held_and_the_request_executed_once() {
         let mut s = PkwServer::new(PkwDialect::Vacon);
-        let mut d = Drive::new();
+        let mut d = drive();
         let req = [0x20, 0x7D, 0, 0, 0, 0, 0, 3];
         s.on_request(req);
         assert!(s.is_busy());
@@ -919,8 +832,8 @@ mod tests {
             s.service(&mut d);
             assert_eq!(s.response(), [0x10, 0x7D, 0, 0, 0, 0, 0, 0]);
         }
-        assert_eq!(d.writes, 1, "a repeated request is not a new job");
-        assert_eq!(d.t.get(125, 0), Some(3));
+        assert_eq!(d.write_calls, 1, "a repeated request is not a new job");
+        assert_eq!(d.table.get(125, 0), Some(3));
         let c = s.counters();
         assert_eq!((c.jobs, c.completed, c.rejected, c.abandoned), (1, 1, 0, 0));
         assert!(!s.is_busy());
@@ -929,34 +842,34 @@ mod tests {
     #[test]
     fn new_job_only_on_change() {
         let mut s = PkwServer::new(PkwDialect::Vacon);
-        let mut d = Drive::new();
+        let mut d = drive();
         let read = [0x10, 0x66, 0, 0, 0, 0, 0, 0];
         assert_eq!(exchange(&mut s, &mut d, read), [0x10, 0x66, 0, 0, 0, 0, 0x13, 0x88]);
         // The drive changes the value; the same request is not read again.
-        d.t.set(102, 0, 4000).unwrap();
+        d.table.set(102, 0, 4000).unwrap();
         assert_eq!(exchange(&mut s, &mut d, read), [0x10, 0x66, 0, 0, 0, 0, 0x13, 0x88]);
-        assert_eq!(d.reads, 1);
+        assert_eq!(d.read_calls, 1);
         // "No request" in between (all zero), then the same request again: a new job.
         assert_eq!(exchange(&mut s, &mut d, [0; 8]), [0; 8]);
         assert!(!s.is_busy());
         assert_eq!(exchange(&mut s, &mut d, read), [0x10, 0x66, 0, 0, 0, 0, 0x0F, 0xA0]);
-        assert_eq!(d.reads, 2);
+        assert_eq!(d.read_calls, 2);
         // Any changed byte is a new job, even one the dialect ignores (VACON's index).
         s.on_request([0x10, 0x66, 0, 1, 0, 0, 0, 0]);
         assert_eq!(s.response(), [0; 8], "the old response is not shown for the new job");
         s.service(&mut d);
-        assert_eq!(d.reads, 3);
+        assert_eq!(d.read_calls, 3);
         assert_eq!(s.counters().jobs, 3);
     }
 
     #[test]
     fn asynchronous_table_pending_then_complete() {
         let mut s = PkwServer::new(PkwDialect::Vacon);
-        let mut t = Async::new();
+        let mut t = mailbox();
         let read = [0x10, 0x66, 0, 0, 0, 0, 0, 0];
         s.on_request(read);
         s.service(&mut t);
-        assert!(s.is_busy() && t.inflight.is_some());
+        assert!(s.is_busy() && t.inflight().is_some());
         assert_eq!(s.response(), [0; 8], "no response while the drive has not answered");
         s.service(&mut t); // the answer has not come: still nothing
         assert_eq!(s.response(), [0; 8]);
@@ -965,13 +878,13 @@ mod tests {
         s.service(&mut t);
         assert_eq!(s.response(), [0x10, 0x66, 0, 0, 0, 0, 0x13, 0x88]);
         assert!(!s.is_busy());
-        assert_eq!(t.drive.reads, 1);
+        assert_eq!(t.drive.read_calls, 1);
     }
 
     #[test]
     fn asynchronous_write_reaches_the_drive_once() {
         let mut s = PkwServer::new(PkwDialect::Invt);
-        let mut t = Async::new();
+        let mut t = mailbox();
         let write = words(invt::WRITE_WORD_EEPROM, 102, 0, 4200);
         for _ in 0..3 {
             s.on_request(write);
@@ -984,7 +897,7 @@ mod tests {
             s.service(&mut t);
             assert_eq!(s.response(), words(invt::VALUE_WORD, 102, 0, 4200));
         }
-        assert_eq!((t.drive.writes, t.drive.t.get(102, 0)), (1, Some(4200)));
+        assert_eq!((t.drive.write_calls, t.drive.table.get(102, 0)), (1, Some(4200)));
         // A refused asynchronous write: the drive's error.
         let mut s = PkwServer::new(PkwDialect::Invt);
         let bad = words(invt::WRITE_WORD_EEPROM, 21, 0, 1);
@@ -993,13 +906,13 @@ mod tests {
         t.deliver();
         s.service(&mut t);
         assert_eq!(s.response(), words(invt::REJECTED, 21, invt::READ_ONLY, 0));
-        assert_eq!(t.drive.writes, 2);
+        assert_eq!(t.drive.write_calls, 2);
     }
 
     #[test]
     fn a_changed_request_replaces_a_waiting_job() {
         let mut s = PkwServer::new(PkwDialect::Vacon);
-        let mut t = Async::new();
+        let mut t = mailbox();
         s.on_request([0x20, 0x7D, 0, 0, 0, 0, 0, 2]);
         s.service(&mut t);
         s.on_request([0x10, 0x66, 0, 0, 0, 0, 0, 0]);
@@ -1008,14 +921,14 @@ mod tests {
         t.deliver();
         s.service(&mut t);
         assert_eq!(s.response(), [0x10, 0x66, 0, 0, 0, 0, 0x13, 0x88]);
-        assert_eq!(t.drive.writes, 0);
+        assert_eq!(t.drive.write_calls, 0);
         s.reset();
         assert_eq!((s.request(), s.response(), s.is_busy()), ([0; 8], [0; 8], false));
     }
 
     #[test]
     fn vacon_fault_codes() {
-        let mut d = Drive::new();
+        let mut d = drive();
         let ask = |req: [u8; 8], d: &mut Drive| exchange(&mut PkwServer::new(PkwDialect::Vacon), d, req);
         // Unknown ID: 0 illegal parameter.
         assert_eq!(ask([0x10, 0x07, 0, 0, 0, 0, 0, 0], &mut d), [0x70, 0x07, 0, 0, 0, 0, 0, 0]);
@@ -1030,14 +943,14 @@ mod tests {
             assert_eq!(ask([t << 4, 0x66, 0, 0, 0, 0, 0, 0], &mut d), [0x70, 0x66, 0, 0, 0, 0, 0, 101]);
         }
         // Temporarily rejected (the drive runs): 17; anything else: 18.
-        d.refuse = Some(ErrorValue::NOT_EXECUTABLE);
+        d.refuse = refuse(ErrorValue::NOT_EXECUTABLE);
         assert_eq!(ask([0x20, 0x66, 0, 0, 0, 0, 0x13, 0x88], &mut d), [0x70, 0x66, 0, 0, 0, 0, 0, 17]);
-        d.refuse = Some(ErrorValue::RESPONSE_TOO_LONG);
+        d.refuse = refuse(ErrorValue::RESPONSE_TOO_LONG);
         assert_eq!(ask([0x20, 0x66, 0, 0, 0, 0, 0x13, 0x88], &mut d), [0x70, 0x66, 0, 0, 0, 0, 0, 18]);
         // Bit 11 is not used; the index is ignored and answered 0.
         d.refuse = None;
         assert_eq!(ask([0x18, 0x66, 0x12, 0x34, 0, 0, 0, 0], &mut d), [0x10, 0x66, 0, 0, 0, 0, 0x13, 0x88]);
-        assert_eq!(d.t.get(102, 0), Some(5000));
+        assert_eq!(d.table.get(102, 0), Some(5000));
     }
 
     #[test]
@@ -1066,7 +979,7 @@ mod tests {
 
     #[test]
     fn invt_error_numbers() {
-        let mut d = Drive::new();
+        let mut d = drive();
         let ask = |req: [u8; 8], d: &mut Drive| exchange(&mut PkwServer::new(PkwDialect::Invt), d, req);
         assert_eq!(ask(words(1, 0x99, 0, 0), &mut d), words(3, 0x99, invt::INVALID_ADDRESS, 0));
         assert_eq!(ask(words(4, 21, 0, 1), &mut d), words(3, 21, invt::READ_ONLY, 0));
@@ -1075,25 +988,25 @@ mod tests {
         for r in [2, 3, 5, 6, 0x1001, 0xFFFF] {
             assert_eq!(ask(words(r, 102, 0, 1), &mut d), words(3, 102, invt::INVALID_COMMAND, 0), "request {r}");
         }
-        assert_eq!(d.writes, 2);
+        assert_eq!(d.write_calls, 2);
         // A one-word write to a 32-bit parameter: the data type does not fit (6).
         assert_eq!(ask(words(4, 30, 0, 1), &mut d), words(3, 30, invt::FRAME_ERROR, 0));
-        d.refuse = Some(ErrorValue::NOT_EXECUTABLE);
+        d.refuse = refuse(ErrorValue::NOT_EXECUTABLE);
         assert_eq!(ask(words(4, 102, 0, 1), &mut d), words(3, 102, invt::NOT_WHILE_RUNNING, 0));
-        d.refuse = Some(ErrorValue::NO_OPERATION_PRIORITY);
+        d.refuse = refuse(ErrorValue::NO_OPERATION_PRIORITY);
         assert_eq!(ask(words(4, 102, 0, 1), &mut d), words(3, 102, invt::PASSWORD_PROTECTED, 0));
-        d.refuse = Some(ErrorValue::VACON_INVALID_CHANGE_REQUEST);
+        d.refuse = refuse(ErrorValue::VACON_INVALID_CHANGE_REQUEST);
         assert_eq!(ask(words(4, 102, 0, 1), &mut d), words(3, 102, invt::OPERATION_FAILURE, 0));
         // Writes: response 1 with the value written; a negative Integer16.
         d.refuse = None;
         assert_eq!(ask(words(4, 50, 0xFFFF, 0xFFF6), &mut d), words(1, 50, 0, 0xFFF6));
-        assert_eq!(d.t.get(50, 0), Some(-10));
+        assert_eq!(d.table.get(50, 0), Some(-10));
         assert_eq!(ask(words(1, 50, 0, 0), &mut d), words(1, 50, 0, 0xFFF6));
     }
 
     #[test]
     fn profidrive2_requests() {
-        let mut d = Drive::new();
+        let mut d = drive();
         let ask = |req: [u8; 8], d: &mut Drive| exchange(&mut PkwServer::new(PkwDialect::Profidrive2), d, req);
         // AK 1 → 1 (word); the IND is mirrored, the SPM bit is not answered.
         assert_eq!(ask(words(0x1800 | 102, 0, 0, 0), &mut d), words(0x1000 | 102, 0, 0, 5000));
@@ -1101,18 +1014,18 @@ mod tests {
         assert_eq!(ask(words(0x6000 | 40, 0x02AA, 0, 0), &mut d), words(0x4000 | 40, 0x02AA, 0, 3));
         // AK 7 change array word → 4 with the value.
         assert_eq!(ask(words(0x7000 | 40, 0x0300, 0, 999), &mut d), words(0x4000 | 40, 0x0300, 0, 999));
-        assert_eq!(d.t.get(40, 3), Some(999));
+        assert_eq!(d.table.get(40, 3), Some(999));
         // AK 2 change word → 1; AK 3 change double word → 2.
         assert_eq!(ask(words(0x2000 | 125, 0, 0, 2), &mut d), words(0x1000 | 125, 0, 0, 2));
         assert_eq!(ask(words(0x3000 | 31, 0, 0xFFFE, 0x7960), &mut d), words(0x2000 | 31, 0, 0xFFFE, 0x7960));
-        assert_eq!(d.t.get(31, 0), Some(-100_000));
+        assert_eq!(d.table.get(31, 0), Some(-100_000));
         // AK 8 change array double word on a word array: incorrect data type (5).
         assert_eq!(ask(words(0x8000 | 40, 0, 0, 1), &mut d), words(0x7000 | 40, 0, 0, 5));
         // AK 9 number of array elements → 6.
         assert_eq!(ask(words(0x9000 | 40, 0, 0, 0), &mut d), words(0x6000 | 40, 0, 0, 4));
         // AK 4 description element 1 (identifier, Unsigned16) → 3; element 6 (the name, 16
         // characters) does not fit the PKW: 0x15.
-        let id = d.t.description(102).map(|b| u16::from_be_bytes([b[0], b[1]])).unwrap();
+        let id = d.table.description(102).map(|b| u16::from_be_bytes([b[0], b[1]])).unwrap();
         assert_eq!(ask(words(0x4000 | 102, 0x0100, 0, 0), &mut d), words(0x3000 | 102, 0x0100, 0, id));
         assert_eq!(ask(words(0x4000 | 102, 0x0600, 0, 0), &mut d), words(0x7000 | 102, 0x0600, 0, 0x15));
         // Errors: the PROFIdrive error value in PWE2.
@@ -1126,13 +1039,13 @@ mod tests {
             assert_eq!(ask(words(ak << 12 | 102, 0, 0, 0), &mut d), words(0x7000 | 102, 0, 0, 0x6A));
         }
         // No operator change rights: AK 8 (for changes), AK 7 + 11 otherwise never arises.
-        d.refuse = Some(ErrorValue::NO_OPERATION_PRIORITY);
+        d.refuse = refuse(ErrorValue::NO_OPERATION_PRIORITY);
         assert_eq!(ask(words(0x2000 | 125, 0, 0, 2), &mut d), words(0x8000 | 125, 0, 0, 0));
     }
 
     #[test]
     fn missing_axis() {
-        let mut d = Drive::new();
+        let mut d = drive();
         let mut s = PkwServer::new(PkwDialect::Profidrive2).with_axis(7);
         assert_eq!(exchange(&mut s, &mut d, words(0x1066, 0, 0, 0)), words(0x7066, 0, 0, 0x19));
         let mut s = PkwServer::new(PkwDialect::Vacon).with_axis(7);
@@ -1145,7 +1058,7 @@ mod tests {
     #[test]
     fn vacon_read_of_a_wide_value() {
         // VACON has only the word response: a 32-bit value that fits is sent, another is 18.
-        let mut d = Drive::new();
+        let mut d = drive();
         let mut s = PkwServer::new(PkwDialect::Vacon);
         assert_eq!(exchange(&mut s, &mut d, [0x10, 31, 0, 0, 0, 0, 0, 0]), [0x10, 31, 0, 0, 0, 0, 0xFF, 0xFB]);
         assert_eq!(exchange(&mut s, &mut d, [0x10, 30, 0, 0, 0, 0, 0, 0]), [0x70, 30, 0, 0, 0, 0, 0, 18]);
@@ -1198,7 +1111,7 @@ mod tests {
     /// Run `steps`; the response after each step.
     fn replay(dialect: PkwDialect, steps: &[Step]) -> (Vec<[u8; 8]>, PkwCounters, u32) {
         let mut s = PkwServer::new(dialect);
-        let mut t = Async::new();
+        let mut t = mailbox();
         let mut trace = Vec::new();
         for step in steps {
             match step {
@@ -1231,8 +1144,8 @@ mod tests {
         }
         let c = s.counters();
         assert!(c.completed <= c.jobs && c.rejected <= c.completed);
-        assert!(t.drive.writes <= c.jobs, "a job wrote more than once");
-        (trace, c, t.drive.writes)
+        assert!(t.drive.write_calls <= c.jobs, "a job wrote more than once");
+        (trace, c, t.drive.write_calls)
     }
 
     proptest! {
@@ -1247,9 +1160,9 @@ mod tests {
         #[test]
         fn a_synchronous_table_answers_at_once(d in dialect(), reqs in proptest::collection::vec(request(), 1..20)) {
             let mut s = PkwServer::new(d);
-            let mut t = Drive::new();
+            let mut t = drive();
             for r in reqs {
-                let writes = t.writes;
+                let writes = t.write_calls;
                 let was = s.request();
                 s.on_request(r);
                 s.service(&mut t);
@@ -1257,12 +1170,12 @@ mod tests {
                 prop_assert_eq!(s.response() == [0; 8], is_no_request(d, r));
                 // Repeating it changes nothing.
                 let rsp = s.response();
-                let writes_after = t.writes;
+                let writes_after = t.write_calls;
                 s.on_request(r);
                 s.service(&mut t);
                 prop_assert_eq!(s.response(), rsp);
-                prop_assert_eq!(t.writes, writes_after);
-                prop_assert!(t.writes - writes <= u32::from(r != was));
+                prop_assert_eq!(t.write_calls, writes_after);
+                prop_assert!(t.write_calls - writes <= u32::from(r != was));
             }
         }
     }

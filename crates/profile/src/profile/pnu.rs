@@ -520,19 +520,7 @@ mod telegram_pnu_tests {
     use super::*;
     use crate::profile::param::ParamError;
     use crate::profile::selection::Family;
-
-    struct NoDrive;
-    impl ParameterAccess for NoDrive {
-        fn has_axis(&self, _: u8) -> bool {
-            true
-        }
-        fn read_value(&mut self, _: u8, _: &ParamAddress, _: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-            Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into())
-        }
-        fn write_value(&mut self, _: u8, _: &ParamAddress, _: &ValueBlock<'_>) -> Result<(), ParamError> {
-            Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into())
-        }
-    }
+    use crate::testkit::FakeDrive;
 
     fn info(telegram: Telegram) -> CardInfo {
         CardInfo {
@@ -547,7 +535,7 @@ mod telegram_pnu_tests {
     }
 
     fn read(telegram: Telegram, pnu: u16, subindex: u16, elements: u8) -> Result<Vec<u16>, ParamError> {
-        let mut drive = NoDrive;
+        let mut drive = FakeDrive::empty();
         let mut t = CardTable { info: info(telegram), drive: &mut drive };
         let addr = ParamAddress { attribute: Attribute::Value, elements, pnu, subindex };
         let mut buf = [0u8; 240];
@@ -592,7 +580,7 @@ mod telegram_pnu_tests {
 
     #[test]
     fn telegram_pnus_have_descriptions_and_are_listed() {
-        let mut drive = NoDrive;
+        let mut drive = FakeDrive::empty();
         let mut t = CardTable { info: info(Telegram::Standard(1)), drive: &mut drive };
         for pnu in [PNU_PZD_SETPOINTS, PNU_PZD_ACTUALS, PNU_TELEGRAM] {
             assert!(CARD_PNUS.contains(&pnu));

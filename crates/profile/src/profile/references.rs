@@ -220,47 +220,40 @@ impl References {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::profile::param::{ErrorValue, ParamError, ValueBlock};
+    use crate::profile::param::ErrorValue;
     use crate::profile::selection::Family;
+    use crate::profile::table::{slots, ParamDef, Table, Type};
+    use crate::testkit::{FakeDrive, Indirect, Mailbox};
 
-    /// A drive answering from a list, `None` = error; `pending_once`: each value needs one
-    /// more call (like the mailbox).
-    struct Drive {
-        answers: Vec<((u16, u16), Option<u16>)>,
-        asked: Vec<(u16, u16)>,
-        pending: bool,
+    /// The drives of the three families, each the one fake drive (`testkit::FakeDrive`) behind
+    /// the mailbox (`testkit::Mailbox`: each value needs one more call, as over the DPM): VACON
+    /// IDs 101, 102, 111 through PNU 10001; WEG P0403, P0134, P10111; INVT P00.03 (P02.02
+    /// missing).
+    const VACON: &[ParamDef] = &[
+        ParamDef::new(101, "Min frequency", Type::U16).with_default(500),
+        ParamDef::new(102, "Max frequency", Type::U16).with_default(6000),
+        ParamDef::new(111, "Speed ref", Type::U16).with_default(5000),
+    ];
+    const WEG: &[ParamDef] = &[
+        ParamDef::new(134, "Maximum speed", Type::U16).with_default(900),
+        ParamDef::new(403, "Rated frequency", Type::U16).with_default(60),
+        ParamDef::new(10111, "Speed ref", Type::U16).with_default(1800),
+    ];
+    const INVT: &[ParamDef] = &[ParamDef::new(3, "Max frequency", Type::U16).with_default(10000)];
+
+    fn drive<const N: usize>(defs: &'static [ParamDef]) -> Mailbox<FakeDrive<N>> {
+        let ids =
+            Indirect { pnu: VACON_ID, not_found: ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER, drive_only: 101..=111 };
+        Mailbox::new(FakeDrive::with_table(Table::new(defs)).any_axis().indirect(ids))
     }
 
-    impl ParameterAccess for Drive {
-        fn has_axis(&self, _: u8) -> bool {
-            true
-        }
-        fn read_value(&mut self, _: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-            let key = (a.pnu, a.subindex);
-            if !self.asked.contains(&key) {
-                self.asked.push(key);
-                self.pending = true;
-                return Err(ErrorValue::NOT_EXECUTABLE.into());
-            }
-            self.pending = false;
-            match self.answers.iter().find(|(k, _)| *k == key).and_then(|(_, v)| *v) {
-                Some(v) => out.push_u16(v),
-                None => Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into()),
-            }
-        }
-        fn write_value(&mut self, _: u8, _: &ParamAddress, _: &ValueBlock<'_>) -> Result<(), ParamError> {
-            Err(ErrorValue::VALUE_CANNOT_BE_CHANGED.into())
-        }
-        fn pending(&self) -> bool {
-            self.pending
-        }
-    }
-
-    fn run(r: &mut References, d: &mut Drive) -> Scales {
+    /// Service until the references are read, the drive answering between the calls.
+    fn run(r: &mut References, d: &mut Mailbox<impl ParameterAccess>) -> Scales {
         for k in 0..20 {
             if let Some(s) = r.service(Instant::from_millis(k), d, Scales::DEFAULT) {
                 return s;
             }
+            d.deliver();
         }
         panic!("not done");
     }
@@ -269,23 +262,15 @@ mod tests {
     fn each_family_reads_its_references() {
         let mut r = References::new();
         r.start(Telegram::Ppo(1), DataProfile::Factory);
-        let mut d = Drive {
-            answers: vec![((VACON_ID, 101), Some(500)), ((VACON_ID, 102), Some(6000)), ((VACON_ID, 111), Some(5000))],
-            asked: vec![],
-            pending: false,
-        };
+        let mut d = drive::<{ slots(VACON) }>(VACON);
         let s = run(&mut r, &mut d);
         assert_eq!((s.bypass_min, s.bypass_max, s.n2_reference), (500, 6000, 5000));
         r.start(Telegram::Vendor(Family::WegCfw500, 103), DataProfile::Factory);
-        let mut d = Drive {
-            answers: vec![((403, 0), Some(60)), ((134, 0), Some(900)), ((10111, 0), Some(1800))],
-            asked: vec![],
-            pending: false,
-        };
+        let mut d = drive::<{ slots(WEG) }>(WEG);
         let s = run(&mut r, &mut d);
         assert_eq!((s.weg_rated, s.n2_reference, s.weg_p0134), (6000, 6000, 3000));
         r.start(Telegram::Vendor(Family::Invt, 1), DataProfile::Factory);
-        let mut d = Drive { answers: vec![((3, 0), Some(10000)), ((0x0202, 0), None)], asked: vec![], pending: false };
+        let mut d = drive::<{ slots(INVT) }>(INVT);
         let s = run(&mut r, &mut d);
         assert_eq!((s.invt_fmax, s.n2_reference), (10000, 5000), "P02.02 missing: the default stays");
         assert_eq!(r.stats().applied, 3);
@@ -296,25 +281,12 @@ mod tests {
 
     #[test]
     fn an_unanswered_read_is_retried_then_given_up() {
-        struct Silent;
-        impl ParameterAccess for Silent {
-            fn has_axis(&self, _: u8) -> bool {
-                true
-            }
-            fn read_value(&mut self, _: u8, _: &ParamAddress, _: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-                Err(ErrorValue::NOT_EXECUTABLE.into())
-            }
-            fn write_value(&mut self, _: u8, _: &ParamAddress, _: &ValueBlock<'_>) -> Result<(), ParamError> {
-                Err(ErrorValue::NOT_EXECUTABLE.into())
-            }
-            fn pending(&self) -> bool {
-                true
-            }
-        }
+        // The drive never answers: the mailbox stays in flight.
+        let mut silent = Mailbox::new(FakeDrive::empty());
         let mut r = References::new();
         r.start(Telegram::Vendor(Family::Invt, 1), DataProfile::Factory);
         for ms in (0..2000).step_by(10) {
-            assert_eq!(r.service(Instant::from_millis(ms), &mut Silent, Scales::DEFAULT), None);
+            assert_eq!(r.service(Instant::from_millis(ms), &mut silent, Scales::DEFAULT), None);
         }
         assert!(!r.is_busy());
         assert_eq!((r.stats().retries, r.stats().gave_up), (2, 1));

@@ -386,7 +386,7 @@ pub enum FormatStyle {
 }
 
 /// The values of the parameters `defs`, with `N` = [`slots`]`(defs)`.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Table<const N: usize> {
     defs: &'static [ParamDef],
     values: [u32; N],

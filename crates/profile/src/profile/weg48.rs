@@ -223,45 +223,38 @@ fn read_word(table: &mut impl ParameterAccess, axis: u8, pnu: u16) -> Result<u16
 mod tests {
     use super::*;
     use crate::dpv1::pdu::{self, Function, ReadRequest, Response};
+    use crate::profile::table::{slots, ParamDef, Table, Type};
+    use crate::testkit::{FakeDrive, Refusal};
 
-    /// A CFW500-like table: P0100 acceleration time (0..=9999, ×0.1 s), P0002 speed (read-only),
-    /// P0680 status word (read-only), P0204 "load factory settings" (only 0 / 5 allowed → 0x14),
-    /// P0299 a 32-bit parameter (not carried by record 48), P0120 changeable only when stopped.
-    struct Cfw500 {
-        p0100: u16,
-        running: bool,
+    /// A CFW500-like drive, as the one fake drive (`testkit::FakeDrive`): P0100 acceleration
+    /// time (0..=9999, ×0.1 s), P0002 speed (read-only), P0680 status word (read-only), P0204
+    /// "load factory settings" (only 0 / 5 allowed → 0x14), P0299 a 32-bit parameter (not
+    /// carried by record 48), P0120 changeable only when stopped ([`running`]).
+    const CFW500: &[ParamDef] = &[
+        ParamDef::new(2, "Motor speed", Type::U16).read_only().with_default(1800),
+        ParamDef::new(100, "Accel. time", Type::U16).limits(0, 9999).with_default(50),
+        ParamDef::new(120, "Ramp ref backup", Type::U16),
+        ParamDef::new(204, "Load factory", Type::U16),
+        ParamDef::new(299, "32-bit param", Type::U32).with_default(70_000),
+        ParamDef::new(680, "Status word", Type::U16).read_only().with_default(0x0233),
+    ];
+    const N: usize = slots(CFW500);
+
+    /// P0204 takes 0 or 5 only (0x14 "value impermissible").
+    fn factory_settings(_: &Table<N>, pnu: u16, v: i64) -> Result<(), ErrorValue> {
+        match pnu {
+            204 if v != 0 && v != 5 => Err(ErrorValue::VALUE_IMPERMISSIBLE),
+            _ => Ok(()),
+        }
     }
 
-    impl ParameterAccess for Cfw500 {
-        fn has_axis(&self, axis: u8) -> bool {
-            axis == 0
-        }
-        fn read_value(&mut self, _: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-            match a.pnu {
-                100 => out.push_u16(self.p0100),
-                2 => out.push_u16(1800),
-                680 => out.push_u16(0x0233),
-                204 | 120 => out.push_u16(0),
-                299 => out.push_u32(70_000),
-                _ => Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into()),
-            }
-        }
-        fn write_value(&mut self, _: u8, a: &ParamAddress, v: &ValueBlock<'_>) -> Result<(), ParamError> {
-            let value = v.u16(0).ok_or(ErrorValue::INCORRECT_DATA_TYPE)?;
-            match a.pnu {
-                100 if value <= 9999 => {
-                    self.p0100 = value;
-                    Ok(())
-                }
-                100 => Err(ErrorValue::LIMIT_EXCEEDED.into()),
-                2 | 680 => Err(ErrorValue::VALUE_CANNOT_BE_CHANGED.into()),
-                204 if value == 0 || value == 5 => Ok(()),
-                204 => Err(ErrorValue::VALUE_IMPERMISSIBLE.into()),
-                120 if self.running => Err(ErrorValue::NOT_EXECUTABLE.into()),
-                120 => Ok(()),
-                _ => Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into()),
-            }
-        }
+    fn cfw500() -> FakeDrive<N> {
+        FakeDrive::with_table(Table::new(CFW500)).on_axis(0).rule(factory_settings)
+    }
+
+    /// The motor runs: P0120 is refused with 0x11 "not executable".
+    fn running(t: &mut FakeDrive<N>) {
+        t.refuse = Some(Refusal { pnu: Some(120), error: ErrorValue::NOT_EXECUTABLE });
     }
 
     #[test]
@@ -306,7 +299,7 @@ mod tests {
     /// change; the negative responses with WEG's codes.
     #[test]
     fn session_on_slot0_index48() {
-        let mut t = Cfw500 { p0100: 50, running: false };
+        let mut t = cfw500();
         let mut ch = SimpleAccess::new();
         let mut buf = [0u8; pdu::MAX_PDU_LEN];
 
@@ -356,7 +349,7 @@ mod tests {
         assert_eq!(ch.on_read(0, &mut t, &mut buf), Err(Weg48Error::ResponseNotAvailable));
 
         // Changing while running: 0x11 → B5 "modification not allowed".
-        t.running = true;
+        running(&mut t);
         assert_eq!(ch.on_write(&[0x00, 0x78, 0x00, 0x01], 0, &mut t), Err(Weg48Error::ChangeNotAllowed));
     }
 
@@ -385,7 +378,7 @@ mod tests {
                 let n = r.emit(&mut out).unwrap();
                 proptest::prop_assert_eq!(Request::parse(&out[..n]), Ok(r));
             }
-            let mut t = Cfw500 { p0100: 0, running: false };
+            let mut t = cfw500();
             let mut ch = SimpleAccess::new();
             let _ = ch.on_write(&bytes, 0, &mut t);
             let _ = ch.on_read(0, &mut t, &mut out);
