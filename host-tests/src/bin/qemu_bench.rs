@@ -180,6 +180,14 @@ fn main() {
             }
         }
         if i == gsd.len() - 1 {
+            // A Data_Exchange without outputs (SD1, the fail-safe Clear): answered with the
+            // staged inputs; the next one with outputs ends the fail-safe state.
+            for _ in 0..SAMPLES {
+                let resp = s.srd("Data_Exchange 0 out (SD1: fail-safe Clear)", None, &[]);
+                if host_tests::pdu_of(&resp).map(<[u8]>::len) != Some(inputs.into()) {
+                    fail(&format!("fail-safe Data_Exchange answered {}", host_tests::hex(&resp)));
+                }
+            }
             // A Data_Exchange of the wrong length (32 or 244 bytes to PPO 5) is answered RS:
             // the request path up to the decision, with the checksum over the long frame.
             for n in [32usize, 244] {
