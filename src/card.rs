@@ -182,6 +182,22 @@ pub const fn foreign_load_per_mille(rate: Baudrate, len: u32, chunk_instructions
     ((cycles as u64 * per_s * 1000).div_ceil(CPU_HZ as u64)) as u32
 }
 
+/// The cycles one chunk interrupt of the F411's DMA mode may take at `rate` before the DMA laps
+/// the reader (`phy::ring::RingWalker`: both HT and TC pending at the next event, an overrun
+/// that drops the telegram): the time of [`DMA_RING`] characters of 11 bits, counted from the
+/// handler's NDTR read. A handler slower than one chunk's time (a first chunk that prepares a
+/// long answer) is caught up by the next ones, which are short; one slower than this is not.
+pub const fn ring_lap_cycles(rate: Baudrate) -> u32 {
+    DMA_RING * 11 * (CPU_HZ / rate.bits_per_second())
+}
+
+/// The cycles of a chunk interrupt that runs `instructions` in the fast path's sink on the
+/// F411: the interrupt entry and, at the CPI bound, the measured piece with the handler's own
+/// register work ([`F411_CHUNK_ENTRY_INSTRUCTIONS`], estimated).
+pub const fn chunk_cycles(instructions: u32) -> u32 {
+    INTERRUPT_ENTRY_CYCLES + (instructions + F411_CHUNK_ENTRY_INSTRUCTIONS) * CPI_NUM / CPI_DEN
+}
+
 /// Whether the GSD's MaxTsdr follow the cycle model ([`modelled_tsdr`]): **yes** (issue 11).
 /// [`LINE_BUDGET_INSTRUCTIONS`] and [`DMA_FINISH_INSTRUCTIONS`] are measured on the QEMU
 /// builds' fast path (`fast::FastPath` behind the `phy::stream::TelegramSink` seam, the worst
@@ -629,6 +645,17 @@ mod max_tsdr_model {
 
     /// The floor leaves room after the default min_TSDR (a response never due before it may start).
     const _: () = assert!(MAX_TSDR_FLOOR > crate::time::BitTimes::MIN_TSDR_DEFAULT.0);
+
+    /// The ring's lap: 32 characters of 11 bits at 8 cycles a bit (12 Mbit/s at 96 MHz), at 32
+    /// cycles a bit at 3 Mbit/s; a chunk interrupt's cycles at the CPI bound.
+    #[test]
+    fn ring_lap_and_chunk_cycles() {
+        assert_eq!(ring_lap_cycles(Baudrate::B12M), 32 * 11 * 8);
+        assert_eq!(ring_lap_cycles(Baudrate::B3M), 32 * 11 * 32);
+        assert_eq!(chunk_cycles(0), 12 + 75 * 3 / 2);
+        assert_eq!(chunk_cycles(1339), 12 + (1339 + 75) * 3 / 2);
+        assert!(chunk_cycles(1339) < ring_lap_cycles(Baudrate::B12M));
+    }
 
     /// The foreign-traffic model: a saturated 12 Mbit/s bus of 253-byte telegrams with
     /// 100-instruction chunks and 200-instruction IDLE ends: 12e6 / (253 × 11 + 33) telegrams

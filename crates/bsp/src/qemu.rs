@@ -580,8 +580,7 @@ impl DmaEmu {
         // After the count of the answer (it ended at the answer's staging): this telegram's
         // largest chunk and its IDLE handler's part (remainder + `finish`).
         let end = bench::count().wrapping_sub(entry);
-        if len >= 32 {
-            let first = self.chunk_first.unwrap_or(0);
+        if let Some(first) = self.chunk_first {
             defmt::info!(
                 "CHUNK {=str} len {=usize} first {=u32} chunk {=u32} low {=u32} end {=u32}",
                 who,

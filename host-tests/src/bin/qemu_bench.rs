@@ -550,7 +550,8 @@ fn streaming(log: &[String]) {
 /// `bsp::qemu::DmaEmu`): per request the instructions from the IDLE interrupt's entry to the
 /// first response byte — the remainder of 1 … 16 characters through `Stream::piece`,
 /// `FastPath::finish`, the answer staged —, the cost of a 16-byte chunk (`CHUNK <us|other> len
-/// <n> chunk <c> end <e>` lines, one per telegram of 32 bytes or more), the DMA rates' cycle
+/// <n> chunk <c> end <e>` lines, one per telegram with a chunk: longer than 16 bytes; the worst
+/// chunk interrupt against the ring's lap at 12 Mbit/s), the DMA rates' cycle
 /// model and the CPU share of other stations' traffic from these measurements.
 fn dma_report(rows: &[(String, usize, usize, Vec<u32>, String)], log: &[String]) {
     println!("QEMU netduinoplus2, `-icount shift=0,align=off,sleep=off`, firmware built with `--features bench-dma`");
@@ -619,6 +620,25 @@ fn dma_report(rows: &[(String, usize, usize, Vec<u32>, String)], log: &[String])
     println!("| the first chunk of another station's telegram, mean of {} (41 and 253 bytes; the sink hears nothing of it when its header is in the chunk) | {mean_first_other} |", firsts.len());
     println!("| a later 16-byte chunk of a Data_Exchange 244 to another station (skipped by length): lowest – highest (a SysTick preemption) | {low_other} – {chunk_other} |");
     println!("| another station's telegram at IDLE (the remainder, `finish`: counted, dropped) | {end_other} |");
+    // Every chunk interrupt of every telegram with one (longer than a chunk; its first chunk
+    // carries the header, the sink's `begin` and a prepared answer) against the ring's lap:
+    // a handler slower than that lets the DMA overwrite bytes not yet read (an overrun).
+    let Some((worst_chunk, who, len)) = chunks.iter().map(|r| (r.2.max(r.3), &r.0, r.1)).max_by_key(|r| r.0) else {
+        fail("no CHUNK lines in the firmware log")
+    };
+    let (cycles, lap) = (card::chunk_cycles(worst_chunk), card::ring_lap_cycles(pbcard::time::Baudrate::B12M));
+    println!(
+        "\nworst chunk interrupt: {worst_chunk} instructions (a {len}-byte telegram to {}): {cycles} cycles on the F411 \
+         (card::chunk_cycles: entry + (N + card::F411_CHUNK_ENTRY_INSTRUCTIONS) × CPI 3/2), the {}-byte ring's lap at \
+         12 Mbit/s {lap} cycles (card::ring_lap_cycles)",
+        if who == "us" { "the card" } else { "another station" },
+        card::DMA_RING
+    );
+    if cycles >= lap {
+        fail(&format!(
+            "a chunk interrupt of {cycles} cycles would let the DMA lap the ring ({lap} cycles at 12 Mbit/s)"
+        ));
+    }
     println!("\n(F411 cycle model of the DMA rates: {} bit times to IDLE, then the interrupt entry and (card::DMA_FINISH_INSTRUCTIONS = {} + the handler's own register work card::F411_IDLE_ENTRY_INSTRUCTIONS = {}, estimated) × CPI 3/2 + DMA start, + 20 %)\n", card::IDLE_DETECT_BITS, card::DMA_FINISH_INSTRUCTIONS, card::F411_IDLE_ENTRY_INSTRUCTIONS);
     println!("| rate | modelled | customary | GSD MaxTsdr |");
     println!("|---|---:|---:|---:|");
