@@ -14,7 +14,9 @@ mod card_rig;
 pub use card_rig::{CardRig, NodeOnly, NodeRig};
 /// The one fake drive parameter table and the mailbox around a table live in the profile layer
 /// (`pbcard_profile::testkit`), re-exported here for the card's tests.
-pub use pbcard_profile::testkit::{FakeDrive, Mailbox, LAST_PNU, PNUS};
+pub use pbcard_profile::testkit::{
+    FakeDrive, Indirect, Mailbox, MailboxOp, Quirk, QuirkPnu, Refusal, Rule, LAST_PNU, PNUS,
+};
 
 use crate::card;
 use crate::dp::DpState;

@@ -1,9 +1,10 @@
 //! The PKW channel (`profile::pkw`) on arbitrary request sequences.
 //!
-//! Input: byte 0 selects the dialect (VACON, INVT, PROFIdrive 2.0) and whether the drive answers
-//! at once or behind the mailbox (bits 2–3 not zero); then steps of 9 bytes — an operation byte
-//! (bit 0: give the request, bit 1: service, bit 2: repeat the held request, bit 3: reset, bit 4:
-//! the drive behind the mailbox answers) and the 8 request bytes.
+//! Input: byte 0 selects the dialect (VACON, INVT, PROFIdrive 2.0) and how slow the drive is
+//! (bits 2–3: 0 answers at once; 1..=3: behind the mailbox, answering after every that many
+//! services); then steps of 9 bytes — an operation byte (bit 0: give the request, bit 1:
+//! service, bit 2: repeat the held request, bit 3: reset, bit 4: the drive behind the mailbox
+//! answers now) and the 8 request bytes.
 //!
 //! Checks, after every step: no panic; the response is the 8-byte field and all zero while no
 //! answered job is held; an answered response echoes the request's PNU / address / index as the
@@ -78,7 +79,9 @@ fn run(data: &[u8]) -> Vec<[u8; PKW_LEN]> {
         _ => PkwDialect::Profidrive2,
     };
     let fake = FakeDrive::with_table(Table::new(DEFS));
-    let mut table = if (head >> 2) & 3 == 0 { Drive::Sync(fake) } else { Drive::Async(Mailbox::new(fake)) };
+    let slow = u32::from((head >> 2) & 3);
+    let mut table = if slow == 0 { Drive::Sync(fake) } else { Drive::Async(Mailbox::new(fake)) };
+    let mut services = 0u32;
     let mut s = PkwServer::new(dialect);
     let mut trace = Vec::new();
     for step in steps.chunks_exact(1 + PKW_LEN) {
@@ -95,7 +98,13 @@ fn run(data: &[u8]) -> Vec<[u8; PKW_LEN]> {
         if op & 2 != 0 {
             match &mut table {
                 Drive::Sync(d) => s.service(d),
-                Drive::Async(m) => s.service(m),
+                Drive::Async(m) => {
+                    s.service(m);
+                    services += 1;
+                    if services % slow == 0 {
+                        m.deliver();
+                    }
+                }
             }
         }
         if op & 0x10 != 0 {

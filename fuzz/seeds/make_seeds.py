@@ -193,8 +193,10 @@ write("dpv1_pdu", "initiate_longer_than_pdu", [0x57, 0, 0, 0, 0, 100, 1, 0, 0, 0
 write("node_dpv1", "known_bug_c1_broadcast_sdn", [0x00, 0, 0x00, 14, 2, 0, 0x06, 0x85, 0x01, 0x0A, 0x01, 0x02, 11, 2])
 write("node_dpv1", "known_bug_c1_stale_request", [0x00, 0, 0x04] + PR_READ_918 + [13, 0x00, 0x00, 11, 2])
 
-# pkw: byte 0 = dialect (0 VACON, 1 INVT, 2 PROFIdrive 2.0) + 4 x slowness (0..3 pending calls);
-# then 9-byte steps: op (1 request, 2 service, 4 repeat, 8 reset) + the 8 request bytes.
+# pkw: byte 0 = dialect (0 VACON, 1 INVT, 2 PROFIdrive 2.0) + 4 x slowness (0: the drive answers
+# at once; 1..3: behind the mailbox, answering after every that many services);
+# then 9-byte steps: op (1 request, 2 service, 4 repeat, 8 reset, 16 the drive answers now) + the
+# 8 request bytes.
 def pkw_step(op, *words):
     return [op] + [b for w in words for b in w.to_bytes(2, "big")]
 

@@ -4,7 +4,7 @@
 //! * [`FakeDrive`] — the one fake drive parameter table of the workspace's tests;
 //! * [`Mailbox`] — any table behind an asynchronous transport, as the drive sits behind the
 //!   DPM parameter mailbox (`pbcard_dpm::params`): a value not answered yet is sent for and the
-//!   table is [`ParameterAccess::pending`]until the test lets the drive answer.
+//!   table is [`ParameterAccess::pending`] until the test lets the drive answer.
 //!
 //! `no_std` and allocation-free like the rest of the crate.
 
@@ -14,30 +14,47 @@ pub use fake_drive::{FakeDrive, Indirect, Quirk, QuirkPnu, Refusal, Rule, LAST_P
 
 use heapless::Vec;
 
-use crate::profile::param::{ErrorValue, Format, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter};
+use crate::profile::param::{
+    Attribute, ErrorValue, Format, ParamAddress, ParamError, ParameterAccess, ValueBlock, ValueWriter,
+};
 
-/// The most value bytes one mailbox operation carries (one double word, or a short array).
-pub const MAILBOX_VALUE_LEN: usize = 16;
-/// The most answers a [`Mailbox`] keeps for one job (the oldest is forgotten first).
-pub const MAILBOX_ANSWERS: usize = 16;
+/// The most value bytes one mailbox operation carries (a whole parameter response's values).
+pub const MAILBOX_VALUE_LEN: usize = 240;
+/// The most answers a [`Mailbox`] keeps for one job: one for each parameter of the longest
+/// request (39, reference §5.2) and one more. A job that asks more is answered 0x11 for the
+/// rest (nothing is forgotten within a job, so no value is sent for twice).
+pub const MAILBOX_ANSWERS: usize = 40;
 
-/// One operation sent through a [`Mailbox`].
+/// One operation sent through a [`Mailbox`]: a read of the address's attribute (value,
+/// description or text) or a change of its values, on the axis.
+// A test double, allocation-free like the crate: the bytes stay inline (no `Box` in `no_std`).
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq)]
 pub enum MailboxOp {
-    /// Read the value(s) at the address, on the axis.
+    /// Read the value(s), the description or the text at the address, on the axis.
     Read(u8, ParamAddress),
-    /// Change the value(s) at the address, on the axis, to the bytes in the format.
-    Write(u8, ParamAddress, Format, Vec<u8, MAILBOX_VALUE_LEN>),
+    /// Change the value(s) at the address, on the axis: the format, the number of values, the bytes.
+    Write(u8, ParamAddress, Format, u8, Vec<u8, MAILBOX_VALUE_LEN>),
 }
 
-type Answer = Result<Vec<u8, MAILBOX_VALUE_LEN>, ParamError>;
+/// What the drive answered to a read: the format it gave, the number of values, their bytes.
+#[derive(Debug, Clone, PartialEq)]
+struct Reply {
+    format: Option<Format>,
+    count: u8,
+    bytes: Vec<u8, MAILBOX_VALUE_LEN>,
+}
 
-/// A table behind an asynchronous transport (the DPM parameter mailbox, `pbcard_dpm::params`):
-/// a value not answered yet is sent for, one operation at a time, and answered 0x11 "not
-/// executable" with [`ParameterAccess::pending`] true while it is in flight; [`Mailbox::deliver`]
-/// lets the drive answer it; answers are kept for the job and forgotten at
-/// [`ParameterAccess::start_job`]. A value missing from the answers is either in flight or waits
-/// for the one in flight. Every axis is forwarded: the drive judges it.
+type Answer = Result<Reply, ParamError>;
+
+/// A table behind an asynchronous transport, like the drive behind the DPM parameter mailbox
+/// (`pbcard_dpm::params`): a value, description or text not answered yet is sent for, one
+/// operation at a time, and answered 0x11 "not executable" with
+/// [`ParameterAccess::pending`] true while it is in flight; [`Mailbox::deliver`] lets the drive
+/// answer it; the answers (with the drive's format and number of values) are kept for the job
+/// and forgotten at [`ParameterAccess::start_job`]. A value missing from the answers is either
+/// in flight or waits for the one in flight. The axes are the drive's ([`ParameterAccess::has_axis`]
+/// is forwarded: the card knows them from the drive's identification).
 #[derive(Debug, Clone)]
 pub struct Mailbox<T> {
     /// The drive behind the transport.
@@ -66,20 +83,24 @@ impl<T: ParameterAccess> Mailbox<T> {
             MailboxOp::Read(axis, a) => {
                 let mut buf = [0u8; MAILBOX_VALUE_LEN];
                 let mut w = ValueWriter::new(&mut buf);
-                self.drive
-                    .read_value(*axis, a, &mut w)
-                    .and_then(|()| Vec::from_slice(w.bytes()).map_err(|_| ErrorValue::RESPONSE_TOO_LONG.into()))
+                let r = match a.attribute {
+                    Attribute::Description => self.drive.read_description(*axis, a, &mut w),
+                    Attribute::Text => self.drive.read_text(*axis, a, &mut w),
+                    _ => self.drive.read_value(*axis, a, &mut w),
+                };
+                r.and_then(|()| {
+                    let bytes =
+                        Vec::from_slice(w.bytes()).map_err(|_| ParamError::from(ErrorValue::RESPONSE_TOO_LONG))?;
+                    Ok(Reply { format: w.format(), count: w.count(), bytes })
+                })
             }
-            MailboxOp::Write(axis, a, format, bytes) => {
-                let count = format.value_size().map_or(1, |s| (bytes.len() / s.max(1)) as u8);
-                let block = ValueBlock { format: *format, count, bytes };
-                self.drive.write_value(*axis, a, &block).map(|()| Vec::new())
+            MailboxOp::Write(axis, a, format, count, bytes) => {
+                let block = ValueBlock { format: *format, count: *count, bytes };
+                self.drive.write_value(*axis, a, &block).map(|()| Reply { format: None, count: 0, bytes: Vec::new() })
             }
         };
         self.delivered += 1;
-        if self.answers.is_full() {
-            let _ = self.answers.remove(0);
-        }
+        // Room for every parameter of a request (`ask` sends nothing once it is full).
         let _ = self.answers.push((op, answer));
     }
 
@@ -87,23 +108,38 @@ impl<T: ParameterAccess> Mailbox<T> {
         if let Some((_, answer)) = self.answers.iter().find(|(o, _)| *o == op) {
             return answer.clone();
         }
-        self.inflight.get_or_insert(op);
+        if !self.answers.is_full() {
+            self.inflight.get_or_insert(op);
+        }
         Err(ErrorValue::NOT_EXECUTABLE.into())
+    }
+
+    fn read(&mut self, axis: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        let r = self.ask(MailboxOp::Read(axis, *a))?;
+        if let Some(f) = r.format {
+            out.set_format(f);
+        }
+        let size = if r.count == 0 { 0 } else { r.bytes.len() / usize::from(r.count) };
+        r.bytes.chunks(size.max(1)).try_for_each(|v| out.push_raw(v))
     }
 }
 
 impl<T: ParameterAccess> ParameterAccess for Mailbox<T> {
-    fn has_axis(&self, _axis: u8) -> bool {
-        true
+    fn has_axis(&self, axis: u8) -> bool {
+        self.drive.has_axis(axis)
     }
     fn read_value(&mut self, axis: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-        let bytes = self.ask(MailboxOp::Read(axis, *a))?;
-        out.set_format(if bytes.len() == 4 { Format::DOUBLE_WORD } else { Format::WORD });
-        out.push_raw(&bytes)
+        self.read(axis, a, out)
     }
     fn write_value(&mut self, axis: u8, a: &ParamAddress, v: &ValueBlock<'_>) -> Result<(), ParamError> {
         let bytes = Vec::from_slice(v.bytes).map_err(|_| ParamError::from(ErrorValue::VALUE_IMPERMISSIBLE))?;
-        self.ask(MailboxOp::Write(axis, *a, v.format, bytes)).map(|_| ())
+        self.ask(MailboxOp::Write(axis, *a, v.format, v.count, bytes)).map(|_| ())
+    }
+    fn read_description(&mut self, axis: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        self.read(axis, a, out)
+    }
+    fn read_text(&mut self, axis: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        self.read(axis, a, out)
     }
     fn pending(&self) -> bool {
         self.inflight.is_some()
@@ -117,7 +153,7 @@ impl<T: ParameterAccess> ParameterAccess for Mailbox<T> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::profile::param::{respond, Attribute, ParamRequest, MAX_LEN};
+    use crate::profile::param::{respond, ParamRequest, MAX_LEN};
     use crate::profile::table::{slots, ParamDef, Table, Type};
 
     fn value(pnu: u16, subindex: u16) -> ParamAddress {
@@ -156,7 +192,8 @@ mod tests {
             .indirect(Indirect {
                 pnu: 10001,
                 not_found: ErrorValue::VACON_DRIVE_PARAMETER_NOT_FOUND,
-                drive_only: 100..=199,
+                ids: 100..=199,
+                ids_only: true,
             })
             .rule(min_le_max)
             .word_only()
@@ -199,7 +236,7 @@ mod tests {
         assert_eq!(read(&mut d, 1, &value(10001, 102)), Ok(word(5000).to_vec()));
         assert_eq!(read(&mut d, 1, &value(102, 0)), Err(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER.into()));
         assert_eq!(read(&mut d, 1, &value(10001, 150)), Err(ErrorValue::VACON_DRIVE_PARAMETER_NOT_FOUND.into()));
-        assert_eq!(read(&mut d, 1, &value(20, 0)), Ok(word(7).to_vec()), "outside drive_only: direct");
+        assert_eq!(read(&mut d, 1, &value(20, 0)), Ok(word(7).to_vec()), "outside the IDs: direct");
         // Two IDs in one request: 101, 102.
         let two = ParamAddress { elements: 2, ..value(10001, 101) };
         assert_eq!(read(&mut d, 1, &two), Ok([word(0), word(5000)].concat()));
@@ -239,6 +276,42 @@ mod tests {
         let mut out = [0u8; MAX_LEN];
         let n = respond(&ParamRequest::parse(&req).unwrap(), &mut d, &mut out);
         assert_eq!(&out[..n], &[1, 0x81, 0, 3, 0x44, 1, 0, 0x15, 0x44, 1, 0, 0x05, 0x09, 3, b'a', b'b', b'c', 0]);
+    }
+
+    /// Through the mailbox a request is answered as the drive answers it directly: formats and
+    /// numbers of values (words, a string, a float), descriptions, texts, the axes, a job of 39
+    /// parameters (reference §5.2's longest request).
+    #[test]
+    fn the_mailbox_answers_as_the_drive_does() {
+        let requests: [&[u8]; 3] = [
+            // PNU 100 × 4, PNU 5 × 16 (VisibleString), PNU 7 (float), PNU 10 (Integer16).
+            &[1, 1, 1, 4, 0x10, 4, 0, 100, 0, 0, 0x10, 16, 0, 5, 0, 0, 0x10, 1, 0, 7, 0, 0, 0x10, 1, 0, 10, 0, 0],
+            // Description element 1 of PNU 2, text 2 of PNU 1, axis 7.
+            &[2, 1, 1, 2, 0x20, 1, 0, 2, 0, 1, 0x30, 1, 0, 1, 0, 2],
+            &[3, 1, 7, 1, 0x10, 1, 0, 2, 0, 0],
+        ];
+        // 39 different values: PNU 9, subindex 0 … 38.
+        let many: std::vec::Vec<u8> =
+            [4u8, 1, 0, 39].into_iter().chain((0..39u8).flat_map(|i| [0x10, 1, 0, 9, 0, i])).collect();
+        for req in requests.iter().copied().chain([&many[..]]) {
+            let req = ParamRequest::parse(req).unwrap();
+            let (mut direct, mut out) = ([0u8; MAX_LEN], [0u8; MAX_LEN]);
+            let n = respond(&req, &mut FakeDrive::new(), &mut direct);
+            let mut m = Mailbox::new(FakeDrive::new());
+            let mut passes = 0;
+            m.start_job();
+            let k = loop {
+                let k = respond(&req, &mut m, &mut out);
+                if !m.pending() {
+                    break k;
+                }
+                m.deliver();
+                passes += 1;
+                assert!(passes < 100, "job never done");
+            };
+            assert_eq!(&out[..k], &direct[..n]);
+            assert!(m.drive.read_calls <= 39, "a value sent for twice");
+        }
     }
 
     #[test]

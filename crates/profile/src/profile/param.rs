@@ -999,7 +999,12 @@ mod tests {
     }
 
     fn vacon() -> Vacon {
-        let ids = Indirect { pnu: 10001, not_found: ErrorValue::VACON_DRIVE_PARAMETER_NOT_FOUND, drive_only: 1..=900 };
+        let ids = Indirect {
+            pnu: 10001,
+            not_found: ErrorValue::VACON_DRIVE_PARAMETER_NOT_FOUND,
+            ids: 1..=900,
+            ids_only: true,
+        };
         FakeDrive::with_table(Table::new(VACON_DEFS))
             .on_axis(1)
             .indirect(ids)

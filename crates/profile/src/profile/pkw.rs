@@ -735,8 +735,8 @@ mod tests {
         let ids = Indirect {
             pnu: VACON_DRIVE_PARAMETER,
             not_found: ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER,
-            #[allow(clippy::reversed_empty_ranges)]
-            drive_only: 1..=0,
+            ids: 0..=u16::MAX,
+            ids_only: false,
         };
         FakeDrive::with_table(TABLE).indirect(ids)
     }

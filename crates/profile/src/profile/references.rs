@@ -242,8 +242,12 @@ mod tests {
     const INVT: &[ParamDef] = &[ParamDef::new(3, "Max frequency", Type::U16).with_default(10000)];
 
     fn drive<const N: usize>(defs: &'static [ParamDef]) -> Mailbox<FakeDrive<N>> {
-        let ids =
-            Indirect { pnu: VACON_ID, not_found: ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER, drive_only: 101..=111 };
+        let ids = Indirect {
+            pnu: VACON_ID,
+            not_found: ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER,
+            ids: 101..=111,
+            ids_only: true,
+        };
         Mailbox::new(FakeDrive::with_table(Table::new(defs)).any_axis().indirect(ids))
     }
 

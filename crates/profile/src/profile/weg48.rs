@@ -249,7 +249,7 @@ mod tests {
     }
 
     fn cfw500() -> FakeDrive<N> {
-        FakeDrive::with_table(Table::new(CFW500)).on_axis(0).rule(factory_settings)
+        FakeDrive::with_table(Table::new(CFW500)).on_axis(0).rule(factory_settings).without_descriptions()
     }
 
     /// The motor runs: P0120 is refused with 0x11 "not executable".

@@ -3,7 +3,7 @@
 //! Every test that needs a drive's parameters — the profile's own tests (record 47 against the
 //! manuals' examples, record 48, PKW, the reference reads, the card's PNUs), the DP-V1 record
 //! tests (`host-tests/tests/dpv1.rs`), the DPM mailbox tests, the fast path's differential
-//! check and the fuzz targets `profidrive` and `node_dpv1` — reads and writes this one type
+//! check and the fuzz targets `profidrive`, `node_dpv1` and `pkw` — reads and writes this one type
 //! through [`ParameterAccess`]. A test configures it instead of writing a table of its own:
 //!
 //! * **the standard PNUs** ([`FakeDrive::new`], [`FakeDrive::standard`]): thirteen PNUs, each
@@ -15,7 +15,8 @@
 //! * **behaviour** a real drive has and a plain table has not: the axes (DO-IDs) it answers,
 //!   VACON's indirect drive-parameter PNU 10001 with the ID in the subindex ([`Indirect`],
 //!   OPTE3/E5 §6.4.4.7), a cross-parameter change rule ([`Rule`], e.g. ID 101 ≤ ID 102,
-//!   §6.4.4.11), writes that accept the untyped Word only (CFW-11 §4.2.5, VACON Table 42), no
+//!   §6.4.4.11), writes that accept the untyped format only — Word, or Double word for a 32-bit
+//!   parameter (CFW-11 §4.2.5, VACON Table 42) —, no
 //!   descriptions (VACON: the default 0x09), refused changes ([`Refusal`]: "not while running",
 //!   0x11, CFW500 P0120), and PNUs that break the table contract on purpose ([`QuirkPnu`]: the
 //!   response encoder must still answer a well-formed 0x05 / 0x15);
@@ -45,8 +46,15 @@
 //! Axes 0 (WEG) and 1 (VACON) exist. Descriptions: element 0 (46 bytes), 1 (identifier) and
 //! 6 (name) for PNUs 1..=10 except 8; PNU 200 element 1 only.
 //!
-//! A PNU is looked up in this order: the quirk PNUs, the standard PNUs (when on), the indirect
-//! PNU, the table; a PNU in none of them is 0x00 "impermissible parameter number".
+//! A PNU is looked up in this order — for values, descriptions and texts alike: the quirk PNUs
+//! (no description, no text), the standard PNUs (when on), the indirect PNU, the table; a PNU
+//! in none of them is 0x00 "impermissible parameter number" (a text: 0x0F "no text array", as
+//! VACON answers every text request). Without descriptions every description is 0x09.
+//!
+//! A change of a table parameter is judged in this order: a refusal, the untyped-only format,
+//! the table's own checks (subindex 0x03 / 0x04, read-only 0x01, format 0x05, limits 0x02), then
+//! the rule, element by element, against the table before the change; a rule that refuses
+//! writes nothing.
 
 use core::ops::{Range, RangeInclusive};
 
@@ -65,11 +73,15 @@ pub type Rule<const N: usize> = fn(&Table<N>, u16, i64) -> Result<(), ErrorValue
 pub struct Indirect {
     /// The indirect PNU (10001).
     pub pnu: u16,
-    /// The error for an ID the table does not have (VACON: 0x65 "drive parameter not found").
+    /// The error for an ID the table does not have, or that is not in `ids` (VACON: 0x6C
+    /// "drive parameter not found").
     pub not_found: ErrorValue,
-    /// Table PNUs that are drive parameters only: reached through `pnu`, 0x00 when addressed
-    /// directly (empty: every table PNU both ways).
-    pub drive_only: RangeInclusive<u16>,
+    /// The table PNUs that are drive parameters (application IDs): only these are reached
+    /// through `pnu`.
+    pub ids: RangeInclusive<u16>,
+    /// Whether the drive parameters are reached through `pnu` only (0x00 when addressed
+    /// directly, as VACON's are); otherwise both ways.
+    pub ids_only: bool,
 }
 
 /// Changes the drive refuses in its present state (e.g. "only when stopped": 0x11 not executable).
@@ -279,7 +291,7 @@ impl<const N: usize> FakeDrive<N> {
 
     /// The table definition `pnu` addresses directly, if any.
     fn direct(&self, pnu: u16) -> Option<&'static ParamDef> {
-        if self.indirect.as_ref().is_some_and(|i| i.drive_only.contains(&pnu)) {
+        if self.indirect.as_ref().is_some_and(|i| i.ids_only && i.ids.contains(&pnu)) {
             return None;
         }
         self.table.def(pnu)
@@ -290,6 +302,9 @@ impl<const N: usize> FakeDrive<N> {
     fn drive_parameter(&self, a: &ParamAddress, k: u8) -> Result<ParamAddress, ParamError> {
         let not_found = self.indirect.as_ref().map_or(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER, |i| i.not_found);
         let id = a.subindex.checked_add(u16::from(k)).ok_or(ErrorValue::INVALID_SUBINDEX)?;
+        if !self.indirect.as_ref().is_some_and(|i| i.ids.contains(&id)) {
+            return Err(not_found.into());
+        }
         self.table.def(id).ok_or(not_found)?;
         Ok(ParamAddress { attribute: a.attribute, elements: 1, pnu: id, subindex: 0 })
     }
@@ -298,28 +313,28 @@ impl<const N: usize> FakeDrive<N> {
         self.indirect.as_ref().is_some_and(|i| i.pnu == pnu)
     }
 
-    /// Change of table parameter `a` (directly addressed): refusal, format, rule, then the table.
+    /// Change of table parameter `a`: the untyped-only format, the table's own checks, then
+    /// the rule against the table before the change (module documentation).
     fn write_table(&mut self, axis: u8, a: &ParamAddress, v: &ValueBlock<'_>) -> Result<(), ParamError> {
         let def = self.table.def(a.pnu).ok_or(ErrorValue::IMPERMISSIBLE_PARAMETER_NUMBER)?;
         if !def.read_only && self.word_only && v.format != def.ty.untyped_format() {
             return Err(ErrorValue::INCORRECT_DATA_TYPE.into());
         }
-        if let Some(rule) = self.rule {
-            for k in 0..v.count as usize {
-                let Some(raw) = v.value(k) else { break };
-                let x = match *raw {
-                    [a, b] => match def.ty.size() {
-                        2 if def.ty.min() < 0 => i64::from(i16::from_be_bytes([a, b])),
-                        _ => i64::from(u16::from_be_bytes([a, b])),
-                    },
-                    [a, b, c, d] if def.ty.min() < 0 => i64::from(i32::from_be_bytes([a, b, c, d])),
-                    [a, b, c, d] => i64::from(u32::from_be_bytes([a, b, c, d])),
-                    _ => break,
-                };
-                rule(&self.table, a.pnu, x).map_err(|e| at(a, k, e, def.is_array()))?;
+        let Some(rule) = self.rule else { return self.table.write_value(axis, a, v) };
+        let mut next = self.table.clone();
+        if let Err(e) = next.write_value(axis, a, v) {
+            // The table's own answer; the elements before the failing one are written.
+            self.table = next;
+            return Err(e);
+        }
+        for k in 0..a.count() {
+            let sub = a.subindex.wrapping_add(u16::from(k));
+            if let Some(x) = next.get(a.pnu, sub) {
+                rule(&self.table, a.pnu, x).map_err(|e| at(a, usize::from(k), e, def.is_array()))?;
             }
         }
-        self.table.write_value(axis, a, v)
+        self.table = next;
+        Ok(())
     }
 }
 
@@ -392,11 +407,11 @@ impl<const N: usize> ParameterAccess for FakeDrive<N> {
     }
 
     fn read_description(&mut self, axis: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-        if self.is_standard(a.pnu) || (self.standard && self.quirk(a.pnu).is_none() && self.direct(a.pnu).is_none()) {
-            return self.describe_standard(a, out);
-        }
-        if !self.descriptions {
+        if self.quirk(a.pnu).is_some() || !self.descriptions {
             return Err(ErrorValue::NO_DESCRIPTION.into());
+        }
+        if self.is_standard(a.pnu) {
+            return self.describe_standard(a, out);
         }
         if self.is_indirect(a.pnu) {
             let id = self.drive_parameter(a, 0)?;
@@ -404,20 +419,17 @@ impl<const N: usize> ParameterAccess for FakeDrive<N> {
         }
         match self.direct(a.pnu) {
             Some(_) => self.table.read_description(axis, a, out),
-            None if self.quirk(a.pnu).is_some() => Err(ErrorValue::NO_DESCRIPTION.into()),
             None => Err(not_found()),
         }
     }
 
-    fn read_text(&mut self, axis: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
-        if self.standard && a.pnu == 1 {
+    fn read_text(&mut self, _axis: u8, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
+        if self.quirk(a.pnu).is_none() && self.is_standard(a.pnu) && a.pnu == 1 {
             let t = P1_TEXTS.get(a.subindex as usize).ok_or(ErrorValue::INVALID_SUBINDEX)?;
             return out.push_str(t);
         }
-        match self.direct(a.pnu) {
-            Some(_) if !self.is_standard(a.pnu) => self.table.read_text(axis, a, out),
-            _ => Err(ErrorValue::NO_TEXT_ARRAY.into()),
-        }
+        // No other PNU has a text array (the table's: 0x0F too).
+        Err(ErrorValue::NO_TEXT_ARRAY.into())
     }
 }
 
