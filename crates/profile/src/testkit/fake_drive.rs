@@ -338,6 +338,7 @@ impl<const N: usize> FakeDrive<N> {
     }
 }
 
+/// Element `k` of a write failed with `value`: for an array, name its subindex in the additional info.
 fn at(a: &ParamAddress, k: usize, value: ErrorValue, array: bool) -> ParamError {
     ParamError { value, additional_info: array.then(|| a.subindex.wrapping_add(k as u16)) }
 }
@@ -484,11 +485,6 @@ fn bad_type() -> ParamError {
     ErrorValue::INCORRECT_DATA_TYPE.into()
 }
 
-/// Element `i` of a write failed with `value`: name the subindex.
-fn at_element(a: &ParamAddress, i: usize, value: ErrorValue) -> ParamError {
-    ParamError { value, additional_info: Some(a.subindex.wrapping_add(i as u16)) }
-}
-
 impl<const N: usize> FakeDrive<N> {
     fn read_standard(&mut self, a: &ParamAddress, out: &mut ValueWriter<'_>) -> Result<(), ParamError> {
         match a.pnu {
@@ -543,9 +539,9 @@ impl<const N: usize> FakeDrive<N> {
             2 | 5 | 9 | 101 | 200 => return Err(ErrorValue::VALUE_CANNOT_BE_CHANGED.into()),
             100 => {
                 for (i, e) in range(4, a)?.enumerate() {
-                    let x = v.u16(i).ok_or_else(|| at_element(a, i, ErrorValue::INCORRECT_DATA_TYPE))?;
+                    let x = v.u16(i).ok_or_else(|| at(a, i, ErrorValue::INCORRECT_DATA_TYPE, true))?;
                     if x > 1000 {
-                        return Err(at_element(a, i, ErrorValue::LIMIT_EXCEEDED));
+                        return Err(at(a, i, ErrorValue::LIMIT_EXCEEDED, true));
                     }
                     self.p100[e] = x;
                 }
@@ -553,9 +549,9 @@ impl<const N: usize> FakeDrive<N> {
             3 => {
                 format_in(v, &[Format::WORD, Format::UNSIGNED16])?;
                 for (i, e) in range(10, a)?.enumerate() {
-                    let x = v.u16(i).ok_or_else(|| at_element(a, i, ErrorValue::INCORRECT_DATA_TYPE))?;
+                    let x = v.u16(i).ok_or_else(|| at(a, i, ErrorValue::INCORRECT_DATA_TYPE, true))?;
                     if x > 50_000 {
-                        return Err(at_element(a, i, ErrorValue::LIMIT_EXCEEDED));
+                        return Err(at(a, i, ErrorValue::LIMIT_EXCEEDED, true));
                     }
                     self.p3[e] = x;
                 }
@@ -563,13 +559,13 @@ impl<const N: usize> FakeDrive<N> {
             4 => {
                 format_in(v, &[Format::DOUBLE_WORD, Format::UNSIGNED32, Format::INTEGER32])?;
                 for (i, e) in range(4, a)?.enumerate() {
-                    self.p4[e] = v.u32(i).ok_or_else(|| at_element(a, i, ErrorValue::INCORRECT_DATA_TYPE))?;
+                    self.p4[e] = v.u32(i).ok_or_else(|| at(a, i, ErrorValue::INCORRECT_DATA_TYPE, true))?;
                 }
             }
             6 => {
                 format_in(v, &[Format::BYTE, Format::UNSIGNED8, Format::OCTET_STRING])?;
                 for (i, e) in range(200, a)?.enumerate() {
-                    self.p6[e] = v.u8(i).ok_or_else(|| at_element(a, i, ErrorValue::INCORRECT_DATA_TYPE))?;
+                    self.p6[e] = v.u8(i).ok_or_else(|| at(a, i, ErrorValue::INCORRECT_DATA_TYPE, true))?;
                 }
             }
             7 => {
